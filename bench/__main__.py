@@ -1,0 +1,7 @@
+"""``python -m bench`` — the levelset-bench command line."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

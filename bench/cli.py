@@ -1,0 +1,137 @@
+"""The command line: ``python -m bench <command> ...``.
+
+Each subcommand lives in a small ``_cmd_*`` function registered in :func:`build_parser`.  Errors a user
+can fix (:class:`phantoms.InputError`) print one line on stderr and exit with code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+import numpy as np
+
+from phantoms import NOISE_KINDS, PHANTOMS, VARIANTS, InputError, add_noise, get_phantom, load_volume, save_volume
+
+EXIT_USAGE = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse exits with code 2 on usage errors already; keep messages one line."""
+
+
+def _cmd_phantoms(args) -> int:
+    print(f"{'name':<15} {'genus':>5} {'creases':>7} {'paper SNR':>9}  parameters / description")
+    for name, cls in PHANTOMS.items():
+        ph = cls()
+        snr = "-" if ph.paper_snr_db is None else f"{ph.paper_snr_db:g} dB"
+        params = ", ".join(f"{k}={v}" for k, v in ph.params.items())
+        print(f"{name:<15} {ph.genus:>5} {str(ph.has_creases).lower():>7} {snr:>9}  {params}")
+        print(f"{'':<40}{ph.description}")
+    print(f"\nvariants: {', '.join(VARIANTS)} (default sdf); grid: N³ points over [-2.5, 2.5]³ (default N = 96)")
+    return 0
+
+
+def _cmd_volume(args) -> int:
+    ph = get_phantom(args.phantom)
+    vol = ph.volume(n=args.n, extent=args.extent, variant=args.variant)
+    snr = args.snr
+    if args.noise != "none" and snr is None:
+        snr = ph.paper_snr_db
+        if snr is None:
+            raise InputError(f"--snr is required for phantom {args.phantom!r} (no paper SNR)")
+    vol, achieved = add_noise(vol, args.noise, snr, seed=args.seed)
+    path = save_volume(args.output, vol)
+    print(f"wrote {path}: {args.phantom} ({args.variant}), N = {args.n}, spacing {vol.h:.6g}")
+    if args.noise == "none":
+        print("noise: none")
+    else:
+        print(f"noise: {args.noise}, seed {args.seed}, SNR requested {snr:.3f} dB, achieved {achieved:.3f} dB")
+    return 0
+
+
+def _cmd_info(args) -> int:
+    vol = load_volume(args.file, mask=True if args.mask else None)
+    s = vol.summary()
+    print(f"file:         {args.file}")
+    print(f"shape:        {s['shape']}")
+    print(f"origin:       {[round(v, 6) for v in s['origin']]}")
+    print(f"spacing:      {[round(v, 6) for v in s['spacing']]}")
+    print(f"value range:  [{s['min']:.6g}, {s['max']:.6g}]")
+    print(f"zero crossing: {'yes' if s['zero_crossing'] else 'no'}")
+    if not s["zero_crossing"]:
+        print("closed:       no (the volume has no zero level set)")
+    elif s["closed"]:
+        print("closed:       yes (no zero crossing on the boundary faces of the grid)")
+    else:
+        print("closed:       no (the zero level set reaches the boundary of the grid)")
+    return 0
+
+
+def _finite_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite: {text!r}")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="python -m bench",
+                     description="levelset-bench: benchmark surface reconstruction from level-set volumes.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    p = sub.add_parser("phantoms", help="list the phantoms and their parameters",
+                       description="List the built-in phantoms, their parameters and the paper's SNR.")
+    p.set_defaults(func=_cmd_phantoms)
+
+    p = sub.add_parser("volume", help="write a phantom volume (.npz)",
+                       description="Sample a phantom on an N³ grid, optionally add seeded noise, write .npz "
+                                   "(keys values, origin, spacing) and print the achieved SNR.")
+    p.add_argument("phantom", help=f"one of: {', '.join(PHANTOMS)}")
+    p.add_argument("--n", type=int, default=96, help="grid points per axis (>= 8; default 96)")
+    p.add_argument("--extent", type=_finite_float, default=2.5, help="grid covers [-E, E]³ (default 2.5)")
+    p.add_argument("--variant", choices=VARIANTS, default="sdf", help="sdf (exact distance) or paper polynomial")
+    p.add_argument("--noise", choices=NOISE_KINDS, default="none", help="noise kind (default none)")
+    p.add_argument("--snr", type=_finite_float, default=None,
+                   help="requested SNR in dB (default: the paper's SNR for the phantom)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("-o", "--output", required=True, help="output .npz file")
+    p.set_defaults(func=_cmd_volume)
+
+    p = sub.add_parser("info", help="describe a volume file",
+                       description="Read a volume (.npz, .npy, .nii, .nii.gz; binary masks become signed "
+                                   "distance volumes) and print its shape, origin, spacing, value range and "
+                                   "whether its zero level set is closed inside the grid.")
+    p.add_argument("file")
+    p.add_argument("--mask", action="store_true", help="require the file to be a binary mask")
+    p.set_defaults(func=_cmd_info)
+
+    for register in _EXTRA_COMMANDS:
+        register(sub)
+    return parser
+
+
+#: functions ``register(subparsers)`` adding further subcommands (methods, reconstruct, run, ...)
+_EXTRA_COMMANDS: list = []
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

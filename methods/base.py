@@ -1,0 +1,212 @@
+"""The one small interface every reconstruction method implements, and the method registry.
+
+A method is a subclass of :class:`Method` with
+
+* ``name`` – the registry name (``python -m bench methods`` lists it);
+* ``description`` – one line;
+* ``params`` – a dict ``name -> Param(default, doc, ...)``: every tunable parameter, documented, with its default;
+* ``reconstruct(volume) -> Reconstruction`` – a closed, outward-oriented triangle mesh in world coordinates.
+
+Methods never import the benchmark (``bench``): they see a :class:`phantoms.Volume` and return a mesh.
+User methods are found through the entry-point group ``levelset_bench.methods`` (see README, "Adding a
+method"); each entry point names a :class:`Method` subclass.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from importlib import metadata
+from typing import Any, ClassVar
+
+import numpy as np
+import trimesh
+
+from phantoms import InputError, Volume
+
+__all__ = [
+    "Param", "Method", "Reconstruction", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
+    "available_methods", "get_method", "register_method", "method_names", "check_volume",
+]
+
+ENTRY_POINT_GROUP = "levelset_bench.methods"
+
+#: built-in methods: name -> "module:Class" (imported lazily so one broken adapter cannot break the rest)
+BUILTIN_METHODS: dict[str, str] = {
+    "shape_gradient": "methods.shape_gradient:ShapeGradient",
+    "marching_cubes": "methods.marching_cubes:MarchingCubes",
+    "mc_taubin": "methods.mc_taubin:MCTaubin",
+    "distmesh": "methods.distmesh:DistMesh",
+    "poisson": "methods.poisson:ScreenedPoisson",
+}
+
+
+@dataclass(frozen=True)
+class Param:
+    """A documented method parameter.
+
+    ``type`` is the Python type values are converted to (bool, int, float, str, or ``object`` for free-form
+    values such as a mesh); ``choices`` restricts the value to a set; ``min``/``max`` bound numbers
+    (inclusive).
+    """
+
+    default: Any
+    doc: str
+    type: type = float
+    choices: tuple | None = None
+    min: float | None = None
+    max: float | None = None
+
+    def convert(self, method: str, name: str, value: Any) -> Any:
+        """Convert/validate ``value`` (strings from the command line included); InputError on failure."""
+        where = f"method {method!r}, parameter {name!r}"
+        t = self.type
+        if value is None and self.default is None:
+            return None
+        try:
+            if t is bool:
+                if isinstance(value, str):
+                    low = value.strip().lower()
+                    if low in ("1", "true", "yes", "on"):
+                        value = True
+                    elif low in ("0", "false", "no", "off"):
+                        value = False
+                    else:
+                        raise ValueError(value)
+                elif not isinstance(value, (bool, np.bool_)):
+                    raise ValueError(value)
+                value = bool(value)
+            elif t is int:
+                if isinstance(value, bool):
+                    raise ValueError(value)
+                f = float(value)
+                if f != int(f):
+                    raise ValueError(value)
+                value = int(f)
+            elif t is float:
+                if isinstance(value, bool):
+                    raise ValueError(value)
+                value = float(value)
+                if not np.isfinite(value):
+                    raise ValueError(value)
+            elif t is str:
+                if not isinstance(value, str):
+                    raise ValueError(value)
+        except (TypeError, ValueError):
+            raise InputError(f"{where}: expected {t.__name__}, got {value!r}") from None
+        if self.choices is not None and value not in self.choices:
+            raise InputError(f"{where}: {value!r} is not one of {list(self.choices)}")
+        if self.min is not None and value < self.min:
+            raise InputError(f"{where}: {value!r} is below the minimum {self.min}")
+        if self.max is not None and value > self.max:
+            raise InputError(f"{where}: {value!r} is above the maximum {self.max}")
+        return value
+
+
+@dataclass
+class Reconstruction:
+    """What a method returns: the mesh and facts about how it was made.
+
+    ``mesh`` is a closed, outward-oriented ``trimesh.Trimesh`` in world coordinates.  ``info`` holds
+    method facts: e.g. ``iterations``, ``energy_history`` (list of floats), ``stop_reason``, ``snapshots``
+    ({iteration: (vertices, faces)}), per-vertex arrays.  Plain Python/numpy values only.
+    """
+
+    mesh: trimesh.Trimesh
+    info: dict = field(default_factory=dict)
+
+
+class Method:
+    """Base class of the reconstruction methods (see the module docstring)."""
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    params: ClassVar[dict[str, Param]] = {}
+
+    def __init__(self, **params: Any) -> None:
+        unknown = sorted(set(params) - set(self.params))
+        if unknown:
+            valid = ", ".join(self.params) or "(none)"
+            raise InputError(f"method {self.name!r} has no parameter {unknown[0]!r}; valid parameters: {valid}")
+        self.config: dict[str, Any] = {}
+        for key, spec in self.params.items():
+            value = params.get(key, spec.default)
+            self.config[key] = spec.convert(self.name, key, value) if key in params else spec.default
+
+    def reconstruct(self, volume: Volume) -> Reconstruction:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.config.items())
+        return f"{type(self).__name__}({args})"
+
+
+def check_volume(volume: Volume, method: str) -> None:
+    """Raise InputError (naming ``method``) when ``volume`` has no closed zero level set inside the grid."""
+    if not isinstance(volume, Volume):
+        raise InputError(f"method {method!r}: expected a phantoms.Volume, got {type(volume).__name__}")
+    if not volume.has_zero_crossing():
+        raise InputError(
+            f"method {method!r}: the volume has no zero crossing (values in "
+            f"[{volume.values.min():.4g}, {volume.values.max():.4g}]), so there is no surface to reconstruct"
+        )
+    if not volume.is_closed():
+        raise InputError(
+            f"method {method!r}: the zero level set is open — it reaches the boundary of the grid "
+            "(values <= 0 on a boundary face); enlarge the grid so the surface is closed inside it"
+        )
+
+
+_REGISTERED: dict[str, type[Method]] = {}
+
+
+def register_method(cls: type[Method]) -> type[Method]:
+    """Register a Method subclass under ``cls.name`` (the code path entry points also take). Usable as a decorator."""
+    if not (isinstance(cls, type) and issubclass(cls, Method)) or not cls.name:
+        raise InputError(f"{cls!r} is not a Method subclass with a name")
+    _REGISTERED[cls.name] = cls
+    return cls
+
+
+def _load(target: str) -> type[Method]:
+    module, _, attr = target.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+def available_methods() -> dict[str, type[Method]]:
+    """Every method: the built-ins, then entry points of group ``levelset_bench.methods``, then registered ones.
+
+    A built-in or plug-in that fails to import is skipped with a warning rather than breaking the others.
+    """
+    import warnings
+
+    out: dict[str, type[Method]] = {}
+    for name, target in BUILTIN_METHODS.items():
+        try:
+            out[name] = _load(target)
+        except (ImportError, AttributeError) as exc:
+            warnings.warn(f"built-in method {name!r} unavailable: {exc}", stacklevel=2)
+    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            cls = ep.load()
+        except Exception as exc:  # a broken plug-in must not take the suite down
+            warnings.warn(f"plug-in method {ep.name!r} ({ep.value}) failed to load: {exc}", stacklevel=2)
+            continue
+        if isinstance(cls, type) and issubclass(cls, Method):
+            out[cls.name or ep.name] = cls
+        else:
+            warnings.warn(f"plug-in {ep.name!r} ({ep.value}) is not a methods.Method subclass", stacklevel=2)
+    out.update(_REGISTERED)
+    return out
+
+
+def method_names() -> list[str]:
+    return list(available_methods())
+
+
+def get_method(name: str, **params: Any) -> Method:
+    """An instance of the method called ``name`` with ``params``; InputError for unknown names/parameters."""
+    methods = available_methods()
+    if name not in methods:
+        raise InputError(f"unknown method {name!r}; valid methods: {', '.join(methods)}")
+    return methods[name](**params)

@@ -223,7 +223,9 @@ class Ellipsoid(Phantom):
         ey = e * y
 
         def F(t):
-            return ((ey / (e2 + t[:, None])) ** 2).sum(1) - 1.0
+            with np.errstate(invalid="ignore", divide="ignore"):
+                q = ey / (e2 + t[:, None])
+            return (np.where(np.isfinite(q), q, 0.0) ** 2).sum(1) - 1.0
 
         lo = np.full(len(p), -m)
         hi = np.maximum(e.max() * np.linalg.norm(y, axis=1) - m, 0.0)
@@ -238,7 +240,9 @@ class Ellipsoid(Phantom):
             if np.all(hi - lo <= 4 * np.finfo(float).eps * np.maximum(1.0, np.abs(lo))):
                 break
         t = 0.5 * (lo + hi)
-        x = e2 * y / (e2 + t[:, None])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            x = e2 * y / (e2 + t[:, None])
+        x = np.where(np.isfinite(x), x, 0.0)  # 0/0 on a degenerate axis: fixed just below
         # degenerate: y = 0 on every smallest axis and the root is at t = -m
         ydeg_zero = np.all(y[:, deg] == 0.0, axis=1)
         if ydeg_zero.any() and (~deg).any():

@@ -1,0 +1,85 @@
+"""The foundation's command line: phantoms, volume, info; --help everywhere; bad input → exit 2."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from bench.cli import build_parser, main
+from phantoms import load_volume
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "bench", *args], capture_output=True, text=True, timeout=120)
+
+
+def test_help_on_every_subcommand():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    for name in sub.choices:
+        r = run(name, "--help")
+        assert r.returncode == 0, (name, r.stderr)
+        assert "usage:" in r.stdout
+
+
+def test_phantoms_lists_every_phantom(capsys):
+    assert main(["phantoms"]) == 0
+    out = capsys.readouterr().out
+    for name in ("sphere", "ellipsoid", "fused_spheres", "cylinder", "torus"):
+        assert name in out
+    assert "44.5 dB" in out and "radius=0.4" in out
+
+
+def test_volume_writes_npz_and_reports_snr(tmp_path):
+    out = tmp_path / "e.npz"
+    r = run("volume", "ellipsoid", "--n", "24", "--noise", "gaussian", "--snr", "30", "--seed", "2", "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    assert "achieved" in r.stdout
+    achieved = float(r.stdout.split("achieved")[1].split("dB")[0])
+    assert abs(achieved - 30) < 0.2
+    vol = load_volume(out)
+    assert vol.shape == (24, 24, 24) and np.isclose(vol.h, 5 / 23)
+    with np.load(out) as data:
+        assert set(data.files) == {"values", "origin", "spacing"}
+
+
+def test_info(tmp_path, capsys):
+    out = tmp_path / "s.npz"
+    assert main(["volume", "sphere", "--n", "16", "-o", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["info", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "(16, 16, 16)" in text and "closed:       yes" in text
+    big = tmp_path / "big.npz"
+    # a sphere of radius 3 in [-2.5, 2.5]³ is cut by the grid boundary
+    np.savez(big, values=np.linalg.norm(np.stack(np.meshgrid(*[np.linspace(-2.5, 2.5, 16)] * 3, indexing="ij")), axis=0) - 3)
+    assert main(["info", str(big)]) == 0
+    assert "closed:       no" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["volume", "blob", "-o", "x.npz"], "valid phantoms"),
+        (["volume", "sphere", "--n", "4", "-o", "x.npz"], "N must be an integer >= 8"),
+        (["volume", "sphere", "--noise", "gaussian", "--snr", "nan", "-o", "x.npz"], "must be finite"),
+        (["info", "does-not-exist.npz"], "no such file"),
+    ],
+)
+def test_bad_input_exit_code_2(tmp_path, args, message):
+    r = subprocess.run([sys.executable, "-m", "bench", *args], capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert r.returncode == 2
+    assert message in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_info_bad_files_exit_2(tmp_path):
+    (tmp_path / "t.npz").write_bytes(b"PK\x03\x04 truncated")
+    np.save(tmp_path / "nan.npy", np.full((8, 8, 8), np.nan))
+    np.save(tmp_path / "flat.npy", np.zeros((8, 8)))
+    np.save(tmp_path / "empty.npy", np.zeros((8, 8, 8), bool))
+    for name, msg in [("t.npz", "cannot read"), ("nan.npy", "NaN"), ("flat.npy", "3-D"), ("empty.npy", "no inside voxels")]:
+        r = run("info", str(tmp_path / name))
+        assert r.returncode == 2, name
+        assert msg in r.stderr and "Traceback" not in r.stderr

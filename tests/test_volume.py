@@ -1,0 +1,106 @@
+"""The volume type: index maps, trilinear interpolation of φ, ∇φ, Hessian, and bad input."""
+
+import numpy as np
+import pytest
+
+from phantoms import InputError, Volume, get_phantom
+
+
+def _vol_from(fn, n=24, lo=-1.0, h=0.1):
+    axis = lo + h * np.arange(n)
+    X = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1)
+    return Volume(fn(X[..., 0], X[..., 1], X[..., 2]), origin=[lo] * 3, spacing=h)
+
+
+def test_world_index_roundtrip():
+    vol = Volume(np.zeros((5, 6, 7)), origin=[1.0, -2.0, 0.5], spacing=[0.5, 0.25, 2.0])
+    p = np.array([[1.0, -2.0, 0.5], [2.25, -1.0, 4.5]])
+    ijk = vol.world_to_index(p)
+    assert np.allclose(ijk, [[0, 0, 0], [2.5, 4, 2]])
+    assert np.allclose(vol.index_to_world(ijk), p)
+    assert np.allclose(vol.upper, [1.0 + 4 * 0.5, -2.0 + 5 * 0.25, 0.5 + 6 * 2.0])
+
+
+def test_trilinear_is_exact_for_trilinear_functions():
+    f = lambda x, y, z: 1 + 2 * x - 3 * y + 0.5 * z + x * y - 2 * y * z + 0.7 * x * y * z
+    vol = _vol_from(f)
+    rng = np.random.default_rng(1)
+    p = rng.uniform(-0.95, 1.25, (500, 3))
+    assert np.allclose(vol(p), f(*p.T), atol=1e-12)
+
+
+def test_gradient_and_hessian_of_quadratic():
+    # central differences are exact for quadratics in the interior; trilinear interpolation of the
+    # (exact, linear) gradient grids is exact too; the Hessian grids are constant.
+    f = lambda x, y, z: x * x + 2 * y * y - z * z + 3 * x * y - y * z + x
+    vol = _vol_from(f)
+    rng = np.random.default_rng(2)
+    p = rng.uniform(-0.7, 0.9, (300, 3))
+    s = vol.sample(p, derivatives=2)
+    x, y, z = p.T
+    g = np.column_stack([2 * x + 3 * y + 1, 4 * y + 3 * x - z, -2 * z - y])
+    assert np.allclose(s.phi, f(x, y, z), atol=0.02)  # trilinear error on a quadratic ~ h²
+    assert np.allclose(s.grad, g, atol=1e-9)
+    H = np.array([[2, 3, 0], [3, 4, -1], [0, -1, -2]], float)
+    assert np.allclose(s.hess, H, atol=1e-9)
+    assert np.allclose(vol.gradient(p), g, atol=1e-9)
+    assert np.allclose(vol.hessian(p), H, atol=1e-9)
+
+
+def test_derivative_grids_are_cached():
+    vol = get_phantom("sphere").volume(n=16)
+    vol.sample(np.zeros((1, 3)), derivatives=2)
+    cached = vol._channel_array(2)
+    vol.sample(np.ones((1, 3)), derivatives=2)
+    assert vol._channel_array(2) is cached
+
+
+def test_sdf_interpolation_near_surface():
+    ph = get_phantom("sphere")
+    vol = ph.volume(n=64)
+    p, n = ph.sample_surface(2000, seed=3)
+    s = vol.sample(p, derivatives=1)
+    assert np.abs(s.phi).max() < vol.h ** 2  # curvature error of linear interpolation of |x| - 1
+    cosang = (s.grad * n).sum(1) / np.linalg.norm(s.grad, axis=1)
+    assert cosang.min() > 0.99
+
+
+def test_outside_points_raise_unless_clamped():
+    vol = get_phantom("sphere").volume(n=16)
+    with pytest.raises(InputError, match="outside the volume"):
+        vol.sample(np.array([[3.0, 0.0, 0.0]]))
+    s = vol.sample(np.array([[3.0, 0.0, 0.0]]), clamp=True)
+    assert np.isclose(s.phi, vol(np.array([[2.5, 0.0, 0.0]]))[0])
+    # exactly on the last grid plane is inside
+    vol.sample(np.array([[2.5, 2.5, 2.5]]))
+
+
+@pytest.mark.parametrize(
+    "values, match",
+    [
+        (np.zeros((4, 4)), "3-D"),
+        (np.zeros((4, 4, 4, 2)), "3-D"),
+        (np.zeros((1, 4, 4)), "at least 2"),
+        (np.where(np.arange(64).reshape(4, 4, 4) == 5, np.nan, 1.0), "NaN"),
+        (np.where(np.arange(64).reshape(4, 4, 4) == 5, np.inf, 1.0), "inf"),
+    ],
+)
+def test_bad_values(values, match):
+    with pytest.raises(InputError, match=match):
+        Volume(values)
+
+
+def test_bad_spacing_and_origin():
+    with pytest.raises(InputError, match="spacing"):
+        Volume(np.zeros((3, 3, 3)), spacing=0.0)
+    with pytest.raises(InputError, match="origin"):
+        Volume(np.zeros((3, 3, 3)), origin=[0, 0])
+
+
+def test_closedness():
+    vol = get_phantom("sphere").volume(n=16)
+    assert vol.has_zero_crossing() and vol.is_closed()
+    cut = get_phantom("sphere", radius=3.0).volume(n=16)
+    assert cut.has_zero_crossing() and not cut.is_closed()
+    none = vol.with_values(np.ones(vol.shape))
+    assert not none.has_zero_crossing() and not none.is_closed()

@@ -118,6 +118,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: functions ``register(subparsers)`` adding further subcommands (methods, reconstruct, run, ...)
 _EXTRA_COMMANDS: list = []
+from .cli_run import register as _register_run  # noqa: E402  (python -m bench run / report)
+_EXTRA_COMMANDS.append(_register_run)
 
 
 def main(argv: list[str] | None = None) -> int:

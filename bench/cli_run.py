@@ -1,0 +1,165 @@
+"""``python -m bench run`` (the benchmark grid) and ``python -m bench report`` (re-render a run's report)."""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import os
+import sys
+from pathlib import Path
+
+from phantoms import InputError
+
+from .config import (RunConfig, builtin_config, config_from_dict, load_config, parse_method_spec,
+                     parse_noise_spec)
+
+RUN_HELP = """\
+Run a phantom x noise x method grid and write results.csv, run.json and index.html into --out.
+Without --config or --quick it runs the paper's grid (bench/configs/paper.toml).
+Grid options (--phantoms, --n, --noise, --seeds, --method, --add-method) override the config.
+Exit code 0 when the grid ran (failed cells are rows of the results), 2 on bad input."""
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1: {text!r}")
+    return v
+
+
+def _nonneg_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not v >= 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0: {text!r}")
+    return v
+
+
+def _int_list(text: str) -> list[int]:
+    try:
+        return [int(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers: {text!r}") from None
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "run", help="run the benchmark grid (default: the paper's) and write the report",
+        description=RUN_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--config", metavar="FILE.toml", help="grid configuration (see bench/configs/*.toml)")
+    src.add_argument("--quick", action="store_true", help="the CI-size grid (bench/configs/quick.toml)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default reports/<timestamp>/)")
+    p.add_argument("--jobs", type=_positive_int, default=None, help="worker processes (default: CPU cores)")
+    p.add_argument("--resume", action="store_true",
+                   help="skip the cells already finished in --out (with neither --config nor --quick, "
+                        "the folder's own config is used)")
+    p.add_argument("--retry-failed", action="store_true", help="with --resume: rerun failed and timed-out cells")
+    p.add_argument("--timeout", type=_nonneg_float, default=None, metavar="S",
+                   help="seconds per cell before it is killed and recorded as timeout (0 = none; "
+                        "default: the config's run.timeout)")
+    p.add_argument("--save-meshes", action="store_true", help="write each cell's mesh to DIR/meshes/<cell_id>.ply")
+    p.add_argument("--no-report", action="store_true", help="skip index.html")
+    p.add_argument("--dry-run", action="store_true", help="validate, list the cells and exit")
+    g = p.add_argument_group("grid overrides")
+    g.add_argument("--phantoms", metavar="A,B", help="comma-separated phantoms")
+    g.add_argument("--n", type=_int_list, metavar="N[,N]", help="grid points per axis")
+    g.add_argument("--noise", metavar="SPEC", help="e.g. none,gaussian,uniform@40 (no @: the paper's SNR)")
+    g.add_argument("--seeds", type=_int_list, metavar="S[,S]", help="noise seeds")
+    g.add_argument("--method", action="append", metavar="SPEC", default=None,
+                   help="replace the config's methods; SPEC = [LABEL=]NAME[:key=value,...]; repeatable")
+    g.add_argument("--add-method", action="append", metavar="SPEC", default=None,
+                   help="add a method to the config's ones (same SPEC); repeatable")
+    g.add_argument("--import", dest="imports", action="append", metavar="MODULE", default=None,
+                   help="import MODULE first (e.g. one that calls methods.register_method); repeatable")
+    g.add_argument("--n-samples", type=_positive_int, default=None, help="surface samples for the distances")
+    p.set_defaults(func=_cmd_run)
+
+    r = subparsers.add_parser("report", help="re-render the HTML report of a run folder",
+                              description="Re-render DIR/index.html from DIR/results.csv, DIR/cells and "
+                                          "DIR/run.json (e.g. after an interrupted run).")
+    r.add_argument("dir", metavar="DIR")
+    r.set_defaults(func=_cmd_report)
+
+
+def _resolve_config(args) -> RunConfig:
+    if args.config:
+        cfg = load_config(args.config)
+    elif args.quick:
+        cfg = builtin_config("quick")
+    elif args.resume and args.out and (Path(args.out) / "config.json").exists():
+        path = Path(args.out) / "config.json"
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise InputError(f"cannot read {str(path)!r}: {exc}") from None
+        cfg = config_from_dict(data, source=str(path))
+    else:
+        cfg = builtin_config("paper")
+    if args.phantoms:
+        cfg.phantoms = [p.strip() for p in args.phantoms.split(",") if p.strip()]
+    if args.n:
+        cfg.n = args.n
+    if args.noise:
+        cfg.noise = parse_noise_spec(args.noise)
+    if args.seeds:
+        if any(s < 0 for s in args.seeds):
+            raise InputError("--seeds: seeds must be >= 0")
+        cfg.seeds = args.seeds
+    if args.imports:
+        cfg.imports = list(dict.fromkeys(cfg.imports + args.imports))
+    if args.method:
+        cfg.methods = [parse_method_spec(s) for s in args.method]
+    if args.add_method:
+        cfg.methods = cfg.methods + [parse_method_spec(s) for s in args.add_method]
+    if args.n_samples:
+        cfg.n_samples = args.n_samples
+    cfg.validate()
+    return cfg
+
+
+def _cmd_run(args) -> int:
+    from .runner import check_output_dir, expand_grid, run_grid
+
+    if args.retry_failed and not args.resume:
+        raise InputError("--retry-failed needs --resume")
+    if args.resume and not args.out:
+        raise InputError("--resume needs --out DIR (the folder of the run to complete)")
+    cfg = _resolve_config(args)
+    cells = expand_grid(cfg)
+    if args.dry_run:
+        for c in cells:
+            print(c["cell_id"])
+        print(f"{len(cells)} cells ({cfg.name})")
+        return 0
+    out = Path(args.out) if args.out else Path("reports") / _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    check_output_dir(out, args.resume)
+    print(f"{cfg.name}: {len(cells)} cells → {out}", file=sys.stderr)
+    summary = run_grid(cfg, out, jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
+                       timeout=args.timeout, save_meshes=args.save_meshes, report=not args.no_report,
+                       argv=sys.argv[1:])
+    print(summary.line())
+    if summary.report_error:
+        print(f"warning: the report could not be written ({summary.report_error}); results are in "
+              f"{out / 'results.csv'}; details in {out / 'report_error.txt'}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _cmd_report(args) -> int:
+    from .report import write_report
+
+    out = Path(args.dir)
+    if not (out / "results.csv").exists():
+        raise InputError(f"{str(out)!r} holds no results.csv (not a run folder)")
+    if not os.access(out, os.W_OK):
+        raise InputError(f"{str(out)!r} is not writable")
+    path = write_report(out)
+    print(f"wrote {path}")
+    return 0

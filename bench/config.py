@@ -1,0 +1,446 @@
+"""Run configurations: what grid ``python -m bench run`` computes.
+
+A configuration is a TOML file (read with :mod:`tomllib`)::
+
+    name = "paper"
+    description = "..."
+
+    [grid]
+    phantoms = ["sphere", "ellipsoid"]      # names from `python -m bench phantoms`
+    variants = ["sdf"]                      # sdf | paper
+    n = 96                                  # grid points per axis; a number or a list
+    extent = 2.5                            # the grid covers [-extent, extent]^3
+    seeds = [0]                             # noise (and metric sampling) seeds
+    noise = [                               # kind none | gaussian | uniform;
+      { kind = "none" },                    # snr = "paper" (the phantom's paper SNR), a number
+      { kind = "gaussian", snr = "paper" }, # or a list of numbers (dB)
+    ]
+
+    [[methods]]
+    name = "shape_gradient"                 # a registered method (`python -m bench methods`)
+    label = "shape_gradient"                # optional, unique; default: the name
+    params = { alpha = 5.0, beta = 1.0 }    # fixed parameters
+    sweep = { beta = [0.0, 1.0] }           # optional: one cell per combination (Cartesian product)
+    [methods.phantom_params.fused_spheres]  # optional: parameters for one phantom only
+    max_iter = 150
+
+    [metrics]
+    n_samples = 100000                      # surface samples per direction for the distances
+
+    [run]
+    timeout = 3600                          # seconds per cell (0 or absent: none)
+    imports = ["my_package.my_methods"]     # modules imported first (e.g. to register_method plug-ins)
+
+Everything is validated before any work starts (:func:`load_config` / :func:`RunConfig.validate`): unknown
+keys, phantoms, variants, noise kinds, methods and parameters raise :class:`phantoms.InputError`, which the
+command line turns into a one-line message and exit code 2.
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib
+import itertools
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from phantoms import NOISE_KINDS, VARIANTS, InputError, get_phantom, phantom_names
+
+__all__ = ["NoiseSpec", "MethodSpec", "RunConfig", "load_config", "config_from_dict", "builtin_config",
+           "parse_method_spec", "parse_noise_spec", "BUILTIN_CONFIGS"]
+
+#: where the shipped configurations live (package data)
+CONFIG_DIR = Path(__file__).resolve().parent / "configs"
+#: shipped configurations (``bench/configs/<name>.toml``)
+BUILTIN_CONFIGS = ("paper", "quick")
+
+_TOP_KEYS = {"name", "description", "grid", "methods", "metrics", "run"}
+_GRID_KEYS = {"phantoms", "variants", "n", "extent", "seeds", "noise"}
+_NOISE_KEYS = {"kind", "snr"}
+_METHOD_KEYS = {"name", "label", "params", "sweep", "phantom_params"}
+_METRICS_KEYS = {"n_samples"}
+_RUN_KEYS = {"timeout", "imports"}
+
+
+def _check_keys(table: Any, allowed: set[str], where: str) -> dict:
+    if not isinstance(table, dict):
+        raise InputError(f"{where}: expected a table, got {type(table).__name__}")
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise InputError(f"{where}: unknown key {unknown[0]!r}; valid keys: {', '.join(sorted(allowed))}")
+    return table
+
+
+def _as_list(value: Any, where: str) -> list:
+    if isinstance(value, list):
+        if not value:
+            raise InputError(f"{where}: must not be empty")
+        return value
+    return [value]
+
+
+def _int(value: Any, where: str, minimum: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or float(value) != int(value):
+        raise InputError(f"{where}: expected an integer, got {value!r}")
+    value = int(value)
+    if minimum is not None and value < minimum:
+        raise InputError(f"{where}: must be >= {minimum}, got {value}")
+    return value
+
+
+def _float(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)):
+        raise InputError(f"{where}: expected a finite number, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class NoiseSpec:
+    """One noise setting: ``kind`` and requested SNR (``"paper"``, a number in dB, or None for none)."""
+
+    kind: str
+    snr: float | str | None = None
+
+    def snr_for(self, phantom: str) -> float | None:
+        """The requested SNR in dB for ``phantom`` (None for kind none)."""
+        if self.kind == "none":
+            return None
+        if self.snr == "paper":
+            snr = get_phantom(phantom).paper_snr_db
+            if snr is None:
+                raise InputError(f"noise {self.kind!r} with snr = 'paper': phantom {phantom!r} has no paper SNR;"
+                                 " give the SNR in dB")
+            return float(snr)
+        return float(self.snr)
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind} if self.kind == "none" else {"kind": self.kind, "snr": self.snr}
+
+
+@dataclass
+class MethodSpec:
+    """A method entry of the grid; expands to one or more method instances (parameter sweeps)."""
+
+    name: str
+    label: str
+    params: dict = field(default_factory=dict)
+    sweep: dict = field(default_factory=dict)
+    phantom_params: dict = field(default_factory=dict)
+
+    def instances(self) -> list[tuple[str, dict]]:
+        """``[(label, params), ...]``: one per sweep combination (label gets ``[k=v,...]``)."""
+        if not self.sweep:
+            return [(self.label, dict(self.params))]
+        keys = list(self.sweep)
+        out = []
+        for combo in itertools.product(*(self.sweep[k] for k in keys)):
+            params = dict(self.params)
+            params.update(zip(keys, combo))
+            tag = ",".join(f"{k}={_fmt_value(v)}" for k, v in zip(keys, combo))
+            out.append((f"{self.label}[{tag}]", params))
+        return out
+
+    def params_for(self, params: dict, phantom: str) -> dict:
+        out = dict(params)
+        out.update(self.phantom_params.get(phantom, {}))
+        return out
+
+    def to_dict(self) -> dict:
+        d: dict = {"name": self.name, "label": self.label, "params": copy.deepcopy(self.params)}
+        if self.sweep:
+            d["sweep"] = copy.deepcopy(self.sweep)
+        if self.phantom_params:
+            d["phantom_params"] = copy.deepcopy(self.phantom_params)
+        return d
+
+
+def _fmt_value(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:g}"
+    return str(v)
+
+
+@dataclass
+class RunConfig:
+    """A validated grid description (see the module docstring for the TOML layout)."""
+
+    name: str = "custom"
+    description: str = ""
+    phantoms: list[str] = field(default_factory=list)
+    variants: list[str] = field(default_factory=lambda: ["sdf"])
+    n: list[int] = field(default_factory=lambda: [96])
+    extent: float = 2.5
+    seeds: list[int] = field(default_factory=lambda: [0])
+    noise: list[NoiseSpec] = field(default_factory=lambda: [NoiseSpec("none")])
+    methods: list[MethodSpec] = field(default_factory=list)
+    n_samples: int = 100_000
+    timeout: float | None = None
+    imports: list[str] = field(default_factory=list)
+    source: str = ""
+
+    # ------------------------------------------------------------------ serialisation
+    def to_dict(self) -> dict:
+        """A TOML/JSON-able dict that :func:`config_from_dict` reads back to the same config."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "grid": {
+                "phantoms": list(self.phantoms), "variants": list(self.variants), "n": list(self.n),
+                "extent": self.extent, "seeds": list(self.seeds),
+                "noise": [s.to_dict() for s in self.noise],
+            },
+            "methods": [m.to_dict() for m in self.methods],
+            "metrics": {"n_samples": self.n_samples},
+            "run": {"timeout": self.timeout or 0, "imports": list(self.imports)},
+        }
+
+    # ------------------------------------------------------------------ validation
+    def import_plugins(self) -> None:
+        """Import the ``run.imports`` modules (which may register methods); InputError if one fails."""
+        for mod in self.imports:
+            try:
+                importlib.import_module(mod)
+            except Exception as exc:  # any failure to import is the user's to fix
+                raise InputError(f"run.imports: cannot import module {mod!r}: {exc}") from None
+
+    def validate(self) -> None:
+        """Check everything against the registries (phantoms, methods, parameters); InputError on failure."""
+        from methods import available_methods, get_method
+
+        if not self.phantoms:
+            raise InputError("grid.phantoms: no phantoms to run")
+        if not self.methods:
+            raise InputError("methods: no methods to run")
+        known = phantom_names()
+        for p in self.phantoms:
+            if p not in known:
+                raise InputError(f"unknown phantom {p!r}; valid phantoms: {', '.join(known)}")
+        if len(set(self.phantoms)) != len(self.phantoms):
+            raise InputError("grid.phantoms: a phantom is listed twice")
+        for v in self.variants:
+            if v not in VARIANTS:
+                raise InputError(f"unknown variant {v!r}; valid variants: {', '.join(VARIANTS)}")
+        for n in self.n:
+            if n < 8:
+                raise InputError(f"grid.n: must be >= 8, got {n}")
+        if not self.extent > 0:
+            raise InputError(f"grid.extent: must be positive, got {self.extent}")
+        for s in self.noise:
+            for p in self.phantoms:
+                s.snr_for(p)
+        if self.n_samples < 1000:
+            raise InputError(f"metrics.n_samples: must be >= 1000, got {self.n_samples}")
+        self.import_plugins()
+        registry = available_methods()
+        labels: dict[str, str] = {}
+        for spec in self.methods:
+            if spec.name not in registry:
+                raise InputError(f"unknown method {spec.name!r}; valid methods: {', '.join(registry)}")
+            for ph in spec.phantom_params:
+                if ph not in known:
+                    raise InputError(f"method {spec.label!r}: phantom_params for unknown phantom {ph!r}; "
+                                     f"valid phantoms: {', '.join(known)}")
+            for label, params in spec.instances():
+                if label in labels:
+                    raise InputError(f"method label {label!r} is used twice; give each [[methods]] entry a "
+                                     "distinct label")
+                labels[label] = spec.name
+                for ph in self.phantoms:
+                    get_method(spec.name, **spec.params_for(params, ph))  # raises InputError on bad params
+
+    def n_cells(self) -> int:
+        from .runner import expand_grid
+
+        return len(expand_grid(self))
+
+
+# ---------------------------------------------------------------------- parsing
+def config_from_dict(data: dict, source: str = "") -> RunConfig:
+    """Build a :class:`RunConfig` from a parsed TOML dict (structure checked, registries not yet)."""
+    where = source or "config"
+    _check_keys(data, _TOP_KEYS, where)
+    grid = _check_keys(data.get("grid", {}), _GRID_KEYS, f"{where}: [grid]")
+    cfg = RunConfig(source=source)
+    if "name" in data:
+        if not isinstance(data["name"], str):
+            raise InputError(f"{where}: name must be a string")
+        cfg.name = data["name"]
+    if "description" in data:
+        cfg.description = str(data["description"])
+    if "phantoms" not in grid:
+        raise InputError(f"{where}: [grid] needs phantoms = [...]")
+    cfg.phantoms = [str(p) for p in _as_list(grid["phantoms"], "grid.phantoms")]
+    if "variants" in grid:
+        cfg.variants = [str(v) for v in _as_list(grid["variants"], "grid.variants")]
+    if "n" in grid:
+        cfg.n = [_int(v, "grid.n", 8) for v in _as_list(grid["n"], "grid.n")]
+    if "extent" in grid:
+        cfg.extent = _float(grid["extent"], "grid.extent")
+    if "seeds" in grid:
+        cfg.seeds = [_int(v, "grid.seeds", 0) for v in _as_list(grid["seeds"], "grid.seeds")]
+    if "noise" in grid:
+        cfg.noise = []
+        for i, item in enumerate(_as_list(grid["noise"], "grid.noise")):
+            if isinstance(item, str):
+                cfg.noise.extend(parse_noise_spec(item))
+                continue
+            item = _check_keys(item, _NOISE_KEYS, f"grid.noise[{i}]")
+            cfg.noise.extend(_noise_from(item.get("kind"), item.get("snr", "paper"), f"grid.noise[{i}]"))
+    methods = data.get("methods", [])
+    if not isinstance(methods, list):
+        raise InputError(f"{where}: methods must be an array of tables ([[methods]])")
+    for i, m in enumerate(methods):
+        cfg.methods.append(_method_from(m, f"methods[{i}]"))
+    metrics = _check_keys(data.get("metrics", {}), _METRICS_KEYS, f"{where}: [metrics]")
+    if "n_samples" in metrics:
+        cfg.n_samples = _int(metrics["n_samples"], "metrics.n_samples", 1000)
+    run = _check_keys(data.get("run", {}), _RUN_KEYS, f"{where}: [run]")
+    if "timeout" in run:
+        t = _float(run["timeout"], "run.timeout")
+        if t < 0:
+            raise InputError("run.timeout: must be >= 0 (0 = no timeout)")
+        cfg.timeout = t or None
+    if "imports" in run:
+        imports = run["imports"]
+        if not isinstance(imports, list) or not all(isinstance(s, str) for s in imports):
+            raise InputError("run.imports: expected a list of module names")
+        cfg.imports = list(imports)
+    return cfg
+
+
+def _noise_from(kind: Any, snr: Any, where: str) -> list[NoiseSpec]:
+    if kind not in NOISE_KINDS:
+        raise InputError(f"{where}: unknown noise kind {kind!r}; valid kinds: {', '.join(NOISE_KINDS)}")
+    if kind == "none":
+        return [NoiseSpec("none")]
+    out = []
+    for s in _as_list(snr, f"{where}.snr"):
+        if s == "paper":
+            out.append(NoiseSpec(kind, "paper"))
+        else:
+            out.append(NoiseSpec(kind, _float(s, f"{where}.snr (a number in dB or 'paper')")))
+    return out
+
+
+def _method_from(m: Any, where: str) -> MethodSpec:
+    m = _check_keys(m, _METHOD_KEYS, where)
+    name = m.get("name")
+    if not isinstance(name, str) or not name:
+        raise InputError(f"{where}: needs name = \"<method>\"")
+    label = m.get("label", name)
+    if not isinstance(label, str) or not label:
+        raise InputError(f"{where}: label must be a non-empty string")
+    params = m.get("params", {})
+    if not isinstance(params, dict):
+        raise InputError(f"{where}.params: expected a table")
+    sweep = m.get("sweep", {})
+    if not isinstance(sweep, dict):
+        raise InputError(f"{where}.sweep: expected a table of lists")
+    for k, v in sweep.items():
+        if not isinstance(v, list) or not v:
+            raise InputError(f"{where}.sweep.{k}: expected a non-empty list of values")
+    pp = m.get("phantom_params", {})
+    if not isinstance(pp, dict) or not all(isinstance(v, dict) for v in pp.values()):
+        raise InputError(f"{where}.phantom_params: expected tables [methods.phantom_params.<phantom>]")
+    return MethodSpec(name=name, label=label, params=dict(params), sweep=dict(sweep),
+                      phantom_params={k: dict(v) for k, v in pp.items()})
+
+
+def load_config(path: str | Path) -> RunConfig:
+    """Read a TOML config file (structure only; call :meth:`RunConfig.validate` before running)."""
+    path = Path(path)
+    try:
+        text = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read config {str(path)!r}: {exc.strerror or exc}") from None
+    try:
+        data = tomllib.loads(text.decode("utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"config {str(path)!r} is not valid TOML: {exc}") from None
+    return config_from_dict(data, source=str(path))
+
+
+def builtin_config(name: str) -> RunConfig:
+    """One of the shipped configurations (``paper``, ``quick``)."""
+    if name not in BUILTIN_CONFIGS:
+        raise InputError(f"unknown built-in config {name!r}; valid: {', '.join(BUILTIN_CONFIGS)}")
+    text = (CONFIG_DIR / f"{name}.toml").read_text(encoding="utf-8")
+    return config_from_dict(tomllib.loads(text), source=f"bench/configs/{name}.toml")
+
+
+# ---------------------------------------------------------------------- command-line specs
+def _parse_value(text: str) -> Any:
+    """A command-line value: TOML syntax if it parses (numbers, booleans, arrays, quoted strings), else text."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def parse_method_spec(text: str) -> MethodSpec:
+    """``[LABEL=]NAME[:key=value,key=value...]`` → :class:`MethodSpec` (values in TOML syntax or plain text).
+
+    >>> parse_method_spec("sg0=shape_gradient:beta=0,alpha=5").params
+    {'beta': 0, 'alpha': 5}
+    """
+    spec = text.strip()
+    label = None
+    head, sep, rest = spec.partition(":")
+    if "=" in head:
+        label, _, head = head.partition("=")
+        label = label.strip()
+    name = head.strip()
+    if not name:
+        raise InputError(f"method spec {text!r}: expected [LABEL=]NAME[:key=value,...]")
+    params: dict = {}
+    if sep:
+        for item in _split_top(rest):
+            k, eq, v = item.partition("=")
+            if not eq or not k.strip():
+                raise InputError(f"method spec {text!r}: expected key=value, got {item!r}")
+            params[k.strip()] = _parse_value(v.strip())
+    if label is None:
+        label = name if not params else f"{name}[{','.join(f'{k}={_fmt_value(v)}' for k, v in params.items())}]"
+    return MethodSpec(name=name, label=label, params=params)
+
+
+def _split_top(text: str) -> list[str]:
+    """Split on commas not inside brackets (so ``snapshots=[1,50]`` stays one item)."""
+    out, depth, cur = [], 0, ""
+    for ch in text:
+        if ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        if ch == "," and depth == 0:
+            out.append(cur)
+            cur = ""
+        else:
+            cur += ch
+    if cur.strip():
+        out.append(cur)
+    return [s.strip() for s in out if s.strip()]
+
+
+def parse_noise_spec(text: str) -> list[NoiseSpec]:
+    """``none``, ``gaussian`` (paper SNR) or ``gaussian@40`` (40 dB); comma-separated lists allowed."""
+    out = []
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        kind, at, snr = item.partition("@")
+        if at:
+            try:
+                value: Any = float(snr)
+            except ValueError:
+                raise InputError(f"noise {item!r}: SNR {snr!r} is not a number (dB)") from None
+        else:
+            value = "paper"
+        out.extend(_noise_from(kind.strip(), value, f"noise {item!r}"))
+    if not out:
+        raise InputError(f"noise {text!r}: no noise settings")
+    return out

@@ -53,20 +53,24 @@ def paraboloid_curvature(vertices, normals, neighbors, *, linear: bool = True, r
     valid = nb >= 0
     d = x[np.where(valid, nb, 0)] - x[:, None, :]            # (V, W, 3)
     t1, t2 = tangent_frames(n)
-    u = np.einsum("vwk,vk->vw", d, t1)
-    v = np.einsum("vwk,vk->vw", d, t2)
-    z = np.einsum("vwk,vk->vw", d, n)
+    # local coordinates (u, v, z) of every neighbour: one batched matmul with the frames (V, 3, 3)
+    uvz = np.matmul(d, np.stack([t1, t2, n], axis=2))
+    u, v, z = uvz[..., 0], uvz[..., 1], uvz[..., 2]
     w = valid.astype(float)
     cnt = valid.sum(1)
-    quad = np.stack([0.5 * u * u, u * v, 0.5 * v * v], axis=-1)
+    k = 5 if linear else 3
+    a = np.empty(u.shape + (k,))                                # (V, W, k) weighted design matrix
+    np.multiply(0.5 * u, u, out=a[..., 0])
+    np.multiply(u, v, out=a[..., 1])
+    np.multiply(0.5 * v, v, out=a[..., 2])
     if linear:
-        design = np.concatenate([quad, u[..., None], v[..., None]], axis=-1)
-    else:
-        design = quad
-    k = design.shape[-1]
-    a = design * w[..., None]                                   # (V, W, k)
-    M = np.einsum("vwi,vwj->vij", a, a)
-    rhs = np.einsum("vwi,vw->vi", a, z)
+        a[..., 3] = u
+        a[..., 4] = v
+    a *= w[..., None]
+    # normal equations by batched matmul (several times faster than the equivalent einsum)
+    aT = np.swapaxes(a, 1, 2)
+    M = np.matmul(aT, a)
+    rhs = np.matmul(aT, z[..., None])[..., 0]
     if linear:
         # vertices with fewer than 5 neighbours: decouple the linear terms (fit them as zero)
         few = cnt < 5

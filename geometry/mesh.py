@@ -98,6 +98,14 @@ def radius_neighbors(vertices, faces, radius: float, max_width: int = 96) -> np.
     ring_i = np.concatenate([e[:, 0], e[:, 1]])
     ring_j = np.concatenate([e[:, 1], e[:, 0]])
     pairs = cKDTree(vertices).query_pairs(float(radius), output_type="ndarray")
+    if len(pairs) and len(e):
+        # drop radius pairs that are ring edges (the ring entry comes first anyway): both pair lists are
+        # unique with a < b and the edge keys are sorted, so a searchsorted replaces a global unique
+        nv = np.int64(len(vertices))
+        ekey = e[:, 0].astype(np.int64) * nv + e[:, 1]
+        pkey = pairs[:, 0].astype(np.int64) * nv + pairs[:, 1]
+        pos = np.minimum(np.searchsorted(ekey, pkey), len(ekey) - 1)
+        pairs = pairs[ekey[pos] != pkey]
     if len(pairs):
         pi = np.concatenate([pairs[:, 0], pairs[:, 1]])
         pj = np.concatenate([pairs[:, 1], pairs[:, 0]])
@@ -109,8 +117,4 @@ def radius_neighbors(vertices, faces, radius: float, max_width: int = 96) -> np.
         pi = pj = np.zeros(0, dtype=np.int64)
     i = np.concatenate([ring_i, pi])
     j = np.concatenate([ring_j, pj])
-    # drop duplicates (ring pairs also found by the radius query), keeping the first occurrence
-    key = i.astype(np.int64) * len(vertices) + j
-    _, first = np.unique(key, return_index=True)
-    first.sort()
-    return padded_from_pairs(i[first], j[first], len(vertices), max_width=max_width)
+    return padded_from_pairs(i, j, len(vertices), max_width=max_width)

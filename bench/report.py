@@ -177,7 +177,7 @@ def render_energy(energy, *, marks: list[int] | None = None, ylim: tuple[float, 
     ax.grid(alpha=0.3)
     if title:
         ax.set_title(title, fontsize=7)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.2, right=0.96, bottom=0.17, top=0.93 if title else 0.96)
     return _png(fig)
 
 

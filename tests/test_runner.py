@@ -1,0 +1,301 @@
+"""`python -m bench run`: the quick grid through the CLI, failure isolation, timeouts, resume, bad input."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+from bench.cli import main
+from bench.config import builtin_config, config_from_dict, parse_method_spec, parse_noise_spec
+from bench.runner import expand_grid
+
+pytest.importorskip("bench.metrics")
+from bench.metrics import METRIC_NAMES  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+TESTS = Path(__file__).resolve().parent
+# the quick grid plus one method that always raises (registered by tests/runner_plugins.py in every worker)
+QUICK_ARGS = ["--quick", "--import", "runner_plugins", "--add-method", "failing", "--jobs", "2"]
+# columns that measure the machine, not the result
+COST_COLUMNS = {"wall_s", "peak_mem_mb"}
+
+
+def _env() -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(TESTS), str(REPO)] + [p for p in [env.get("PYTHONPATH")] if p])
+    env["PYTHONWARNINGS"] = "ignore"
+    return env
+
+
+def _bench(*args, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "bench", "run", *args], cwd=REPO, env=_env(),
+                          capture_output=True, text=True, timeout=300, **kw)
+
+
+def _rows(path: Path) -> list[dict]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _quick_methods_available() -> bool:
+    from methods import available_methods
+
+    have = available_methods()
+    return all(m.name in have for m in builtin_config("quick").methods)
+
+
+pytestmark = pytest.mark.skipif(not _quick_methods_available(), reason="a method of quick.toml is not available yet")
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("quick") / "run"
+    t0 = time.perf_counter()
+    proc = _bench(*QUICK_ARGS, "--out", str(out))
+    proc.wall_s = time.perf_counter() - t0
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return out, proc
+
+
+# ---------------------------------------------------------------------------------------------- the quick run
+def test_quick_results_csv_has_a_row_per_cell_with_every_metric(quick_run):
+    out, proc = quick_run
+    sys.path.insert(0, str(TESTS))
+    try:
+        import runner_plugins  # noqa: F401  (registers "failing" for the in-process grid expansion)
+    finally:
+        sys.path.remove(str(TESTS))
+    cfg = builtin_config("quick")
+    cfg.methods.append(parse_method_spec("failing"))
+    cells = expand_grid(cfg)
+    rows = _rows(out / "results.csv")
+    assert [r["cell_id"] for r in rows] == [c["cell_id"] for c in cells]
+    header = list(rows[0])
+    for col in ["cell_id", "phantom", "variant", "N", "noise", "snr_requested", "snr_achieved", "seed", "method",
+                "parameters", *METRIC_NAMES, "status", "error"]:
+        assert col in header, col
+    assert header[-2:] == ["status", "error"]
+    assert "cells: " in proc.stdout and "failed" in proc.stdout  # the summary line
+
+
+def test_a_failing_method_is_a_failed_row_and_the_others_finish(quick_run):
+    out, _ = quick_run
+    rows = _rows(out / "results.csv")
+    failing = [r for r in rows if r["method"] == "failing"]
+    others = [r for r in rows if r["method"] != "failing"]
+    assert failing and all(r["status"] == "failed" for r in failing)
+    assert all("deliberate failure" in r["error"] for r in failing)
+    assert all(r["hausdorff"] == "" for r in failing)
+    assert others and all(r["status"] == "ok" for r in others), [(r["cell_id"], r["error"]) for r in others]
+    for r in others:
+        assert math.isfinite(float(r["hausdorff"])) and float(r["hausdorff"]) >= 0
+        assert r["watertight"] in ("True", "False")
+        assert float(r["wall_s"]) > 0
+        assert json.loads(r["parameters"])  # the method's full parameter set
+        if r["noise"] == "gaussian":
+            assert abs(float(r["snr_achieved"]) - float(r["snr_requested"])) < 0.5
+    # the failed cell keeps its traceback on disk
+    rec = json.loads((out / "cells" / f"{failing[0]['cell_id']}.json").read_text())
+    assert "RuntimeError" in rec["traceback"]
+
+
+class _Page(HTMLParser):
+    def __init__(self) -> None:
+        super().__init__()
+        self.summary_titles: list[str] = []
+        self.images = 0
+        self.tables = 0
+        self.best = 0
+        self._in_title = False
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "h3" and "summary-title" in (a.get("class") or ""):
+            self._in_title = True
+            self.summary_titles.append("")
+        if tag == "img" and (a.get("src") or "").startswith("data:image/png;base64,"):
+            self.images += 1
+        if tag == "table":
+            self.tables += 1
+        if tag == "span" and a.get("class") == "best":
+            self.best += 1
+
+    def handle_endtag(self, tag):
+        if tag == "h3":
+            self._in_title = False
+
+    def handle_data(self, data):
+        if self._in_title:
+            self.summary_titles[-1] += data
+
+
+def test_index_html_has_a_summary_table_per_phantom_and_noise_and_pictures(quick_run):
+    out, _ = quick_run
+    page = _Page()
+    page.feed((out / "index.html").read_text(encoding="utf-8"))
+    page.close()
+    titles = page.summary_titles
+    for phantom in ("sphere", "ellipsoid"):
+        assert any(t.startswith(f"{phantom} — clean") for t in titles), titles
+        assert any(t.startswith(f"{phantom} — gaussian noise") for t in titles), titles
+    assert len(titles) == 4
+    assert page.images >= 1
+    assert page.best >= 4  # a best value marked in every summary table
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert "deliberate failure" in html  # the failed-cells section
+    assert "http://" not in html and "https://" not in html  # self-contained: nothing to fetch
+
+
+def test_run_json_records_config_versions_machine_and_time(quick_run):
+    out, _ = quick_run
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["config"]["name"] == "quick"
+    assert meta["python"].count(".") == 2
+    assert meta["dependencies"]["numpy"] and "trimesh" in meta["dependencies"]
+    assert meta["machine"]["cpu_count"] >= 1
+    assert meta["total_s"] > 0 and meta["start"] and meta["end"]
+    assert meta["cells"]["finished"] == meta["cells"]["total"]
+    assert "git" in meta
+
+
+# ---------------------------------------------------------------------------------------------- resume
+def test_interrupted_run_resumes_to_the_same_results(quick_run, tmp_path):
+    """Kill the run after its first finished cell, rerun with --resume: the same rows as the uninterrupted run."""
+    reference, _ = quick_run
+    out = tmp_path / "run"
+    args = [*QUICK_ARGS, "--phantoms", "sphere", "--out", str(out)]  # a sub-grid of the reference run
+    proc = subprocess.Popen([sys.executable, "-m", "bench", "run", *args], cwd=REPO, env=_env(),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not list((out / "cells").glob("*.json")) and proc.poll() is None:
+            time.sleep(0.05)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    done = list((out / "cells").glob("*.json"))
+    assert 1 <= len(done) < 8, "the run should have been interrupted after its first cell"
+
+    res = _bench(*args, "--resume", "--no-report")
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "already done" in res.stdout
+    rows = _rows(out / "results.csv")
+    ref = {r["cell_id"]: r for r in _rows(reference / "results.csv")}
+    assert len(rows) == 8
+    for r in rows:
+        expected = ref[r["cell_id"]]
+        for col, value in r.items():
+            if col not in COST_COLUMNS:
+                assert value == expected[col], (r["cell_id"], col, value, expected[col])
+
+
+# ---------------------------------------------------------------------------------------------- isolation
+def test_timeout_and_crash_are_rows_and_the_run_goes_on(tmp_path):
+    out = tmp_path / "run"
+    res = _bench("--quick", "--phantoms", "sphere", "--noise", "none", "--n", "16", "--n-samples", "2000",
+                 "--import", "runner_plugins", "--method", "sleepy:seconds=60", "--add-method", "crashing",
+                 "--add-method", "marching_cubes", "--timeout", "2", "--jobs", "2", "--no-report",
+                 "--out", str(out))
+    assert res.returncode == 0, res.stderr[-3000:]
+    status = {r["method"]: (r["status"], r["error"]) for r in _rows(out / "results.csv")}
+    assert status["sleepy"][0] == "timeout" and "2 s" in status["sleepy"][1]
+    assert status["crashing"][0] == "failed" and "SIGKILL" in status["crashing"][1]
+    assert status["marching_cubes"][0] == "ok"
+    assert "1 ok, 1 failed, 1 timeout" in res.stdout
+
+
+# ---------------------------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize("args, message", [
+    (["--quick", "--phantoms", "nosuch"], "unknown phantom 'nosuch'"),
+    (["--quick", "--method", "nosuch"], "unknown method 'nosuch'"),
+    (["--quick", "--method", "marching_cubes:nosuch=1"], "no parameter 'nosuch'"),
+    (["--quick", "--method", "marching_cubes:step_size=abc"], "step_size"),
+    (["--quick", "--noise", "pink"], "unknown noise kind 'pink'"),
+    (["--quick", "--import", "no_such_module_xyz"], "no_such_module_xyz"),
+])
+def test_bad_command_line_exits_2(args, message, tmp_path, capsys):
+    assert main(["run", *args, "--out", str(tmp_path / "o"), "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[grid\nphantoms = ", "not valid TOML"),
+    ('[grid]\nphantoms = ["sphere"]\n[[methods]]\nname = "marching_cubes"\nparams = { nosuch = 1 }\n', "nosuch"),
+    ('[grid]\nphantoms = ["sphere"]\ncolour = 1\n[[methods]]\nname = "marching_cubes"\n', "unknown key 'colour'"),
+    ('[grid]\nphantoms = ["sphere"]\nnoise = [{ kind = "gaussian", snr = "loud" }]\n'
+     '[[methods]]\nname = "marching_cubes"\n', "snr"),
+    ('[grid]\nphantoms = ["torus_knot"]\n[[methods]]\nname = "marching_cubes"\n', "unknown phantom"),
+])
+def test_bad_config_exits_2(text, message, tmp_path, capsys):
+    path = tmp_path / "grid.toml"
+    path.write_text(text)
+    assert main(["run", "--config", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_unwritable_or_occupied_output_folder_exits_2(tmp_path, capsys, quick_run):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    assert main(["run", "--quick", "--out", str(blocker / "sub")]) == 2
+    assert "not writable" in capsys.readouterr().err
+    reference, _ = quick_run  # a folder that already holds a run needs --resume
+    assert main(["run", "--quick", "--out", str(reference)]) == 2
+    assert "--resume" in capsys.readouterr().err
+    assert main(["run", "--config", str(tmp_path / "missing.toml")]) == 2
+    assert "cannot read config" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------------------------- grid expansion
+def test_grid_expansion_sweeps_overrides_and_stable_ids():
+    cfg = config_from_dict({
+        "grid": {"phantoms": ["sphere", "fused_spheres"], "n": [32, 48], "seeds": [0, 1],
+                 "noise": [{"kind": "none"}, {"kind": "gaussian", "snr": [30, "paper"]}]},
+        "methods": [{"name": "marching_cubes", "sweep": {"step_size": [1, 2]}},
+                    {"name": "mc_taubin", "label": "taubin", "phantom_params": {"fused_spheres": {"iterations": 3}}}],
+    })
+    cfg.validate()
+    cells = expand_grid(cfg)
+    # 2 phantoms x 2 N x (1 clean seed + 2 SNRs x 2 seeds) x (2 sweep values + 1) = 60
+    assert len(cells) == 60
+    assert len({c["cell_id"] for c in cells}) == 60
+    assert {c["label"] for c in cells} == {"marching_cubes[step_size=1]", "marching_cubes[step_size=2]", "taubin"}
+    fs = [c for c in cells if c["phantom"] == "fused_spheres" and c["label"] == "taubin"]
+    assert all(c["params"] == {"iterations": 3} for c in fs)
+    snrs = {c["snr_requested"] for c in cells if c["phantom"] == "fused_spheres"}
+    assert snrs == {None, 30.0, 43.2}
+    assert [c["cell_id"] for c in expand_grid(cfg)] == [c["cell_id"] for c in cells]  # stable
+
+
+def test_paper_config_is_the_paper_grid():
+    cfg = builtin_config("paper")
+    assert cfg.phantoms == ["sphere", "ellipsoid", "fused_spheres", "cylinder"]
+    assert cfg.n == [96] and cfg.seeds == [0] and cfg.variants == ["sdf"]
+    assert [n.kind for n in cfg.noise] == ["none", "gaussian", "uniform"]
+    labels = [lab for m in cfg.methods for lab, _ in m.instances()]
+    assert labels == ["shape_gradient", "shape_gradient_beta0", "marching_cubes", "mc_taubin", "distmesh", "poisson"]
+    sg = cfg.methods[0]
+    assert sg.params["alpha"] == 5 and sg.params["beta"] == 1 and cfg.methods[1].params["beta"] == 0
+    assert len(expand_grid(cfg)) == 4 * 3 * 6
+
+
+def test_method_and_noise_specs():
+    m = parse_method_spec("sg0=shape_gradient:beta=0,snapshots=[1,50],preset=paper")
+    assert (m.label, m.name, m.params) == ("sg0", "shape_gradient", {"beta": 0, "snapshots": [1, 50], "preset": "paper"})
+    assert parse_method_spec("marching_cubes:step_size=2").label == "marching_cubes[step_size=2]"
+    specs = parse_noise_spec("none,gaussian,uniform@40")
+    assert [(s.kind, s.snr) for s in specs] == [("none", None), ("gaussian", "paper"), ("uniform", 40.0)]

@@ -45,6 +45,9 @@ BEST_DIRECTION: dict[str, Any] = {
     "euler": ("target", 2),  # replaced by 2 − 2·genus of the phantom
 }
 
+#: yes/no metrics (shown as yes/no, or the share of seeds)
+BOOL_COLUMNS = {"watertight"}
+
 ELEV, AZIM = 22.0, -58.0   # one camera for every picture
 CMAP = "RdYlBu_r"          # blue = low, red = high mean curvature (as in the paper's figures)
 
@@ -236,6 +239,8 @@ def _fmt(v: Any, col: str) -> str:
         return str(int(v))
     if isinstance(v, (float, np.floating)):
         v = float(v)
+        if col in BOOL_COLUMNS:  # a mean over seeds of a yes/no metric
+            return "yes" if v == 1.0 else "no" if v == 0.0 else f"{100 * v:.0f} % yes"
         if col in ("euler", "components", "self_intersections", "n_vertices", "n_faces", "iterations") \
                 and v.is_integer():
             return str(int(v))

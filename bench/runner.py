@@ -760,6 +760,10 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
                 setattr(summary, st, getattr(summary, st) + 1)
         summary.seconds = time.time() - started
         write_meta(end=True)
+    if len(records) == len(cells):  # complete: the volume cache is only needed to resume
+        import shutil
+
+        shutil.rmtree(out / CACHE_DIR, ignore_errors=True)
     if report:
         try:
             from bench.report import write_report

@@ -1,0 +1,430 @@
+"""Linear finite-element (P1) operators on a triangle mesh (MATH.md, "Discretisation").
+
+Conventions (λ_i is the hat function of vertex i, a_f the area of face f):
+
+* per-face gradient of a P1 function u:   (∇u)_f = Σ_{k∈f} u_k ∇λ_k|_f        — :func:`face_gradient`
+* cotangent stiffness:                    K_ij = Σ_f a_f ∇λ_i·∇λ_j            — :func:`cotangent_stiffness`
+  (positive semi-definite, rows sum to 0, K_ij = −(cot α_ij + cot β_ij)/2 off the diagonal)
+* lumped mass:                            M_ii = one third of the incident face areas
+* surface divergence of a per-face tangent field X, the negative transpose of the gradient weighted by
+  face area, divided by the lumped area:  (div_Γ X)_i = −(1/M_ii) Σ_f a_f X_f·∇λ_i|_f  — :func:`divergence`
+  (so Σ_i M_ii u_i (div X)_i = −Σ_f a_f X_f·(∇u)_f: the discrete Green formula, and div ∇ = −M⁻¹K).
+
+:class:`MeshOperators` precomputes everything that depends only on the connectivity (the CSR pattern of
+K, the 1-ring) so that an iterative method rebuilds the geometric quantities with a handful of
+vectorised calls per iteration.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .mesh import lumped_vertex_areas, one_ring
+
+__all__ = [
+    "face_gradient_basis", "face_gradient", "gradient_operator", "divergence", "cotangent_stiffness",
+    "lumped_mass", "MeshOperators", "MeshGeometry", "jacobi_cg",
+]
+
+
+def _face_frame(vertices: np.ndarray, faces: np.ndarray):
+    p = [vertices[faces[:, k]] for k in range(3)]
+    cross = np.cross(p[1] - p[0], p[2] - p[0])
+    dblarea = np.linalg.norm(cross, axis=1)
+    return p, cross, dblarea
+
+
+def _basis_from(p, cross, dblarea) -> np.ndarray:
+    # ∇λ_k = n × e_k / (2a) with e_k the edge opposite corner k (counter-clockwise) and n = cross / 2a,
+    # i.e. ∇λ_k = cross × e_k / (2a)²
+    e = np.stack([p[2] - p[1], p[0] - p[2], p[1] - p[0]], axis=1)          # (F, 3, 3)
+    denom = np.where(dblarea > 0, dblarea, np.inf) ** 2
+    return np.cross(cross[:, None, :], e) / denom[:, None, None]
+
+
+def face_gradient_basis(vertices, faces) -> np.ndarray:
+    """∇λ_k on every face, shape (F, 3 corners, 3 coordinates); zero on degenerate faces."""
+    vertices = np.asarray(vertices, float)
+    faces = np.asarray(faces)
+    p, cross, dblarea = _face_frame(vertices, faces)
+    return _basis_from(p, cross, dblarea)
+
+
+def face_gradient(vertices, faces, u, basis: np.ndarray | None = None) -> np.ndarray:
+    """Per-face gradient of the P1 interpolant of vertex values ``u`` (V,) or (V, C): (F, 3) or (F, C, 3)."""
+    faces = np.asarray(faces)
+    if basis is None:
+        basis = face_gradient_basis(vertices, faces)
+    u = np.asarray(u, float)
+    uf = u[faces]                                                          # (F, 3) or (F, 3, C)
+    if uf.ndim == 2:
+        return np.einsum("fk,fkd->fd", uf, basis)
+    return np.einsum("fkc,fkd->fcd", uf, basis)
+
+
+def gradient_operator(vertices, faces) -> sp.csr_matrix:
+    """Sparse (3F, V) matrix D with (D u)[3f + d] = (∇u)_f[d]."""
+    vertices = np.asarray(vertices, float)
+    faces = np.asarray(faces)
+    basis = face_gradient_basis(vertices, faces)                           # (F, 3, 3)
+    F = len(faces)
+    rows = (3 * np.arange(F)[:, None, None] + np.arange(3)[None, None, :]).repeat(3, axis=1)
+    cols = np.broadcast_to(faces[:, :, None], (F, 3, 3))
+    return sp.csr_matrix((basis.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * F, len(vertices)))
+
+
+def divergence(vertices, faces, X, *, vertex_areas: np.ndarray | None = None,
+               basis: np.ndarray | None = None, weak: bool = False) -> np.ndarray:
+    """Surface divergence at the vertices of a per-face vector field ``X`` (F, 3).
+
+    ``weak=True`` returns −Σ_f a_f X_f·∇λ_i (the integral of div over the vertex's lumped area) instead
+    of dividing by the lumped area.  Components of X normal to a face do not contribute.
+    """
+    vertices = np.asarray(vertices, float)
+    faces = np.asarray(faces)
+    p, cross, dblarea = _face_frame(vertices, faces)
+    if basis is None:
+        basis = _basis_from(p, cross, dblarea)
+    contrib = -0.5 * dblarea[:, None] * np.einsum("fkd,fd->fk", basis, np.asarray(X, float))
+    w = np.bincount(faces.ravel(), weights=contrib.ravel(), minlength=len(vertices))
+    if weak:
+        return w
+    if vertex_areas is None:
+        vertex_areas = lumped_vertex_areas(vertices, faces)
+    return w / np.where(vertex_areas > 0, vertex_areas, np.inf)
+
+
+def _local_stiffness(basis: np.ndarray, dblarea: np.ndarray) -> np.ndarray:
+    return 0.5 * dblarea[:, None, None] * np.einsum("fid,fjd->fij", basis, basis)
+
+
+def cotangent_stiffness(vertices, faces) -> sp.csr_matrix:
+    """Cotangent stiffness matrix K (V, V), symmetric positive semi-definite, K·1 = 0."""
+    vertices = np.asarray(vertices, float)
+    faces = np.asarray(faces)
+    p, cross, dblarea = _face_frame(vertices, faces)
+    local = _local_stiffness(_basis_from(p, cross, dblarea), dblarea)
+    rows = np.repeat(faces, 3, axis=1).ravel()
+    cols = np.tile(faces, (1, 3)).ravel()
+    K = sp.csr_matrix((local.ravel(), (rows, cols)), shape=(len(vertices), len(vertices)))
+    K.sum_duplicates()
+    return K
+
+
+def lumped_mass(vertices, faces) -> sp.dia_matrix:
+    """Lumped (barycentric) mass matrix: diag of one third of the incident face areas."""
+    return sp.diags(lumped_vertex_areas(vertices, faces))
+
+
+def jacobi_cg(matvec, b: np.ndarray, diag: np.ndarray, x0: np.ndarray | None = None, *,
+              rtol: float = 1e-4, maxiter: int = 200) -> tuple[np.ndarray, int, float]:
+    """Jacobi-preconditioned conjugate gradients for an SPD system; returns (x, iterations, rel. residual).
+
+    ``matvec(x)`` applies the matrix; ``diag`` is its diagonal.  Stops when ‖r‖ ≤ rtol‖b‖ or after
+    ``maxiter`` iterations (the loop is over CG iterations, each a few vectorised operations).
+    """
+    bnorm = float(np.linalg.norm(b))
+    if bnorm == 0.0 or not np.isfinite(bnorm):
+        return np.zeros_like(b), 0, 0.0 if bnorm == 0.0 else np.nan
+    inv = 1.0 / diag
+    if x0 is None:
+        x = np.zeros_like(b)
+        r = b.copy()
+    else:
+        x = x0.copy()
+        r = b - matvec(x)
+    z = inv * r
+    p = z.copy()
+    rz = float(r @ z)
+    tol2 = (rtol * bnorm) ** 2
+    rr = float(r @ r)
+    it = 0
+    while rr > tol2 and it < maxiter:
+        Ap = matvec(p)
+        pAp = float(p @ Ap)
+        if not pAp > 0:
+            break
+        a = rz / pAp
+        x += a * p
+        r -= a * Ap
+        rr = float(r @ r)
+        z = inv * r
+        rz_new = float(r @ z)
+        p *= rz_new / rz
+        p += z
+        rz = rz_new
+        it += 1
+    return x, it, float(np.sqrt(rr) / bnorm)
+
+
+def _cross_t(a, b) -> np.ndarray:
+    """Cross product of vectors stored by coordinate, (3, N) × (3, N) → (3, N)."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _dot_t(a, b) -> np.ndarray:
+    """Dot product of vectors stored by coordinate, (3, ...) · (3, ...) → (...)."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+class MeshGeometry:
+    """Geometric quantities of one vertex configuration (see :meth:`MeshOperators.geometry`).
+
+    Stored by coordinate (``*_t`` arrays have shape (3, N)): numpy is several times faster on (3, N)
+    arrays than on (N, 3) ones for the short per-row sums a mesh needs.  The usual (N, 3) views are
+    properties.  Face quantities are computed at once, vertex quantities and edges on first use.
+    """
+
+    def __init__(self, ops: "MeshOperators", vertices: np.ndarray):
+        self._ops = ops
+        self.vertices = vertices                                            # (V, 3)
+        self.vertices_t = xt = np.ascontiguousarray(vertices.T)             # (3, V)
+        self.corners_t = P = np.take(xt, ops.faces_t, axis=1)               # (3 coords, 3 corners, F)
+        self.cross_t = c = _cross_t(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])   # 2 a_f n_f
+        dbl = np.sqrt(_dot_t(c, c))
+        self.face_areas = 0.5 * dbl
+        self.normals_t = c / np.where(dbl > 0, dbl, 1.0)
+        self._vertex_areas = self._vertex_normals_t = self._edges_t = None
+
+    # ---- (N, 3) views
+    @property
+    def face_cross(self) -> np.ndarray:
+        return self.cross_t.T
+
+    @property
+    def face_normals(self) -> np.ndarray:
+        return self.normals_t.T
+
+    @property
+    def centroids(self) -> np.ndarray:
+        return (self.corners_t.sum(axis=1) / 3.0).T
+
+    @property
+    def vertex_normals(self) -> np.ndarray:
+        """Area-weighted vertex normals (V, 3), unit length."""
+        return self.vertex_normals_t.T
+
+    # ---- lazily computed
+    @property
+    def vertex_areas(self) -> np.ndarray:
+        """Lumped vertex areas (V,): one third of the incident face areas."""
+        if self._vertex_areas is None:
+            self._vertex_areas = self._ops.incidence @ (self.face_areas / 3.0)
+        return self._vertex_areas
+
+    @property
+    def vertex_normals_t(self) -> np.ndarray:
+        """Area-weighted vertex normals (3, V), unit length."""
+        if self._vertex_normals_t is None:
+            vn = np.ascontiguousarray((self._ops.incidence @ self.cross_t.T).T)
+            vn /= np.maximum(np.sqrt(_dot_t(vn, vn)), 1e-300)
+            self._vertex_normals_t = vn
+        return self._vertex_normals_t
+
+    @property
+    def edges_t(self) -> np.ndarray:
+        """Edge opposite each corner, counter-clockwise: (3 coords, 3 corners, F)."""
+        if self._edges_t is None:
+            P = self.corners_t
+            self._edges_t = np.stack([P[:, 2] - P[:, 1], P[:, 0] - P[:, 2], P[:, 1] - P[:, 0]], axis=1)
+        return self._edges_t
+
+    @property
+    def basis(self) -> np.ndarray:
+        """∇λ_k on every face (F, 3 corners, 3) = n × e_k / (2a); zero on degenerate faces."""
+        E = self.edges_t
+        n = self.normals_t
+        dbl = 2.0 * self.face_areas
+        inv = 1.0 / np.where(dbl > 0, dbl, np.inf)
+        b = np.stack([n[1] * E[2] - n[2] * E[1], n[2] * E[0] - n[0] * E[2], n[0] * E[1] - n[1] * E[0]])
+        return np.ascontiguousarray((b * inv).transpose(2, 1, 0))
+
+
+class MeshOperators:
+    """Connectivity-dependent precomputation for a mesh whose vertices move but whose faces do not.
+
+    >>> ops = MeshOperators(faces, n_vertices)
+    >>> geo = ops.geometry(vertices)            # areas, normals, edges, lumped areas
+    >>> K = ops.stiffness(geo)                  # CSR, same pattern every call
+    >>> H, K_gauss = ops.curvature(geo)         # batched paraboloid fit over the 1-ring
+    """
+
+    def __init__(self, faces, n_vertices: int):
+        faces = np.ascontiguousarray(faces, dtype=np.int64)
+        if faces.ndim != 2 or faces.shape[1] != 3:
+            raise ValueError(f"faces must have shape (F, 3); got {faces.shape}")
+        self.faces = faces
+        self.faces_t = np.ascontiguousarray(faces.T)
+        self.n_vertices = V = int(n_vertices)
+        F = len(faces)
+        rows = np.repeat(faces, 3, axis=1).ravel()          # entry 9f + 3i + j is (faces[f,i], faces[f,j])
+        cols = np.tile(faces, (1, 3)).ravel()
+        key = rows * V + cols
+        uniq, inverse = np.unique(key, return_inverse=True)
+        self._slot = inverse.ravel()
+        self._nnz = len(uniq)
+        r, c = uniq // V, uniq % V
+        self._indices = c.astype(np.int32)
+        self._indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=V))]).astype(np.int32)
+        self._diag_slot = np.flatnonzero(r == c)
+        #: (V, F) vertex-face incidence (ones): sums face quantities onto vertices
+        self.incidence = sp.csr_matrix((np.ones(3 * F), (faces.ravel(), np.repeat(np.arange(F), 3))),
+                                       shape=(V, F))
+        #: (V, 3F) scatter of per-corner values stored corner-major (k·F + f) onto the vertices
+        self.corner_scatter = sp.csr_matrix((np.ones(3 * F), (self.faces_t.ravel(), np.arange(3 * F))),
+                                            shape=(V, 3 * F))
+        self.ring = one_ring(faces, V)                   # (V, W) padded with −1
+        self.ring_valid = self.ring >= 0
+        self.ring_weight = self.ring_valid.astype(float)
+        self.ring_count = self.ring_valid.sum(1)
+        self._ring_safe = np.where(self.ring_valid, self.ring, 0)
+        self._ring_t = np.ascontiguousarray(self._ring_safe.T)              # (W, V)
+        self.ring_weight_t = np.ascontiguousarray(self.ring_weight.T)
+
+    # ---------------------------------------------------------------- per-configuration geometry
+    def geometry(self, vertices: np.ndarray) -> MeshGeometry:
+        return MeshGeometry(self, np.asarray(vertices, dtype=np.float64))
+
+    # ---------------------------------------------------------------- operators
+    def stiffness(self, geo: MeshGeometry) -> sp.csr_matrix:
+        """Cotangent stiffness K of ``geo`` (CSR with a pattern fixed by the connectivity).
+
+        On a face, a_f ∇λ_i·∇λ_j = e_i·e_j / (4 a_f) with e_k the edge opposite corner k.
+        """
+        E = geo.edges_t
+        inv = 1.0 / np.where(geo.face_areas > 0, 4.0 * geo.face_areas, np.inf)
+        d00, d11, d22 = _dot_t(E[:, 0], E[:, 0]), _dot_t(E[:, 1], E[:, 1]), _dot_t(E[:, 2], E[:, 2])
+        d01, d02, d12 = _dot_t(E[:, 0], E[:, 1]), _dot_t(E[:, 0], E[:, 2]), _dot_t(E[:, 1], E[:, 2])
+        local = np.stack([d00, d01, d02, d01, d11, d12, d02, d12, d22], axis=1) * inv[:, None]
+        data = np.bincount(self._slot, weights=local.ravel(), minlength=self._nnz)
+        return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_vertices,) * 2)
+
+    def stiffness_diagonal(self, K: sp.csr_matrix) -> np.ndarray:
+        return K.data[self._diag_slot]
+
+    def face_gradient(self, geo: MeshGeometry, u: np.ndarray) -> np.ndarray:
+        return face_gradient(geo.vertices, self.faces, u, basis=geo.basis)
+
+    def divergence(self, geo: MeshGeometry, X: np.ndarray, weak: bool = False, *,
+                   transposed: bool = False) -> np.ndarray:
+        """div_Γ of the per-face field X (F, 3) — or (3, F) with ``transposed`` — at the vertices.
+
+        −a_f X·∇λ_k = −½ X·(n × e_k) = −½ e_k·(X × n)  (see :func:`divergence`).
+        """
+        Xt = X if transposed else X.T
+        Y = _cross_t(Xt, geo.normals_t)                                     # (3, F)
+        E = geo.edges_t
+        contrib = -0.5 * (E[0] * Y[0] + E[1] * Y[1] + E[2] * Y[2])          # (3 corners, F)
+        w = self.corner_scatter @ contrib.ravel()
+        if weak:
+            return w
+        return w / np.where(geo.vertex_areas > 0, geo.vertex_areas, np.inf)
+
+    def ring_mean_t(self, xt: np.ndarray) -> np.ndarray:
+        """Mean of the 1-ring neighbours of per-vertex vectors stored by coordinate (C, V) → (C, V)."""
+        w = self.ring_weight_t
+        cnt = np.maximum(self.ring_count, 1)
+        return np.stack([(np.take(row, self._ring_t) * w).sum(0) / cnt for row in xt])
+
+    def ring_mean(self, x: np.ndarray) -> np.ndarray:
+        """Mean of the 1-ring neighbours' rows of ``x`` (V, C) — the uniform-Laplacian centroid."""
+        return self.ring_mean_t(np.ascontiguousarray(np.asarray(x, float).T)).T
+
+    def curvature(self, geo: MeshGeometry, *, linear: bool = True, normals: np.ndarray | None = None):
+        """Per-vertex (H, K) by the batched paraboloid fit over the 1-ring.
+
+        The same estimator as :func:`geometry.curvature.paraboloid_curvature` (the same fit, the same tiny
+        ridge, the same degeneracy flags; the results agree to rounding), written for an inner loop: the
+        1-ring is precomputed, the tangent frame is built branch-free (H and K do not depend on the
+        rotation of the frame about the normal), and the 5×5 (or 3×3) normal equations of all vertices
+        are solved at once in closed form — the 2×2 block of the linear terms is eliminated by its Schur
+        complement and the remaining 3×3 system solved by its adjugate.  NaN where the fit is not
+        determined.
+        """
+        n = geo.vertex_normals_t if normals is None else np.asarray(normals, float).T
+        nx, ny, nz = n[0], n[1], n[2]
+        # orthonormal tangent frame (Duff et al. 2017), valid for every unit n
+        sg = np.where(nz >= 0, 1.0, -1.0)
+        a = -1.0 / (sg + nz)
+        bb = nx * ny * a
+        t1 = (1.0 + sg * nx * nx * a, sg * bb, -sg * nx)
+        t2 = (bb, sg + ny * ny * a, -ny)
+        # ring offsets in (W, V) layout, so that sums over the ring run over the short leading axis
+        xt = geo.vertices_t
+        w = self.ring_weight_t
+        dx = (np.take(xt[0], self._ring_t) - xt[0]) * w                      # invalid slots → 0
+        dy = (np.take(xt[1], self._ring_t) - xt[1]) * w
+        dz = (np.take(xt[2], self._ring_t) - xt[2]) * w
+        u = dx * t1[0] + dy * t1[1] + dz * t1[2]
+        v = dx * t2[0] + dy * t2[1] + dz * t2[2]
+        z = dx * nx + dy * ny + dz * nz
+        uu, uv, vv = u * u, u * v, v * v
+        S = lambda p: p.sum(0)  # noqa: E731 - sum over the ring
+        # moments of the design columns a = (u²/2, uv, v²/2, u, v)
+        q11, q12, q13 = 0.25 * S(uu * uu), 0.5 * S(uu * uv), 0.25 * S(uu * vv)
+        q22, q23, q33 = S(uv * uv), 0.5 * S(uv * vv), 0.25 * S(vv * vv)
+        r1, r2, r3 = 0.5 * S(uu * z), S(uv * z), 0.5 * S(vv * z)
+        trace = q11 + q22 + q33
+        scale = np.where(trace > 0, trace, 1.0)
+        ridge = 1e-12 * scale
+        cnt = self.ring_count
+        # determinant of the unregularised quadratic block (degeneracy test of the reference estimator)
+        det_q = q11 * (q22 * q33 - q23 * q23) - q12 * (q12 * q33 - q23 * q13) + q13 * (q12 * q23 - q22 * q13)
+        q11r, q22r, q33r = q11 + ridge, q22 + ridge, q33 + ridge
+        if linear:
+            c14, c15 = 0.5 * S(uu * u), 0.5 * S(uu * v)
+            c24, c25 = S(uv * u), S(uv * v)
+            c34, c35 = 0.5 * S(vv * u), 0.5 * S(vv * v)
+            l44, l45, l55 = S(uu) + ridge, S(uv), S(vv) + ridge
+            r4, r5 = S(u * z), S(v * z)
+            few = cnt < 5                      # too few neighbours for the linear terms: fit them as zero
+            if few.any():
+                for arr in (c14, c15, c24, c25, c34, c35, l45, r4, r5):
+                    arr[few] = 0.0
+                l44[few] = l55[few] = 1.0 + ridge[few]
+            det_l = l44 * l55 - l45 * l45
+            det_l = np.where(det_l != 0, det_l, np.inf)
+            i44, i45, i55 = l55 / det_l, -l45 / det_l, l44 / det_l
+            # C L⁻¹ (rows 1..3)
+            e1 = (c14 * i44 + c15 * i45, c14 * i45 + c15 * i55)
+            e2 = (c24 * i44 + c25 * i45, c24 * i45 + c25 * i55)
+            e3 = (c34 * i44 + c35 * i45, c34 * i45 + c35 * i55)
+            s11 = q11r - (e1[0] * c14 + e1[1] * c15)
+            s12 = q12 - (e1[0] * c24 + e1[1] * c25)
+            s13 = q13 - (e1[0] * c34 + e1[1] * c35)
+            s22 = q22r - (e2[0] * c24 + e2[1] * c25)
+            s23 = q23 - (e2[0] * c34 + e2[1] * c35)
+            s33 = q33r - (e3[0] * c34 + e3[1] * c35)
+            b1 = r1 - (e1[0] * r4 + e1[1] * r5)
+            b2 = r2 - (e2[0] * r4 + e2[1] * r5)
+            b3 = r3 - (e3[0] * r4 + e3[1] * r5)
+        else:
+            s11, s12, s13, s22, s23, s33 = q11r, q12, q13, q22r, q23, q33r
+            b1, b2, b3 = r1, r2, r3
+        # adjugate solve of the symmetric 3×3 system
+        m11 = s22 * s33 - s23 * s23
+        m12 = s13 * s23 - s12 * s33
+        m13 = s12 * s23 - s13 * s22
+        m22 = s11 * s33 - s13 * s13
+        m23 = s12 * s13 - s11 * s23
+        m33 = s11 * s22 - s12 * s12
+        det = s11 * m11 + s12 * m12 + s13 * m13
+        safe = np.where(det != 0, det, np.inf)
+        A = (m11 * b1 + m12 * b2 + m13 * b3) / safe
+        B = (m12 * b1 + m22 * b2 + m23 * b3) / safe
+        C = (m13 * b1 + m23 * b2 + m33 * b3) / safe
+        if linear:
+            fx = i44 * (r4 - c14 * A - c24 * B - c34 * C) + i45 * (r5 - c15 * A - c25 * B - c35 * C)
+            fy = i45 * (r4 - c14 * A - c24 * B - c34 * C) + i55 * (r5 - c15 * A - c25 * B - c35 * C)
+            g = 1.0 + fx * fx + fy * fy
+            H = -((1 + fy * fy) * A - 2 * fx * fy * B + (1 + fx * fx) * C) / (2.0 * g ** 1.5)
+            K = (A * C - B * B) / (g * g)
+        else:
+            H = -0.5 * (A + C)
+            K = A * C - B * B
+        bad = (cnt < 3) | ~(np.abs(det_q) > 1e-10 * scale ** 3) | ~(det > 0)
+        if bad.any():
+            H[bad] = np.nan
+            K[bad] = np.nan
+        return H, K

@@ -141,9 +141,14 @@ def _cmd_run(args) -> int:
     out = Path(args.out) if args.out else Path("reports") / _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     check_output_dir(out, args.resume)
     print(f"{cfg.name}: {len(cells)} cells → {out}", file=sys.stderr)
-    summary = run_grid(cfg, out, jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
-                       timeout=args.timeout, save_meshes=args.save_meshes, report=not args.no_report,
-                       argv=sys.argv[1:])
+    try:
+        summary = run_grid(cfg, out, jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
+                           timeout=args.timeout, save_meshes=args.save_meshes, report=not args.no_report,
+                           argv=sys.argv[1:])
+    except KeyboardInterrupt:
+        print(f"interrupted: the finished cells are in {out}; complete the run with "
+              f"`python -m bench run --resume --out {out}`", file=sys.stderr)
+        raise
     print(summary.line())
     if summary.report_error:
         print(f"warning: the report could not be written ({summary.report_error}); results are in "

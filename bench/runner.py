@@ -334,7 +334,9 @@ def _cell_process(cell: dict, cache_dir: str | None, result_conn, lifeline_conn)
     threading.Thread(target=watch, daemon=True).start()
     try:
         result = run_cell(cell, cache_dir)
-    except BaseException as exc:  # run_cell catches Exception; this is KeyboardInterrupt/SystemExit etc.
+    except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the runner handles it, not a row
+        os._exit(130)
+    except BaseException as exc:  # run_cell catches Exception; this is SystemExit etc.
         result = failed_result(cell, "failed", f"worker: {_error_text(exc)}")
     try:
         result_conn.send(result)

@@ -206,13 +206,20 @@ def test_timeout_and_crash_are_rows_and_the_run_goes_on(tmp_path):
     res = _bench("--quick", "--phantoms", "sphere", "--noise", "none", "--n", "16", "--n-samples", "2000",
                  "--import", "runner_plugins", "--method", "sleepy:seconds=60", "--add-method", "crashing",
                  "--add-method", "marching_cubes", "--timeout", "2", "--jobs", "2", "--no-report",
-                 "--out", str(out))
+                 "--save-meshes", "--out", str(out))
     assert res.returncode == 0, res.stderr[-3000:]
     status = {r["method"]: (r["status"], r["error"]) for r in _rows(out / "results.csv")}
     assert status["sleepy"][0] == "timeout" and "2 s" in status["sleepy"][1]
     assert status["crashing"][0] == "failed" and "SIGKILL" in status["crashing"][1]
     assert status["marching_cubes"][0] == "ok"
     assert "1 ok, 1 failed, 1 timeout" in res.stdout
+    ok = [r for r in _rows(out / "results.csv") if r["status"] == "ok"]
+    meshes = sorted(p.name for p in (out / "meshes").iterdir())
+    assert meshes == [f"{ok[0]['cell_id']}.ply"]  # --save-meshes: DIR/meshes/<cell_id>.ply
+    import trimesh
+
+    mesh = trimesh.load(out / "meshes" / meshes[0])
+    assert len(mesh.faces) == int(ok[0]["n_faces"]) and mesh.is_watertight
 
 
 # ---------------------------------------------------------------------------------------------- bad input

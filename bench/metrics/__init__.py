@@ -1,0 +1,172 @@
+"""Every number the suite reports about a reconstructed mesh (definitions: ``METRICS.md``).
+
+>>> from phantoms import get_phantom
+>>> from bench.metrics import evaluate, METRIC_NAMES
+>>> row = evaluate(mesh, get_phantom("ellipsoid"), spacing=vol.spacing[0])      # doctest: +SKIP
+>>> row = evaluate(mesh, None, spacing=h)          # truth-free subset for user volumes  # doctest: +SKIP
+
+:func:`evaluate` computes the metrics the same way for every method, from the output mesh and the
+phantom's exact ground truth:
+
+* distances (``distance.py``): recon → truth exact via the phantom, truth → recon exact point-to-triangle
+  via pymeshlab; maxima over all points, percentiles / means / F-score over seeded area-uniform samples;
+* curvature and smoothness (``curvature.py``): the shared paraboloid-fit estimator over a 2h neighbourhood;
+* topology, quality and self-intersections (``topology.py``).
+
+The mesh is evaluated as given except that faces with a repeated vertex index (no area, no real edges)
+and unreferenced vertices are dropped first (``n_vertices`` / ``n_faces`` report the mesh as given).
+``iterations``, ``energy_final``, ``wall_s``, ``peak_mem_mb`` are in :data:`METRIC_NAMES` for the
+runner's columns but are filled by the runner (``bench.cost.measure``), not here.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from geometry import face_normals
+from phantoms import InputError
+
+from .curvature import CONSTANT_CURVATURE, constant_curvature_value, curvature_metrics, roughness_deg, \
+    vertex_curvature
+from .distance import DISTANCE_LIBRARY, distance_metrics, point_mesh_distance, sample_mesh_surface
+from .topology import compact, drop_degenerate_index_faces, quality_metrics, self_intersection_pairs, \
+    topology_metrics, triangle_angles
+
+__all__ = [
+    "evaluate", "METRIC_NAMES", "TRUTH_FREE_NAMES", "DISTANCE_NAMES", "RUNNER_NAMES",
+    "sample_mesh_surface", "point_mesh_distance", "self_intersection_pairs", "triangle_angles",
+    "vertex_curvature", "constant_curvature_value", "CONSTANT_CURVATURE", "DISTANCE_LIBRARY",
+]
+
+#: distances in world units; each also appears divided by the grid spacing as ``<name>_h``
+DISTANCE_NAMES = ["hausdorff", "hausdorff_95", "mean_dist", "rms_dist"]
+
+#: keys evaluate returns when no truth is given (user volumes)
+TRUTH_FREE_NAMES = [
+    "H_std", "roughness_deg", "min_angle_deg", "pct_angle_lt_10",
+    "watertight", "euler", "components", "self_intersections", "n_vertices", "n_faces",
+]
+
+#: filled by the runner, not by evaluate
+RUNNER_NAMES = ["iterations", "energy_final", "wall_s", "peak_mem_mb"]
+
+#: every key evaluate may return plus the runner's, in a stable order (CSV columns)
+METRIC_NAMES = (
+    DISTANCE_NAMES + [f"{k}_h" for k in DISTANCE_NAMES]
+    + ["normal_consistency", "fscore@h", "H_rms_err", "H_max_err", "K_rms_err"]
+    + TRUTH_FREE_NAMES + RUNNER_NAMES
+)
+
+
+def evaluate(mesh, truth, spacing: float, *, n_samples: int = 100_000, seed: int = 0,
+             crease_band: float = 0.1) -> dict:
+    """All METRICS.md metrics of ``mesh`` against the phantom ``truth`` (or the truth-free subset).
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The reconstructed surface, world coordinates.
+    truth : phantoms.Phantom or None
+        The phantom the volume was sampled from (``phantoms.get_phantom(name)``); None for a user volume
+        without ground truth → only :data:`TRUTH_FREE_NAMES`.
+    spacing : float
+        Grid spacing h: the F-score threshold, the unit of the ``*_h`` distances and the curvature
+        neighbourhood radius (2h).
+    n_samples : int
+        Area-uniform samples on each of the two surfaces (≥ 100,000 for reported results).
+    seed : int
+        Seed of both sample sets (same seed → same numbers).
+    crease_band : float
+        Vertices whose closest true point is closer than this to a crease/rim are left out of the
+        curvature errors, of ``H_std`` and (edges touching them) of ``roughness_deg``.
+
+    Returns
+    -------
+    dict with the keys of :data:`METRIC_NAMES` except :data:`RUNNER_NAMES` (plain Python floats, ints,
+    bools; NaN where a metric is undefined, e.g. ``H_std`` on the ellipsoid).
+    """
+    return _evaluate(mesh, truth, spacing, n_samples=n_samples, seed=seed, crease_band=crease_band)
+
+
+def _check_inputs(mesh, spacing, n_samples, crease_band):
+    try:
+        vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        faces = np.asarray(mesh.faces, dtype=np.int64)
+    except AttributeError:
+        raise InputError(f"evaluate needs a mesh with .vertices and .faces; got {type(mesh).__name__}") from None
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3:
+        raise InputError(f"mesh must have vertices (V, 3) and faces (F, 3); got {vertices.shape}, {faces.shape}")
+    if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
+        raise InputError("mesh faces index vertices that do not exist")
+    if not np.isfinite(vertices).all():
+        raise InputError("mesh has non-finite vertex coordinates")
+    h = float(spacing)
+    if not (math.isfinite(h) and h > 0):
+        raise InputError(f"spacing must be a positive number; got {spacing!r}")
+    if int(n_samples) != n_samples or n_samples < 1:
+        raise InputError(f"n_samples must be a positive integer; got {n_samples!r}")
+    if not (crease_band >= 0):
+        raise InputError(f"crease_band must be >= 0; got {crease_band!r}")
+    return vertices, faces, h
+
+
+def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.1, timings=None) -> dict:
+    """:func:`evaluate`, optionally recording the seconds spent per phase in ``timings``."""
+    t = time.perf_counter()
+    tm = timings if timings is not None else {}
+
+    def lap(name):
+        nonlocal t
+        now = time.perf_counter()
+        tm[name] = tm.get(name, 0.0) + now - t
+        t = now
+
+    vertices, faces, h = _check_inputs(mesh, spacing, n_samples, crease_band)
+    n_samples = int(n_samples)
+    out = {"n_vertices": int(len(vertices)), "n_faces": int(len(faces))}
+    f_all = drop_degenerate_index_faces(faces)
+    if len(f_all) == 0:
+        raise InputError("mesh has no (non-degenerate) faces")
+    V, F, _ = compact(vertices, f_all)
+    fn = face_normals(V, F)
+    tri = V[F]
+    signed_volume = float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()) / 6.0
+    outward = signed_volume >= 0
+    if not outward:
+        fn = -fn
+    lap("prepare")
+
+    out.update(topology_metrics(V, F))
+    out.update(quality_metrics(V, F))
+    lap("topology_quality")
+    out["self_intersections"] = int(len(self_intersection_pairs(V, F)))
+    lap("self_intersections")
+
+    H, K, _ = vertex_curvature(V, F, h, outward=outward)
+    lap("curvature_fit")
+
+    if truth is None:
+        out.update(curvature_metrics(H, K))
+        out["roughness_deg"] = roughness_deg(V, F, fn)
+        lap("roughness")
+        return {k: out[k] for k in TRUTH_FREE_NAMES}
+
+    tv = truth.truth(V)
+    lap("truth_vertices")
+    out.update(curvature_metrics(H, K, tv, truth, crease_band))
+    out["roughness_deg"] = roughness_deg(V, F, fn, vertex_ok=tv.crease_distance >= crease_band)
+    lap("curvature_metrics_roughness")
+
+    pts, fi = sample_mesh_surface(V, F, n_samples, seed)
+    ts = truth.truth(pts)
+    lap("recon_to_truth")
+    true_pts, _ = truth.sample_surface(n_samples, seed)
+    d_tr = point_mesh_distance(true_pts, V, F)
+    lap("truth_to_recon")
+    out.update(distance_metrics(ts.distance, float(max(tv.distance.max(), ts.distance.max())), d_tr, h,
+                                fn[fi], ts.normal))
+    lap("distance_stats")
+    return {k: out[k] for k in METRIC_NAMES if k in out}

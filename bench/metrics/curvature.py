@@ -1,0 +1,124 @@
+"""Curvature accuracy and smoothness (METRICS.md): ``H_rms_err``, ``H_max_err``, ``K_rms_err``, ``H_std``,
+``roughness_deg``.
+
+Per-vertex H and K come from the one shared estimator, :func:`geometry.paraboloid_curvature` (the
+paraboloid fit of MATH.md, with the linear terms), over a neighbourhood of fixed physical size:
+:func:`geometry.radius_neighbors` with radius 2h (every vertex within 2h, at least the 1-ring), and
+area-weighted vertex normals (:func:`geometry.vertex_normals`).  The mesh is made outward-facing first
+(normals flipped when its enclosed signed volume is negative), so H > 0 on a convex surface whatever the
+method's winding.
+
+Regions of constant true curvature (for ``H_std``), by phantom:
+
+===============  ============================================================================
+sphere           the whole surface (true H = 1/r)
+fused_spheres    the two spherical caps: true H = 1/r and ≥ ``crease_band`` from the crease
+cylinder         the side: true H = 1/(2r) and ≥ ``crease_band`` from the rims (the flat caps,
+                 H = 0, are a different constant and are not mixed in)
+ellipsoid, torus none: H varies everywhere → ``H_std`` is NaN
+other phantoms   the whole surface outside the crease band if its true H is one constant there,
+                 otherwise none (NaN)
+no truth         all vertices (a curvature statistic of the mesh, for user volumes)
+===============  ============================================================================
+
+A vertex belongs to the region when the true H at its closest true point equals the constant (relative
+tolerance 1e-9) and that point is at least ``crease_band`` from a crease.  Vertices whose fit is
+undetermined (NaN) are left out of every curvature statistic.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry import paraboloid_curvature, radius_neighbors, vertex_normals
+
+__all__ = ["vertex_curvature", "constant_curvature_value", "curvature_metrics", "roughness_deg",
+           "CONSTANT_CURVATURE"]
+
+#: phantom name -> function of the phantom giving the true H of its constant-curvature region
+CONSTANT_CURVATURE = {
+    "sphere": lambda ph: 1.0 / ph.radius,
+    "fused_spheres": lambda ph: 1.0 / ph.radius,
+    "cylinder": lambda ph: 1.0 / (2.0 * ph.radius),
+}
+
+_NO_CONSTANT = {"ellipsoid", "torus"}
+
+
+def vertex_curvature(vertices: np.ndarray, faces: np.ndarray, spacing: float, outward: bool = True
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(H, K, unit vertex normals) per vertex with the shared estimator over the 2h neighbourhood.
+
+    ``outward=False`` flips the normals (for a mesh wound inward), which flips the sign of H.
+    """
+    normals = vertex_normals(vertices, faces)
+    if not outward:
+        normals = -normals
+    nb = radius_neighbors(vertices, faces, 2.0 * float(spacing))
+    H, K = paraboloid_curvature(vertices, normals, nb, linear=True)
+    return H, K, normals
+
+
+def constant_curvature_value(phantom, H_true: np.ndarray, ok: np.ndarray) -> float | None:
+    """True H of the phantom's constant-curvature region, or None when it has none (see module doc)."""
+    name = getattr(phantom, "name", "")
+    if name in CONSTANT_CURVATURE:
+        return float(CONSTANT_CURVATURE[name](phantom))
+    if name in _NO_CONSTANT:
+        return None
+    h = H_true[ok & np.isfinite(H_true)]
+    if len(h) and np.allclose(h, h[0], rtol=1e-9, atol=1e-12):
+        return float(h[0])
+    return None
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x * x))) if len(x) else float("nan")
+
+
+def curvature_metrics(H: np.ndarray, K: np.ndarray, truth=None, phantom=None,
+                      crease_band: float = 0.1) -> dict:
+    """Curvature errors against the truth at the vertices' closest true points, and ``H_std``.
+
+    ``truth`` is the :class:`phantoms.Truth` of the vertices (None → only ``H_std`` over all vertices).
+    """
+    fin = np.isfinite(H)
+    if truth is None:
+        return {"H_std": float(np.std(H[fin])) if fin.any() else float("nan")}
+    away = truth.crease_distance >= crease_band
+    mh = away & fin & np.isfinite(truth.H)
+    mk = away & np.isfinite(K) & np.isfinite(truth.K)
+    eh = H[mh] - truth.H[mh]
+    ek = K[mk] - truth.K[mk]
+    out = {
+        "H_rms_err": _rms(eh),
+        "H_max_err": float(np.max(np.abs(eh))) if len(eh) else float("nan"),
+        "K_rms_err": _rms(ek),
+    }
+    hc = constant_curvature_value(phantom, truth.H, away)
+    if hc is None:
+        out["H_std"] = float("nan")
+    else:
+        region = mh & np.isclose(truth.H, hc, rtol=1e-9, atol=1e-12)
+        out["H_std"] = float(np.std(H[region])) if region.any() else float("nan")
+    return out
+
+
+def roughness_deg(vertices: np.ndarray, faces: np.ndarray, face_normals: np.ndarray,
+                  vertex_ok: np.ndarray | None = None) -> float:
+    """Mean angle (degrees) between the normals of the two faces of every edge shared by exactly two
+    faces; edges touching a vertex with ``vertex_ok`` False (near a crease) and faces of zero area are
+    left out."""
+    from .topology import edge_adjacent_face_pairs
+
+    pairs, ev = edge_adjacent_face_pairs(faces, len(vertices))
+    nonzero = np.linalg.norm(face_normals, axis=1) > 0
+    keep = nonzero[pairs[:, 0]] & nonzero[pairs[:, 1]]
+    if vertex_ok is not None:
+        keep &= vertex_ok[ev[:, 0]] & vertex_ok[ev[:, 1]]
+    if not keep.any():
+        return float("nan")
+    n1, n2 = face_normals[pairs[keep, 0]], face_normals[pairs[keep, 1]]
+    # atan2 form: accurate for small angles (arccos loses half the digits near 0)
+    ang = np.arctan2(np.linalg.norm(np.cross(n1, n2), axis=1), np.einsum("ij,ij->i", n1, n2))
+    return float(np.degrees(ang).mean())

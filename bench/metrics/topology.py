@@ -1,0 +1,317 @@
+"""Mesh topology, triangle quality and self-intersections (METRICS.md).
+
+All functions take plain arrays (vertices (V, 3) float, faces (F, 3) int) and are vectorised.
+
+Self-intersections
+------------------
+:func:`self_intersection_pairs` returns every pair of *non-adjacent* faces (no shared vertex index) whose
+closed triangles intersect.  Broad phase: faces are grouped by size class (bounding-sphere radius
+r ≤ r₀·2ᵏ, r₀ = median radius), a ``scipy.spatial.cKDTree`` over the face centroids of each class finds
+all pairs whose bounding spheres can touch (``query_pairs`` within a class, ``sparse_distance_matrix``
+between classes), and an axis-aligned-box overlap test prunes them.  Narrow phase (numpy, batched):
+two non-coplanar triangles intersect iff one of the six edges crosses the other triangle (the intersection
+segment's ends lie on edges); each edge–triangle test uses signed volumes (the Plücker test).  Coplanar
+pairs get a 2-D overlap test (edge–edge crossings plus containment).  Touching counts as intersecting.
+Cross-checked in the tests against MeshLab's ``compute_selection_by_self_intersections_per_face``
+(which selects faces, not pairs, hence our own count).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+__all__ = [
+    "drop_degenerate_index_faces", "compact", "edge_face_counts", "topology_metrics",
+    "triangle_angles", "quality_metrics", "self_intersection_pairs",
+]
+
+
+# --------------------------------------------------------------------------- cleaning
+
+def drop_degenerate_index_faces(faces: np.ndarray) -> np.ndarray:
+    """Faces with three distinct vertex indices (a face like (a, a, b) has no area and no real edges)."""
+    f = np.asarray(faces, dtype=np.int64)
+    ok = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+    return f[ok]
+
+
+def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Drop unreferenced vertices; returns (vertices, faces, old_index_of_each_kept_vertex)."""
+    used = np.unique(faces)
+    remap = np.full(len(vertices), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return np.asarray(vertices, float)[used], remap[faces], used
+
+
+# --------------------------------------------------------------------------- topology
+
+def _half_edge_keys(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """Undirected key a·V + b (a < b) of each of the 3F face edges, and the face of each."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e.sort(axis=1)
+    key = e[:, 0] * np.int64(n_vertices) + e[:, 1]
+    face_of = np.tile(np.arange(len(faces)), 3)
+    return key, face_of
+
+
+def edge_face_counts(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unique undirected edges (E, 2) and the number of faces containing each."""
+    key, _ = _half_edge_keys(faces, n_vertices)
+    u, counts = np.unique(key, return_counts=True)
+    return np.column_stack([u // n_vertices, u % n_vertices]), counts
+
+
+def edge_adjacent_face_pairs(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """For every edge shared by exactly two faces: the two faces (P, 2) and the edge's vertices (P, 2)."""
+    key, face_of = _half_edge_keys(faces, n_vertices)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    start = np.flatnonzero(np.concatenate([[True], ks[1:] != ks[:-1]]))
+    counts = np.diff(np.concatenate([start, [len(ks)]]))
+    two = start[counts == 2]
+    pairs = np.column_stack([face_of[order[two]], face_of[order[two + 1]]])
+    k = ks[two]
+    return pairs, np.column_stack([k // n_vertices, k % n_vertices])
+
+
+def topology_metrics(vertices: np.ndarray, faces: np.ndarray) -> dict:
+    """``watertight`` (every edge in exactly two faces), ``euler`` (V − E + F), ``components``.
+
+    Expects a compacted mesh (every vertex referenced) without index-degenerate faces; components are
+    connected through shared vertices.
+    """
+    nv = len(vertices)
+    edges, counts = edge_face_counts(faces, nv)
+    watertight = bool(len(faces) > 0 and np.all(counts == 2))
+    euler = int(nv - len(edges) + len(faces))
+    if nv == 0:
+        return {"watertight": False, "euler": 0, "components": 0}
+    g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(nv, nv))
+    n_comp, _ = connected_components(g, directed=False)
+    return {"watertight": watertight, "euler": euler, "components": int(n_comp)}
+
+
+# --------------------------------------------------------------------------- quality
+
+def triangle_angles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Interior angles (F, 3) in degrees; a face with a zero-length edge gets 0° at the affected corners."""
+    t = np.asarray(vertices, float)[faces]
+    out = np.empty((len(faces), 3))
+    for k in range(3):
+        a = t[:, (k + 1) % 3] - t[:, k]
+        b = t[:, (k + 2) % 3] - t[:, k]
+        na = np.linalg.norm(a, axis=1)
+        nb = np.linalg.norm(b, axis=1)
+        # atan2(|a×b|, a·b) is accurate for tiny and near-180° angles, unlike arccos
+        ang = np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.einsum("ij,ij->i", a, b)))
+        out[:, k] = np.where((na > 0) & (nb > 0), ang, 0.0)
+    return out
+
+
+def quality_metrics(vertices: np.ndarray, faces: np.ndarray) -> dict:
+    """``min_angle_deg`` (smallest angle of any triangle) and ``pct_angle_lt_10`` (% of triangles with an
+    angle below 10°)."""
+    if len(faces) == 0:
+        return {"min_angle_deg": float("nan"), "pct_angle_lt_10": float("nan")}
+    ang = triangle_angles(vertices, faces)
+    mn = ang.min(axis=1)
+    return {"min_angle_deg": float(mn.min()), "pct_angle_lt_10": float(100.0 * np.mean(mn < 10.0))}
+
+
+# --------------------------------------------------------------------------- self-intersections
+
+def _dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _orient3d(a, b, c, d):
+    """Signed volume det[b − a, c − a, d − a] (rows)."""
+    return _dot(b - a, np.cross(c - a, d - a))
+
+
+def _snap(x, tol):
+    """Values within ``tol`` of zero become exactly zero (rounding noise of a degenerate configuration)."""
+    return np.where(np.abs(x) <= tol, 0.0, x)
+
+
+def _segment_hits_triangle(p, q, a, b, c, tol):
+    """Closed segment pq meets closed triangle abc (pq not lying in the triangle's plane).
+
+    Signed volumes within ``tol`` (per row) of zero count as zero, so a segment whose end lies in the
+    plane, or whose line grazes an edge, is decided by geometry and not by the sign of rounding noise.
+    """
+    sp = _snap(_orient3d(a, b, c, p), tol)
+    sq = _snap(_orient3d(a, b, c, q), tol)
+    straddle = (((sp <= 0) & (sq >= 0)) | ((sp >= 0) & (sq <= 0))) & ~((sp == 0) & (sq == 0))
+    e1 = _snap(_orient3d(p, q, a, b), tol)
+    e2 = _snap(_orient3d(p, q, b, c), tol)
+    e3 = _snap(_orient3d(p, q, c, a), tol)
+    inside = ((e1 >= 0) & (e2 >= 0) & (e3 >= 0)) | ((e1 <= 0) & (e2 <= 0) & (e3 <= 0))
+    return straddle & inside
+
+
+def _orient2d(a, b, c):
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
+def _on_segment_2d(a, b, p):
+    """p (collinear with ab) lies within the bounding box of ab."""
+    return ((np.minimum(a[:, 0], b[:, 0]) <= p[:, 0]) & (p[:, 0] <= np.maximum(a[:, 0], b[:, 0]))
+            & (np.minimum(a[:, 1], b[:, 1]) <= p[:, 1]) & (p[:, 1] <= np.maximum(a[:, 1], b[:, 1])))
+
+
+def _segments_meet_2d(p, q, r, s):
+    o1, o2 = _orient2d(p, q, r), _orient2d(p, q, s)
+    o3, o4 = _orient2d(r, s, p), _orient2d(r, s, q)
+    hit = (o1 * o2 < 0) & (o3 * o4 < 0)
+    hit |= (o1 == 0) & _on_segment_2d(p, q, r)
+    hit |= (o2 == 0) & _on_segment_2d(p, q, s)
+    hit |= (o3 == 0) & _on_segment_2d(r, s, p)
+    hit |= (o4 == 0) & _on_segment_2d(r, s, q)
+    return hit
+
+
+def _point_in_triangle_2d(p, a, b, c):
+    d1, d2, d3 = _orient2d(a, b, p), _orient2d(b, c, p), _orient2d(c, a, p)
+    return ((d1 >= 0) & (d2 >= 0) & (d3 >= 0)) | ((d1 <= 0) & (d2 <= 0) & (d3 <= 0))
+
+
+def _coplanar_overlap(A, B, normal):
+    """2-D overlap of coplanar triangles A, B (N, 3, 3), projected along the dominant normal axis."""
+    drop = np.argmax(np.abs(normal), axis=1)
+    keep = np.array([[1, 2], [0, 2], [0, 1]])[drop]                       # (N, 2)
+    rows = np.arange(len(A))[:, None]
+    a2 = np.stack([A[:, k][rows, keep] for k in range(3)], axis=1)       # (N, 3, 2)
+    b2 = np.stack([B[:, k][rows, keep] for k in range(3)], axis=1)
+    hit = np.zeros(len(A), bool)
+    for i in range(3):
+        for j in range(3):
+            hit |= _segments_meet_2d(a2[:, i], a2[:, (i + 1) % 3], b2[:, j], b2[:, (j + 1) % 3])
+    hit |= _point_in_triangle_2d(a2[:, 0], b2[:, 0], b2[:, 1], b2[:, 2])
+    hit |= _point_in_triangle_2d(b2[:, 0], a2[:, 0], a2[:, 1], a2[:, 2])
+    return hit
+
+
+def _triangles_intersect(A: np.ndarray, B: np.ndarray, coplanar_tol: float = 1e-10,
+                         volume_tol: float = 1e-12) -> np.ndarray:
+    """Batched closed triangle–triangle intersection test, A and B of shape (N, 3, 3).
+
+    A pair is coplanar when every vertex of one triangle is within ``coplanar_tol`` × (pair extent) of the
+    other's plane; coplanar pairs get the 2-D test only (the 3-D signed volumes are pure rounding noise
+    there), all others the six edge–triangle tests with signed volumes below ``volume_tol`` × extent³
+    taken as zero.
+    """
+    hit = np.zeros(len(A), bool)
+    scale = np.max(np.abs(np.concatenate([A, B], axis=1) - A[:, :1]).reshape(len(A), -1), axis=1)
+    nA = np.cross(A[:, 1] - A[:, 0], A[:, 2] - A[:, 0])
+    nB = np.cross(B[:, 1] - B[:, 0], B[:, 2] - B[:, 0])
+    lenA = np.linalg.norm(nA, axis=1)
+    lenB = np.linalg.norm(nB, axis=1)
+    copA = lenA > 0
+    copB = lenB > 0
+    for k in range(3):
+        copA &= np.abs(_dot(B[:, k] - A[:, 0], nA)) <= coplanar_tol * lenA * scale
+        copB &= np.abs(_dot(A[:, k] - B[:, 0], nB)) <= coplanar_tol * lenB * scale
+    cop = copA | copB
+    gen = ~cop
+    if gen.any():
+        Ag, Bg = A[gen], B[gen]
+        tol = volume_tol * scale[gen] ** 3          # signed volumes scale with the cube of the extent
+        hg = np.zeros(len(Ag), bool)
+        for T, S in ((Ag, Bg), (Bg, Ag)):
+            for k in range(3):
+                hg |= _segment_hits_triangle(T[:, k], T[:, (k + 1) % 3], S[:, 0], S[:, 1], S[:, 2], tol)
+        hit[gen] = hg
+    if cop.any():
+        normal = np.where((lenA >= lenB)[:, None], nA, nB)
+        hit[cop] = _coplanar_overlap(A[cop], B[cop], normal[cop])
+    return hit
+
+
+def _candidate_pairs(tri: np.ndarray, ratio: float = 2.0 ** 0.25, q0: float = 10.0) -> np.ndarray:
+    """Face pairs whose bounding spheres (centroid, max centroid–vertex distance) may touch, each once.
+
+    Faces are binned by radius into classes rad ≤ r0·ratioᵏ (r0 = the ``q0`` percentile radius) so that
+    small faces are searched with a small radius even when a few faces are huge.
+    """
+    c = tri.mean(axis=1)
+    rad = np.linalg.norm(tri - c[:, None, :], axis=2).max(axis=1)
+    pos = rad[rad > 0]
+    r0 = float(np.percentile(pos, q0)) if len(pos) else 1.0
+    cls = np.zeros(len(tri), dtype=np.int64)
+    big = rad > r0
+    cls[big] = np.ceil(np.log(rad[big] / r0) / np.log(ratio)).astype(np.int64)
+    # guard against rounding in the log: make sure rad <= r0 * ratio**cls
+    cls += rad > r0 * ratio ** cls
+    levels = np.unique(cls)
+    groups = [np.flatnonzero(cls == k) for k in levels]
+    trees = [cKDTree(c[g]) for g in groups]
+    bound = [r0 * ratio ** float(k) for k in levels]
+    out = []
+    for a, ga in enumerate(groups):
+        pr = trees[a].query_pairs(2.0 * bound[a] * (1 + 1e-9), output_type="ndarray")
+        if len(pr):
+            out.append(ga[pr])
+        for b in range(a + 1, len(groups)):
+            sdm = trees[a].sparse_distance_matrix(trees[b], (bound[a] + bound[b]) * (1 + 1e-9),
+                                                  output_type="ndarray")
+            if len(sdm):
+                out.append(np.column_stack([ga[sdm["i"]], groups[b][sdm["j"]]]))
+    if not out:
+        return np.zeros((0, 2), dtype=np.int64)
+    return np.concatenate(out).astype(np.int64)
+
+
+def _plane_sides(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Signed (scaled) distances (N, 3) of B's vertices from A's plane, and A's plane normal."""
+    nA = np.cross(A[:, 1] - A[:, 0], A[:, 2] - A[:, 0])
+    s = np.stack([_dot(B[:, k] - A[:, 0], nA) for k in range(3)], axis=1)
+    return s, nA
+
+
+def _straddles(s: np.ndarray) -> np.ndarray:
+    """Not all three values strictly on one side (a zero counts as touching)."""
+    return ~((s > 0).all(axis=1) | (s < 0).all(axis=1))
+
+
+def self_intersection_pairs(vertices: np.ndarray, faces: np.ndarray, chunk: int = 500_000) -> np.ndarray:
+    """All intersecting pairs (i, j) of faces that share no vertex index; shape (P, 2), each pair once."""
+    v = np.asarray(vertices, float)
+    f = np.asarray(faces, dtype=np.int64)
+    if len(f) < 2:
+        return np.zeros((0, 2), dtype=np.int64)
+    tri = v[f]
+    lo, hi = tri.min(axis=1), tri.max(axis=1)
+    cand = _candidate_pairs(tri)
+    found = []
+    for s in range(0, len(cand), chunk):
+        i, j = cand[s:s + chunk, 0], cand[s:s + chunk, 1]
+        keep = np.ones(len(i), bool)
+        for k in range(3):      # boxes overlap
+            keep &= (lo[i, k] <= hi[j, k]) & (lo[j, k] <= hi[i, k])
+        i, j = i[keep], j[keep]
+        fi, fj = f[i], f[j]
+        share = np.zeros(len(i), bool)
+        for a in range(3):      # no shared vertex index
+            for b in range(3):
+                share |= fi[:, a] == fj[:, b]
+        i, j = i[~share], j[~share]
+        if not len(i):
+            continue
+        A, B = tri[i], tri[j]
+        # separating planes: all of B strictly on one side of A's plane, or vice versa
+        sB, _ = _plane_sides(A, B)
+        sA, _ = _plane_sides(B, A)
+        maybe = _straddles(sB) & _straddles(sA)
+        i, j = i[maybe], j[maybe]
+        if len(i):
+            hit = _triangles_intersect(tri[i], tri[j])
+            found.append(np.column_stack([i[hit], j[hit]]))
+    if not found:
+        return np.zeros((0, 2), dtype=np.int64)
+    p = np.concatenate(found)
+    p.sort(axis=1)
+    return p

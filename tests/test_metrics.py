@@ -357,3 +357,20 @@ def test_measure_propagates_exceptions():
 
     with pytest.raises(RuntimeError, match="nope"):
         measure(boom)
+
+
+def test_worker_thread_same_result_and_errors_propagate(sphere, monkeypatch):
+    import bench.metrics as bm
+
+    m = icosphere(3, 1.02)
+    par = evaluate(m, sphere, 0.1, n_samples=5000)
+    monkeypatch.setattr(bm, "PARALLEL_DISTANCE", False)
+    assert evaluate(m, sphere, 0.1, n_samples=5000) == par
+    monkeypatch.setattr(bm, "PARALLEL_DISTANCE", True)
+
+    def broken(*args):
+        raise RuntimeError("distance backend failed")
+
+    monkeypatch.setattr(bm, "point_mesh_distance", broken)
+    with pytest.raises(RuntimeError, match="distance backend failed"):
+        evaluate(m, sphere, 0.1, n_samples=5000)

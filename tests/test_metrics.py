@@ -220,9 +220,19 @@ def _two_triangles(t1, t2):
     ([[2, 2, 0.0], [3, 2, 0.0], [2, 3, 0.0]], 0),                 # coplanar, apart
     ([[0.0, 0.0, 1e-3], [1, 0, 1e-3], [0, 1, 1e-3]], 0),          # parallel copy just above
 ])
-def test_triangle_pairs(t2, expected):
+@pytest.mark.parametrize("rotate", [False, True])
+def test_triangle_pairs(t2, expected, rotate):
     v, f = _two_triangles([[0, 0, 0], [1, 0, 0], [0, 1, 0]], t2)
+    if rotate:   # a generic orientation: coplanar pairs are then coplanar only up to rounding
+        rot = trimesh.transformations.random_rotation_matrix(np.random.default_rng(5).random(3))[:3, :3]
+        v = v @ rot.T + [0.3, -1.7, 2.2]
     assert len(self_intersection_pairs(v, f)) == expected
+
+
+def test_rotated_marching_cubes_mesh_has_no_self_intersections():
+    mesh, _, _ = _mc_mesh("cylinder", 40)
+    rot = trimesh.transformations.random_rotation_matrix(np.random.default_rng(2).random(3))[:3, :3]
+    assert len(self_intersection_pairs(mesh.vertices @ rot.T, mesh.faces)) == 0
 
 
 def test_adjacent_faces_are_not_counted(fine):

@@ -5,13 +5,15 @@ All functions take plain arrays (vertices (V, 3) float, faces (F, 3) int) and ar
 Self-intersections
 ------------------
 :func:`self_intersection_pairs` returns every pair of *non-adjacent* faces (no shared vertex index) whose
-closed triangles intersect.  Broad phase: faces are grouped by size class (bounding-sphere radius
-r ≤ r₀·2ᵏ, r₀ = median radius), a ``scipy.spatial.cKDTree`` over the face centroids of each class finds
-all pairs whose bounding spheres can touch (``query_pairs`` within a class, ``sparse_distance_matrix``
-between classes), and an axis-aligned-box overlap test prunes them.  Narrow phase (numpy, batched):
-two non-coplanar triangles intersect iff one of the six edges crosses the other triangle (the intersection
-segment's ends lie on edges); each edge–triangle test uses signed volumes (the Plücker test).  Coplanar
-pairs get a 2-D overlap test (edge–edge crossings plus containment).  Touching counts as intersecting.
+closed triangles intersect.  Broad phase: faces are grouped by size class (bounding-sphere radius about the
+centroid r ≤ r₀·2^(k/4), r₀ = 10th-percentile radius), a ``scipy.spatial.cKDTree`` over the centroids of
+each class finds every pair whose bounding spheres can touch (``query_pairs`` within a class,
+``sparse_distance_matrix`` between classes), then box overlap, "no shared vertex" and a separating-plane
+test prune them.  Narrow phase (numpy, batched): two non-coplanar triangles intersect iff one of the six
+edges meets the other triangle (the ends of the intersection segment lie on edges); each edge–triangle
+test uses signed volumes (the Plücker test), with volumes below 1e-12 × extent³ taken as zero so rounding
+noise cannot decide degenerate configurations.  Pairs within 1e-10 × extent of coplanar get a 2-D overlap
+test instead (edge–edge crossings plus containment).  Touching counts as intersecting.
 Cross-checked in the tests against MeshLab's ``compute_selection_by_self_intersections_per_face``
 (which selects faces, not pairs, hence our own count).
 """
@@ -205,7 +207,7 @@ def _triangles_intersect(A: np.ndarray, B: np.ndarray, coplanar_tol: float = 1e-
     taken as zero.
     """
     hit = np.zeros(len(A), bool)
-    scale = np.max(np.abs(np.concatenate([A, B], axis=1) - A[:, :1]).reshape(len(A), -1), axis=1)
+    scale = _pair_extent(A, B)
     nA = np.cross(A[:, 1] - A[:, 0], A[:, 2] - A[:, 0])
     nB = np.cross(B[:, 1] - B[:, 0], B[:, 2] - B[:, 0])
     lenA = np.linalg.norm(nA, axis=1)
@@ -265,11 +267,17 @@ def _candidate_pairs(tri: np.ndarray, ratio: float = 2.0 ** 0.25, q0: float = 10
     return np.concatenate(out).astype(np.int64)
 
 
-def _plane_sides(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Signed (scaled) distances (N, 3) of B's vertices from A's plane, and A's plane normal."""
+def _pair_extent(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Largest coordinate offset of any vertex of the pair from A's first vertex, (N,)."""
+    return np.max(np.abs(np.concatenate([A, B], axis=1) - A[:, :1]).reshape(len(A), -1), axis=1)
+
+
+def _plane_sides(A: np.ndarray, B: np.ndarray, scale: np.ndarray, tol: float = 1e-10) -> np.ndarray:
+    """Signed (scaled) distances (N, 3) of B's vertices from A's plane; values within ``tol`` × extent of
+    the plane (rounding noise of coplanar pairs) are set to zero."""
     nA = np.cross(A[:, 1] - A[:, 0], A[:, 2] - A[:, 0])
     s = np.stack([_dot(B[:, k] - A[:, 0], nA) for k in range(3)], axis=1)
-    return s, nA
+    return _snap(s, (tol * np.linalg.norm(nA, axis=1) * scale)[:, None])
 
 
 def _straddles(s: np.ndarray) -> np.ndarray:
@@ -303,8 +311,9 @@ def self_intersection_pairs(vertices: np.ndarray, faces: np.ndarray, chunk: int 
             continue
         A, B = tri[i], tri[j]
         # separating planes: all of B strictly on one side of A's plane, or vice versa
-        sB, _ = _plane_sides(A, B)
-        sA, _ = _plane_sides(B, A)
+        scale = _pair_extent(A, B)
+        sB = _plane_sides(A, B, scale)
+        sA = _plane_sides(B, A, scale)
         maybe = _straddles(sB) & _straddles(sA)
         i, j = i[maybe], j[maybe]
         if len(i):

@@ -55,7 +55,9 @@ def vertex_curvature(vertices: np.ndarray, faces: np.ndarray, spacing: float, ou
     if not outward:
         normals = -normals
     nb = radius_neighbors(vertices, faces, 2.0 * float(spacing))
-    H, K = paraboloid_curvature(vertices, normals, nb, linear=True)
+    # a vertex whose faces all have zero area has no normal: its H, K come out NaN (by design, quietly)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        H, K = paraboloid_curvature(vertices, normals, nb, linear=True)
     return H, K, normals
 
 

@@ -48,7 +48,7 @@ BEST_DIRECTION: dict[str, Any] = {
 #: yes/no metrics (shown as yes/no, or the share of seeds)
 BOOL_COLUMNS = {"watertight"}
 
-ELEV, AZIM = 22.0, -58.0   # one camera for every picture
+ELEV, AZIM = 20.0, -25.0   # one camera for every picture (y, the ellipsoid's long axis, across)
 CMAP = "RdYlBu_r"          # blue = low, red = high mean curvature (as in the paper's figures)
 
 
@@ -440,14 +440,21 @@ def _picture_row(entries: list[tuple[dict | None, int | None]], arts: _Artifacts
     meshes = [g[0] for g in got if g[0] is not None]
     if not meshes:
         return [{"img": None, "note": g[1]} for g in got]
-    ext = view_extent([m[0] for m in meshes])
-    vmin, vmax = colour_range([m[2] for m in meshes])
+    # one camera for the row, framed on the meshes of ordinary size: a blown-up reconstruction
+    # (e.g. a diverged mesh) is drawn with the same camera, cut by the frame, instead of shrinking the rest
+    sizes = [view_extent([m[0]])[2] for m in meshes]
+    typical = float(np.median(sizes))
+    framed = [m for m, sz in zip(meshes, sizes) if sz <= 1.5 * typical]
+    ext = view_extent([m[0] for m in framed])
+    vmin, vmax = colour_range([m[2] for m in framed])
     out = []
     for m, note in got:
         if m is None:
             out.append({"img": None, "note": note})
             continue
         v, f, H, _ = m
+        if view_extent([v])[2] > 1.5 * typical:
+            note = (note + "; " if note else "") + "extends far beyond the frame shared by this row"
         out.append({"img": render_mesh(v, f, H, vmin=vmin, vmax=vmax, extent=ext),
                     "note": note, "caption": f"{len(v):,} vertices, {len(f):,} faces"})
     return out

@@ -187,7 +187,8 @@ def test_interrupted_run_resumes_to_the_same_results(quick_run, tmp_path):
     done = list((out / "cells").glob("*.json"))
     assert 1 <= len(done) < 8, "the run should have been interrupted after its first cell"
 
-    res = _bench(*args, "--resume", "--no-report")
+    # no grid options: --resume takes the grid from the folder's config.json
+    res = _bench("--resume", "--out", str(out), "--jobs", "2", "--no-report")
     assert res.returncode == 0, res.stderr[-3000:]
     assert "already done" in res.stdout
     rows = _rows(out / "results.csv")

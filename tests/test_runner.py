@@ -266,6 +266,8 @@ def test_unwritable_or_occupied_output_folder_exits_2(tmp_path, capsys, quick_ru
     assert "--resume" in capsys.readouterr().err
     assert main(["run", "--config", str(tmp_path / "missing.toml")]) == 2
     assert "cannot read config" in capsys.readouterr().err
+    assert main(["report", str(tmp_path)]) == 2
+    assert "not a run folder" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------------------------------------- grid expansion
@@ -287,6 +289,8 @@ def test_grid_expansion_sweeps_overrides_and_stable_ids():
     snrs = {c["snr_requested"] for c in cells if c["phantom"] == "fused_spheres"}
     assert snrs == {None, 30.0, 43.2}
     assert [c["cell_id"] for c in expand_grid(cfg)] == [c["cell_id"] for c in cells]  # stable
+    again = config_from_dict(json.loads(json.dumps(cfg.to_dict())))  # what run folders keep (config.json)
+    assert [c["cell_id"] for c in expand_grid(again)] == [c["cell_id"] for c in cells]
 
 
 def test_paper_config_is_the_paper_grid():

@@ -159,7 +159,8 @@ def test_index_html_has_a_summary_table_per_phantom_and_noise_and_pictures(quick
 def test_run_json_records_config_versions_machine_and_time(quick_run):
     out, _ = quick_run
     meta = json.loads((out / "run.json").read_text())
-    assert meta["config"]["name"] == "quick"
+    assert meta["config"]["name"] == "quick*"  # the quick grid, changed on the command line (--add-method)
+    assert "--add-method" in meta["config"]["description"]
     assert meta["python"].count(".") == 2
     assert meta["dependencies"]["numpy"] and "trimesh" in meta["dependencies"]
     assert meta["machine"]["cpu_count"] >= 1

@@ -120,6 +120,8 @@ def build_parser() -> argparse.ArgumentParser:
 _EXTRA_COMMANDS: list = []
 from .cli_run import register as _register_run  # noqa: E402  (python -m bench run / report)
 _EXTRA_COMMANDS.append(_register_run)
+from .cli_methods import register as _register_methods  # noqa: E402  (python -m bench methods / reconstruct)
+_EXTRA_COMMANDS.append(_register_methods)
 
 
 def main(argv: list[str] | None = None) -> int:

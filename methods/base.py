@@ -61,8 +61,9 @@ class Param:
         """Convert/validate ``value`` (strings from the command line included); InputError on failure."""
         where = f"method {method!r}, parameter {name!r}"
         t = self.type
-        if value is None and self.default is None:
-            return None
+        if self.default is None and (value is None or (isinstance(value, str)
+                                                         and value.strip().lower() in ("none", "auto", ""))):
+            return None  # a parameter whose default is None ("auto") accepts None/'none'/'auto' back
         try:
             if t is bool:
                 if isinstance(value, str):

@@ -134,7 +134,7 @@ def render_mesh(vertices, faces, H, *, vmin: float, vmax: float, extent: tuple[f
     rgba[:, :3] *= shade[:, None]
 
     fig = plt.figure(figsize=(size * 1.18, size), dpi=dpi)
-    ax = fig.add_axes((0.0, 0.0, 0.80, 0.9 if title else 1.0))
+    ax = fig.add_axes((0.0, 0.0, 0.76, 0.9 if title else 1.0))
     many = len(fi) > 6000
     coll = PolyCollection(tri[:, :, :2], facecolors=rgba,
                           edgecolors="face" if many else (0.15, 0.15, 0.15, 0.35),
@@ -146,8 +146,8 @@ def render_mesh(vertices, faces, H, *, vmin: float, vmax: float, extent: tuple[f
     ax.set_aspect("equal")
     ax.axis("off")
     if title:
-        fig.text(0.4, 0.97, title, ha="center", va="top", fontsize=7)
-    cax = fig.add_axes((0.83, 0.12, 0.04, 0.72))
+        fig.text(0.38, 0.97, title, ha="center", va="top", fontsize=7)
+    cax = fig.add_axes((0.79, 0.12, 0.035, 0.72))
     sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
     cb = fig.colorbar(sm, cax=cax)
     cb.ax.tick_params(labelsize=6)

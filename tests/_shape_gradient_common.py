@@ -57,3 +57,76 @@ def gradient_fd_error(field, vertices, faces, alpha=5.0, beta=1.0, kind="full"):
     G, _, A = shape_gradient(field, vertices, faces, alpha, beta, kind=kind)
     fd = fd_normal_derivative(field, vertices, faces, alpha, beta)
     return float(np.linalg.norm(A * G - fd) / np.linalg.norm(fd))
+
+
+# ---------------------------------------------------------------------------- reconstruction metrics
+def hausdorff(mesh, phantom, n_samples: int = 20_000, seed: int = 0) -> float:
+    """Symmetric Hausdorff distance (world units) of a mesh to the phantom's exact surface.
+
+    recon → truth: the exact distance of every vertex and face centroid; truth → recon:
+    ``trimesh.proximity.closest_point`` (exact point-to-triangle) of ``n_samples`` area-uniform truth samples.
+    """
+    import trimesh
+
+    pts = np.concatenate([mesh.vertices, mesh.triangles_center])
+    d_rt = float(phantom.distance(pts).max())
+    samples, _ = phantom.sample_surface(n_samples, seed)
+    _, d_tr, _ = trimesh.proximity.closest_point(mesh, samples)
+    return max(d_rt, float(d_tr.max()))
+
+
+def self_intersecting_faces(mesh) -> int:
+    """Number of faces pymeshlab flags as intersecting another face."""
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32)))
+    ms.compute_selection_by_self_intersections_per_face()
+    return int(ms.current_mesh().selected_face_number())
+
+
+def topology(mesh) -> dict:
+    return {"watertight": bool(mesh.is_watertight), "euler": int(mesh.euler_number),
+            "self_intersections": self_intersecting_faces(mesh)}
+
+
+def h_std(mesh, phantom, h: float, band: float = 0.1) -> float:
+    """Std of the paraboloid-fit H over vertices in regions of constant true curvature (METRICS.md).
+
+    Neighbourhood: every vertex within 2h (at least the 1-ring), the suite's estimator.
+    """
+    from geometry.curvature import paraboloid_curvature
+    from geometry.mesh import radius_neighbors, vertex_normals
+
+    v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
+    H, _ = paraboloid_curvature(v, vertex_normals(v, f), radius_neighbors(v, f, 2 * h), linear=True)
+    t = phantom.truth(v)
+    ok = (t.crease_distance >= band) & np.isfinite(t.H) & np.isfinite(H)
+    if phantom.name == "cylinder":
+        ok &= np.isclose(t.H, 1.25)                       # the side
+    elif phantom.name not in ("sphere", "fused_spheres"):
+        raise ValueError(f"no constant-curvature region defined for {phantom.name}")
+    return float(np.std(H[ok]))
+
+
+def roughness_deg(mesh, phantom, band: float = 0.1) -> float:
+    """Mean angle (degrees) between the normals of faces sharing an edge, edges near creases left out."""
+    ok_v = phantom.truth(np.asarray(mesh.vertices, float)).crease_distance >= band
+    pairs = mesh.face_adjacency
+    edges = mesh.face_adjacency_edges
+    keep = ok_v[edges].all(1)
+    n = mesh.face_normals
+    c = np.clip(np.einsum("ij,ij->i", n[pairs[keep, 0]], n[pairs[keep, 1]]), -1.0, 1.0)
+    return float(np.degrees(np.arccos(c)).mean())
+
+
+def marching_cubes(volume):
+    """Marching cubes at level 0 (scikit-image), world coordinates, outward, duplicates merged."""
+    import trimesh
+    from skimage.measure import marching_cubes as mc
+
+    verts, faces, _, _ = mc(volume.values, level=0.0, spacing=tuple(volume.spacing))
+    m = trimesh.Trimesh(verts + volume.origin, faces, process=True)
+    if m.volume < 0:
+        m.invert()
+    return m

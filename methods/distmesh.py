@@ -37,6 +37,7 @@ import time
 
 import numpy as np
 import trimesh
+from scipy import sparse
 
 from phantoms import InputError, Volume
 
@@ -254,18 +255,26 @@ class DistMesh(Method):
         for it in range(1, max_iter + 1):
             p0 = p.copy()
             # 3. retriangulation by edge flips when anything moved by more than ttol·h0
-            if bars is None or np.sqrt(((p - pold) ** 2).sum(1)).max() > ttol * h0:
+            dp = p - pold
+            if bars is None or np.einsum("ij,ij->i", dp, dp).max() > (ttol * h0) ** 2:
                 pold = p.copy()
                 t, flips, _ = flip_edges(p, t)
                 n_flips += flips
                 n_retri += 1
                 bars = _unique_edges(t, n)
-                fallback = rng.standard_normal((len(bars), 3))
+                nb = len(bars)
+                # signed node-bar incidence: the force sum is one sparse product per iteration
+                rows = np.r_[bars[:, 0], bars[:, 1]]
+                cols = np.r_[np.arange(nb), np.arange(nb)]
+                signs = np.r_[np.ones(nb), -np.ones(nb)]
+                incidence = sparse.csr_matrix((signs, (rows, cols)), shape=(n, nb))
+                fallback = rng.standard_normal((nb, 3))
                 fallback /= np.linalg.norm(fallback, axis=1, keepdims=True)
             # 6. repulsive bar forces
             barvec = p[bars[:, 0]] - p[bars[:, 1]]
-            L = np.sqrt((barvec ** 2).sum(1))
-            lrms = float(np.sqrt((L ** 2).sum() / len(L)))
+            L2 = np.einsum("ij,ij->i", barvec, barvec)
+            L = np.sqrt(L2)
+            lrms = float(np.sqrt(L2.sum() / len(L)))
             L0 = fscale * lrms
             # divergence guard: on a fixed surface the rms bar length settles; when it keeps growing the
             # mesh is tangling/leaving the surface (the original's instability on noisy input) — stop
@@ -275,33 +284,33 @@ class DistMesh(Method):
                 break
             F = np.maximum(L0 - L, 0.0)
             short = L < tiny
-            unit = np.where(short[:, None], fallback, barvec / np.where(short, 1.0, L)[:, None])
-            fvec = F[:, None] * unit
-            ftot = np.empty_like(p)
-            for k in range(3):
-                ftot[:, k] = (np.bincount(bars[:, 0], weights=fvec[:, k], minlength=n)
-                              - np.bincount(bars[:, 1], weights=fvec[:, k], minlength=n))
-            p = p + deltat * ftot
+            if short.any():  # zero-length bar: push along a fixed direction instead of dividing by 0
+                unit = np.where(short[:, None], fallback, barvec / np.where(short, 1.0, L)[:, None])
+                fvec = F[:, None] * unit
+            else:
+                fvec = (F / L)[:, None] * barvec
+            p = p + deltat * (incidence @ fvec)
             np.clip(p, lo, hi, out=p)
             # 7. one Newton projection back onto φ = 0
             for _ in range(newton_steps):
                 phi, grad = sampler(p)
-                g2 = (grad ** 2).sum(1)
+                g2 = np.einsum("ij,ij->i", grad, grad)
                 flat = g2 < g2_floor
                 n_flat += int(flat.sum())
                 step = (phi / np.where(flat, 1.0, g2))[:, None] * grad
                 step[flat] = 0.0
-                slen = np.sqrt((step ** 2).sum(1))
-                big = slen > h0
+                slen2 = np.einsum("ij,ij->i", step, step)
+                big = slen2 > h0 * h0
                 if big.any():
                     n_capped += int(big.sum())
-                    step[big] *= (h0 / slen[big])[:, None]
+                    step[big] *= (h0 / np.sqrt(slen2[big]))[:, None]
                 p = p - step
                 np.clip(p, lo, hi, out=p)
-            if not np.isfinite(p).all():  # pragma: no cover - guarded above
-                raise InputError(f"method {self.name!r}: node positions became non-finite at iteration {it}")
             # 8. termination: every node moved less than dptol·h0
-            max_move = float(np.sqrt(((p - p0) ** 2).sum(1)).max()) / h0
+            dp = p - p0
+            max_move = float(np.sqrt(np.einsum("ij,ij->i", dp, dp).max())) / h0
+            if not np.isfinite(max_move):  # pragma: no cover - guarded above
+                raise InputError(f"method {self.name!r}: node positions became non-finite at iteration {it}")
             if cfg["history"]:
                 history.append(max_move)
             if max_move < dptol:

@@ -1,0 +1,124 @@
+"""``python -m bench methods`` and ``python -m bench reconstruct`` through the CLI entry point."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from bench.cli import main
+from phantoms import get_phantom, save_volume
+
+BUILTINS = ["marching_cubes", "mc_taubin", "distmesh", "poisson"]
+
+
+@pytest.fixture(scope="module")
+def sphere_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("vol") / "sphere.npz"
+    save_volume(path, get_phantom("sphere").volume(n=40))
+    return path
+
+
+def test_methods_lists_every_method_with_params_and_defaults(capsys):
+    assert main(["methods"]) == 0
+    out = capsys.readouterr().out
+    for name in BUILTINS:
+        assert f"\n{name} — " in "\n" + out
+    # parameters with types, defaults and docs
+    assert "step_size" in out and "default 1" in out
+    assert "lorensen" in out
+    assert "max_iter" in out and "default 2000" in out
+    assert "h0" in out and "default auto" in out
+    assert "depth" in out and "samples_per_node" in out
+    assert "lamb" in out and "default 0.53" in out
+
+
+def test_methods_single_and_unknown(capsys):
+    assert main(["methods", "distmesh"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("distmesh") and "poisson" not in out.split("\n")[0]
+    assert main(["methods", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown method 'nope'" in err and "marching_cubes" in err
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".obj", ".stl"])
+def test_reconstruct_writes_each_format(sphere_file, tmp_path, capsys, suffix):
+    out = tmp_path / f"mesh{suffix}"
+    assert main(["reconstruct", str(sphere_file), "--method", "marching_cubes", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    for key in ("vertices:", "faces:", "watertight:   yes", "euler:        2", "time:"):
+        assert key in text, key
+    mesh = trimesh.load(out, force="mesh")
+    assert mesh.is_watertight and mesh.euler_number == 2 and mesh.volume > 0
+    n_vertices = int(text.split("vertices:")[1].split()[0])
+    assert len(mesh.vertices) == n_vertices
+
+
+def test_reconstruct_with_params_and_info_json(sphere_file, tmp_path, capsys):
+    out = tmp_path / "dm.ply"
+    info = tmp_path / "info.json"
+    rc = main(["reconstruct", str(sphere_file), "-m", "distmesh", "--set", "max_iter=30", "--set", "h0=0.25",
+               "-o", str(out), "--info-json", str(info)])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "iterations:" in text and "stop_reason:" in text and "max_iter" in text
+    data = json.loads(info.read_text())
+    assert data["params"]["max_iter"] == 30 and data["params"]["h0"] == 0.25
+    assert data["info"]["iterations"] == 30 and data["info"]["converged"] is False
+    assert data["mesh"]["watertight"] is True and data["mesh"]["euler"] == 2
+    assert trimesh.load(out, force="mesh").is_watertight
+
+
+def test_reconstruct_taubin_and_poisson(sphere_file, tmp_path, capsys):
+    for method, sets in (("mc_taubin", ["iterations=4"]), ("poisson", ["depth=6"])):
+        out = tmp_path / f"{method}.obj"
+        args = ["reconstruct", str(sphere_file), "-m", method, "-o", str(out)]
+        for s in sets:
+            args += ["--set", s]
+        assert main(args) == 0, method
+        mesh = trimesh.load(out, force="mesh")
+        assert mesh.is_watertight and mesh.volume > 0
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-m", "nope"], "unknown method 'nope'; valid methods:"),
+    (["-m", "distmesh", "--set", "max_iter=abc"], "method 'distmesh', parameter 'max_iter': expected int"),
+    (["-m", "distmesh", "--set", "max_iter=0"], "method 'distmesh', parameter 'max_iter'"),
+    (["-m", "marching_cubes", "--set", "method=cubes"], "method 'marching_cubes', parameter 'method'"),
+    (["-m", "poisson", "--set", "bogus=1"], "method 'poisson' has no parameter 'bogus'"),
+    (["-m", "poisson", "--set", "depth"], "--set expects key=value"),
+    (["-m", "marching_cubes", "--set", "step_size=1", "--set", "step_size=2"], "twice"),
+])
+def test_reconstruct_bad_arguments_exit_2(sphere_file, tmp_path, capsys, args, message):
+    rc = main(["reconstruct", str(sphere_file), *args, "-o", str(tmp_path / "x.ply")])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and message in err and "Traceback" not in err
+    assert not (tmp_path / "x.ply").exists()
+
+
+def test_reconstruct_bad_files_exit_2(sphere_file, tmp_path, capsys):
+    assert main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(tmp_path / "x.vtk")]) == 2
+    assert "unknown mesh format '.vtk'" in capsys.readouterr().err
+    assert main(["reconstruct", str(tmp_path / "missing.npz"), "-m", "marching_cubes",
+                 "-o", str(tmp_path / "x.ply")]) == 2
+    capsys.readouterr()
+    # a volume with no zero crossing: the method names itself
+    empty = tmp_path / "empty.npz"
+    save_volume(empty, get_phantom("sphere").volume(n=16).with_values(np.full((16, 16, 16), 2.5)))
+    assert main(["reconstruct", str(empty), "-m", "poisson", "-o", str(tmp_path / "x.ply")]) == 2
+    err = capsys.readouterr().err
+    assert "method 'poisson'" in err and "no zero crossing" in err
+
+
+def test_reconstruct_reads_a_mask(tmp_path, capsys):
+    vol = get_phantom("sphere").volume(n=32)
+    mask_path = tmp_path / "mask.npy"
+    np.save(mask_path, (vol.values < 0).astype(np.uint8))
+    out = tmp_path / "mask.ply"
+    assert main(["reconstruct", str(mask_path), "-m", "marching_cubes", "--mask", "-o", str(out)]) == 0
+    assert "watertight:   yes" in capsys.readouterr().out

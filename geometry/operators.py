@@ -279,6 +279,9 @@ class MeshOperators:
         self.ring_weight = self.ring_valid.astype(float)
         self.ring_count = self.ring_valid.sum(1)
         self._ring_safe = np.where(self.ring_valid, self.ring, 0)
+        # padded slots point at the vertex itself, so its offset to itself (0) needs no mask
+        self._ring_self_t = np.ascontiguousarray(
+            np.where(self.ring_valid, self.ring, np.arange(V)[:, None]).T)   # (W, V)
         self._ring_t = np.ascontiguousarray(self._ring_safe.T)              # (W, V)
         self.ring_weight_t = np.ascontiguousarray(self.ring_weight.T)
 
@@ -352,10 +355,9 @@ class MeshOperators:
         t2 = (bb, sg + ny * ny * a, -ny)
         # ring offsets in (W, V) layout, so that sums over the ring run over the short leading axis
         xt = geo.vertices_t
-        w = self.ring_weight_t
-        dx = (np.take(xt[0], self._ring_t) - xt[0]) * w                      # invalid slots → 0
-        dy = (np.take(xt[1], self._ring_t) - xt[1]) * w
-        dz = (np.take(xt[2], self._ring_t) - xt[2]) * w
+        dx = np.take(xt[0], self._ring_self_t) - xt[0]                        # padded slots → 0
+        dy = np.take(xt[1], self._ring_self_t) - xt[1]
+        dz = np.take(xt[2], self._ring_self_t) - xt[2]
         u = dx * t1[0] + dy * t1[1] + dz * t1[2]
         v = dx * t2[0] + dy * t2[1] + dz * t2[2]
         z = dx * nx + dy * ny + dz * nz

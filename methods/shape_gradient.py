@@ -38,7 +38,7 @@ from phantoms import InputError, Sample, Volume
 
 from .base import Method, Param, Reconstruction, check_volume
 
-__all__ = ["ShapeGradient", "discrete_energy", "shape_gradient", "mesh_curvature", "PRESETS",
+__all__ = ["ShapeGradient", "ShapeGradientFlow", "discrete_energy", "shape_gradient", "mesh_curvature", "PRESETS",
            "STOP_REASONS", "prepare_init_mesh"]
 
 STOP_REASONS = ("converged", "max_iter", "line_search_floor", "diverged")
@@ -538,168 +538,211 @@ class ShapeGradient(Method):
             return GridSampler(cache[sigma])
         return GridSampler(cache[sigma], phi_volume=volume)
 
-    def reconstruct(self, volume: Volume) -> Reconstruction:
+    def prepare(self, volume: Volume, *, ops: MeshOperators | None = None) -> "ShapeGradientFlow":
+        """Check the input, build the initial surface, the (pre-smoothed) field and the operators, and
+        return the flow before its first iteration (``reconstruct`` = ``prepare(volume).run()`` + packing).
+
+        ``ops`` reuses a :class:`MeshOperators` built for the same initial connectivity (benchmarks).
+        """
         check_volume(volume, self.name)
         cfg = dict(self.config)
         t_start = time.perf_counter()
-        timings = dict.fromkeys(("setup", "interpolation", "curvature", "gradient", "preconditioner",
-                                 "energy", "relax"), 0.0)
         x, faces, flipped = self._initial_surface(volume)
         noise = estimate_noise(volume)
         sigma = cfg["presmooth"]
         if sigma == "auto":
             sigma = _AUTO_PRESMOOTH_SIGMA if noise >= _AUTO_PRESMOOTH_NOISE * volume.h else 0.0
+        cfg["presmooth_used"] = float(sigma)
         field = self._field(volume, sigma)
-        ops = MeshOperators(faces, len(x))
-        field.sample_t(x[:1].T.copy(), 2)       # build the cached derivative grids now (counted as setup)
-        timings["setup"] = time.perf_counter() - t_start
+        if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):
+            ops = MeshOperators(faces, len(x))
+        field.sample_t(np.ascontiguousarray(x[:1].T), 2)     # build the cached derivative grids now (setup)
+        flow = ShapeGradientFlow(field, ops, x, cfg, volume.h, setup_seconds=time.perf_counter() - t_start)
+        flow.init_flipped = flipped
+        flow.noise = noise
+        return flow
 
-        alpha, beta = cfg["alpha"], cfg["beta"]
-        kind, linear = cfg["gradient"], cfg["curvature"] == "tilted"
-        h = volume.h
-        max_move = cfg["max_move"] * h
-        floor_move = _FLOOR_MOVE_VOXELS * h
-        relax = cfg["relax"]
-        use_h1 = cfg["precondition"] == "h1" and cfg["s"] > 0
-        snap_set = set(cfg["snapshots"])
+    def reconstruct(self, volume: Volume) -> Reconstruction:
+        flow = self.prepare(volume)
+        flow.run()
+        return flow.result()
 
-        state = evaluate_state(field, ops, x, alpha, beta, timings)
-        if not np.isfinite(state.E):
+
+class ShapeGradientFlow:
+    """One run of the flow, iteration by iteration (see the module docstring for what an iteration does).
+
+    >>> flow = ShapeGradient().prepare(volume)
+    >>> while flow.step(): ...                  # or flow.run()
+    >>> rec = flow.result()                     # the Reconstruction (mesh + info)
+    """
+
+    def __init__(self, field, ops: MeshOperators, x: np.ndarray, cfg: dict, h: float, *,
+                 setup_seconds: float = 0.0):
+        self.field, self.ops, self.cfg, self.h = field, ops, cfg, float(h)
+        self.t_start = time.perf_counter() - setup_seconds
+        self.timings = dict.fromkeys(("setup", "interpolation", "curvature", "gradient", "preconditioner",
+                                      "energy", "relax"), 0.0)
+        self.timings["setup"] = setup_seconds
+        self.alpha, self.beta = cfg["alpha"], cfg["beta"]
+        self.kind, self.linear = cfg["gradient"], cfg["curvature"] == "tilted"
+        self.max_move = cfg["max_move"] * self.h
+        self.floor_move = _FLOOR_MOVE_VOXELS * self.h
+        self.snap_set = set(cfg["snapshots"])
+        self.init_flipped = False
+        self.noise = float("nan")
+        self.state = evaluate_state(field, ops, np.asarray(x, float), self.alpha, self.beta, self.timings)
+        if not np.isfinite(self.state.E):
             raise InputError("method 'shape_gradient': the energy of the initial surface is not finite")
-        history = [state.E]
-        snapshots = {0: x.copy()}
-        stop, message = "max_iter", ""
-        it = calm = still = n_backtracks = 0
-        V_prev = None
-        move_prev = max_move
-        cg_iters: list[int] = []
-        moves: list[float] = []
-        for it in range(1, cfg["max_iter"] + 1):
-            G, _ = gradient_from_state(field, state, ops, alpha, beta, kind=kind, linear=linear,
-                                       timings=timings)
-            if not np.isfinite(G).all():
-                bad = int((~np.isfinite(G)).sum())
-                stop = "diverged"
-                message = (f"iteration {it}: the shape gradient is not finite at {bad} vertices "
-                           "(degenerate mesh or curvature fit)")
-                it -= 1
-                break
-            t0 = time.perf_counter()
-            geo = state.geo
-            M = geo.vertex_areas
-            b = M * G
-            Vel = G
-            if use_h1:
-                K = ops.stiffness(geo)
-                s = cfg["s"]
-                diag = M + s * ops.stiffness_diagonal(K)
-                sol, ncg, _ = jacobi_cg(lambda p: M * p + s * (K @ p), b, diag, x0=V_prev, rtol=_CG_RTOL,
-                                        maxiter=_CG_MAXITER)
-                cg_iters.append(ncg)
-                if np.isfinite(sol).all() and float(b @ sol) > 0:
-                    Vel = sol
-            V_prev = Vel
-            timings["preconditioner"] += time.perf_counter() - t0
-            n = geo.vertex_normals
-            direction = -Vel[:, None] * n
-            vmax = float(np.abs(Vel).max())
-            slope = float(b @ Vel)                       # −dE/dτ at τ = 0 (> 0)
-            if vmax == 0.0:
-                stop, message = "converged", f"iteration {it}: the shape gradient vanishes"
-                it -= 1
-                break
-            shift = 0.0
-            if relax > 0:
-                t0 = time.perf_counter()
-                nt = geo.vertex_normals_t
-                d = ops.ring_mean_t(geo.vertices_t) - geo.vertices_t
-                d -= (d[0] * nt[0] + d[1] * nt[1] + d[2] * nt[2]) * nt
-                shift = relax * d.T
-                timings["relax"] += time.perf_counter() - t0
-            if cfg["step"] == "fixed":
-                tau = cfg["tau"]
-                x_new = state.x + tau * direction + shift
-                if not np.isfinite(x_new).all():
-                    stop, message = "diverged", f"iteration {it}: non-finite vertex positions"
-                    it -= 1
-                    break
-                new = evaluate_state(field, ops, x_new, alpha, beta, timings)
-                if not np.isfinite(new.E):
-                    stop = "diverged"
-                    message = (f"iteration {it}: the mesh left the volume box" if new.X is None
-                               else f"iteration {it}: non-finite energy")
-                    it -= 1
-                    break
-                moves.append(tau * vmax)
-            else:
-                new = None
-                for with_shift in ((True, False) if relax > 0 else (False,)):
-                    move = min(max_move, 2.0 * move_prev)
-                    while True:
-                        tau = move / vmax
-                        x_new = state.x + tau * direction
-                        if with_shift:
-                            x_new = x_new + shift
-                        cand = evaluate_state(field, ops, x_new, alpha, beta, timings)
-                        if np.isfinite(cand.E) and cand.E <= state.E - _ARMIJO * tau * slope:
-                            new = cand
-                            break
-                        n_backtracks += 1
-                        move *= 0.5
-                        if move < floor_move:
-                            break
-                    if new is not None:
-                        break
-                if new is None:
-                    stop = "line_search_floor"
-                    message = (f"iteration {it}: no decrease of E for moves down to {floor_move / h:.1g} voxels "
-                               "(the gradient no longer predicts a decrease of the discrete energy)")
-                    it -= 1
-                    break
-                move_prev = move
-                moves.append(move)
-            prev = state.E
-            state = new
-            history.append(state.E)
-            if it in snap_set:
-                snapshots[it] = state.x.copy()
-            rel = abs(prev - state.E) / max(abs(prev), 1e-300)
-            calm = calm + 1 if rel < cfg["tol"] else 0
-            still = still + 1 if moves[-1] < cfg["move_tol"] * h else 0
-            if calm >= _CONVERGE_PATIENCE or still >= _CONVERGE_PATIENCE:
-                stop = "converged"
-                message = (f"iteration {it}: relative energy change below tol = {cfg['tol']:g} "
-                           f"for {_CONVERGE_PATIENCE} iterations" if calm >= _CONVERGE_PATIENCE else
-                           f"iteration {it}: largest normal move below move_tol = {cfg['move_tol']:g} voxels "
-                           f"for {_CONVERGE_PATIENCE} iterations")
-                break
+        self.history = [self.state.E]
+        self.snapshots = {0: self.state.x.copy()}
+        self.iteration = 0
+        self.stop: str | None = None
+        self.message = ""
+        self._calm = self._still = 0
+        self.n_backtracks = 0
+        self._V_prev = None
+        self._move_prev = self.max_move
+        self.cg_iterations: list[int] = []
+        self.moves: list[float] = []
 
+    # ------------------------------------------------------------------ one iteration
+    def _end(self, reason: str, message: str) -> bool:
+        self.stop, self.message = reason, message
+        return False
+
+    def step(self) -> bool:
+        """Do one iteration; False when the run has ended (``stop``/``message`` say why)."""
+        if self.stop is not None:
+            return False
+        if self.iteration >= self.cfg["max_iter"]:
+            return self._end("max_iter", f"reached max_iter = {self.cfg['max_iter']}")
+        cfg, ops, field, timings = self.cfg, self.ops, self.field, self.timings
+        alpha, beta, h = self.alpha, self.beta, self.h
+        it = self.iteration + 1
+        state = self.state
+        G, _ = gradient_from_state(field, state, ops, alpha, beta, kind=self.kind, linear=self.linear,
+                                   timings=timings)
+        if not np.isfinite(G).all():
+            bad = int((~np.isfinite(G)).sum())
+            return self._end("diverged", f"iteration {it}: the shape gradient is not finite at {bad} vertices "
+                                         "(degenerate mesh or curvature fit)")
         t0 = time.perf_counter()
-        H_final, K_final = ops.curvature(state.geo, linear=linear)
-        timings["curvature"] += time.perf_counter() - t0
-        timings["total"] = time.perf_counter() - t_start
-        mesh = trimesh.Trimesh(state.x.copy(), faces.copy(), process=False)
+        geo = state.geo
+        M = geo.vertex_areas
+        b = M * G
+        Vel = G
+        if cfg["precondition"] == "h1" and cfg["s"] > 0:
+            K = ops.stiffness(geo)
+            s = cfg["s"]
+            diag = M + s * ops.stiffness_diagonal(K)
+            sol, ncg, _ = jacobi_cg(lambda p: M * p + s * (K @ p), b, diag, x0=self._V_prev, rtol=_CG_RTOL,
+                                    maxiter=_CG_MAXITER)
+            self.cg_iterations.append(ncg)
+            if np.isfinite(sol).all() and float(b @ sol) > 0:
+                Vel = sol
+        self._V_prev = Vel
+        timings["preconditioner"] += time.perf_counter() - t0
+        direction = -Vel[:, None] * geo.vertex_normals
+        vmax = float(np.abs(Vel).max())
+        slope = float(b @ Vel)                           # −dE/dτ at τ = 0 (> 0)
+        if vmax == 0.0:
+            return self._end("converged", f"iteration {it}: the shape gradient vanishes")
+        shift = None
+        if cfg["relax"] > 0:
+            t0 = time.perf_counter()
+            nt = geo.vertex_normals_t
+            d = ops.ring_mean_t(geo.vertices_t) - geo.vertices_t
+            d -= (d[0] * nt[0] + d[1] * nt[1] + d[2] * nt[2]) * nt
+            shift = cfg["relax"] * d.T
+            timings["relax"] += time.perf_counter() - t0
+        if cfg["step"] == "fixed":
+            tau = cfg["tau"]
+            x_new = state.x + tau * direction + (0.0 if shift is None else shift)
+            if not np.isfinite(x_new).all():
+                return self._end("diverged", f"iteration {it}: non-finite vertex positions")
+            new = evaluate_state(field, ops, x_new, alpha, beta, timings)
+            if not np.isfinite(new.E):
+                return self._end("diverged", f"iteration {it}: the mesh left the volume box" if new.X is None
+                                 else f"iteration {it}: non-finite energy")
+            move = tau * vmax
+        else:
+            new = None
+            for with_shift in ((True, False) if shift is not None else (False,)):
+                move = min(self.max_move, 2.0 * self._move_prev)
+                while True:
+                    tau = move / vmax
+                    x_new = state.x + tau * direction
+                    if with_shift:
+                        x_new += shift
+                    cand = evaluate_state(field, ops, x_new, alpha, beta, timings)
+                    if np.isfinite(cand.E) and cand.E <= state.E - _ARMIJO * tau * slope:
+                        new = cand
+                        break
+                    self.n_backtracks += 1
+                    move *= 0.5
+                    if move < self.floor_move:
+                        break
+                if new is not None:
+                    break
+            if new is None:
+                return self._end("line_search_floor",
+                                 f"iteration {it}: no decrease of E for moves down to "
+                                 f"{self.floor_move / h:.1g} voxels (the gradient no longer predicts a "
+                                 "decrease of the discrete energy)")
+            self._move_prev = move
+        self.moves.append(move)
+        prev = state.E
+        self.state = new
+        self.iteration = it
+        self.history.append(new.E)
+        if it in self.snap_set:
+            self.snapshots[it] = new.x.copy()
+        rel = abs(prev - new.E) / max(abs(prev), 1e-300)
+        self._calm = self._calm + 1 if rel < cfg["tol"] else 0
+        self._still = self._still + 1 if move < cfg["move_tol"] * h else 0
+        if self._calm >= _CONVERGE_PATIENCE:
+            return self._end("converged", f"iteration {it}: relative energy change below tol = {cfg['tol']:g} "
+                                          f"for {_CONVERGE_PATIENCE} iterations")
+        if self._still >= _CONVERGE_PATIENCE:
+            return self._end("converged", f"iteration {it}: largest normal move below move_tol = "
+                                          f"{cfg['move_tol']:g} voxels for {_CONVERGE_PATIENCE} iterations")
+        return True
+
+    def run(self) -> "ShapeGradientFlow":
+        while self.step():
+            pass
+        return self
+
+    # ------------------------------------------------------------------ the result
+    def result(self) -> Reconstruction:
+        """The mesh (closed, outward, the initial connectivity) and the info dict."""
+        cfg, h = self.cfg, self.h
+        t0 = time.perf_counter()
+        H_final, K_final = self.ops.curvature(self.state.geo, linear=self.linear)
+        self.timings["curvature"] += time.perf_counter() - t0
+        self.timings["total"] = time.perf_counter() - self.t_start
+        mesh = trimesh.Trimesh(self.state.x.copy(), self.ops.faces.copy(), process=False)
         params_used = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in cfg.items()}
         params_used["init_mesh"] = None if cfg["init_mesh"] is None else "user mesh"
         params_used["snapshots"] = list(cfg["snapshots"])
         info = {
-            "iterations": int(it),
-            "stop_reason": stop,
-            "stop_message": message,
-            "energy_history": [float(e) for e in history],
-            "energy_final": float(history[-1]),
-            "snapshots": snapshots,
+            "iterations": int(self.iteration),
+            "stop_reason": self.stop or "max_iter",
+            "stop_message": self.message,
+            "energy_history": [float(e) for e in self.history],
+            "energy_final": float(self.history[-1]),
+            "snapshots": dict(self.snapshots),
             "H": H_final,
             "K": K_final,
             "parameters": params_used,
-            "timings": timings,
-            "n_backtracks": int(n_backtracks),
-            "cg_iterations": cg_iters,
-            "move_history_voxels": [float(m / h) for m in moves],
-            "init_flipped": bool(flipped),
-            "noise_estimate": float(noise),
-            "noise_estimate_voxels": float(noise / h),
-            "presmooth_used": float(sigma),
+            "timings": dict(self.timings),
+            "n_backtracks": int(self.n_backtracks),
+            "cg_iterations": list(self.cg_iterations),
+            "move_history_voxels": [float(m / h) for m in self.moves],
+            "init_flipped": bool(self.init_flipped),
+            "noise_estimate": float(self.noise),
+            "noise_estimate_voxels": float(self.noise / h),
+            "presmooth_used": float(cfg.get("presmooth_used", 0.0)),
             "grid_spacing": float(h),
         }
         return Reconstruction(mesh, info)

@@ -1,0 +1,92 @@
+"""The shape-gradient method on the paper's grid (N = 96, `sdf` variant, α = 5, β = 1, defaults).
+
+Slow (about a minute in all): run with ``pytest -m slow tests/test_shape_gradient_phantoms.py``.
+Targets (issue 3): clean Hausdorff ≤ 0.1 h sphere, ≤ 0.3 h ellipsoid, ≤ 1.0 h cylinder and fused spheres;
+every mesh watertight, Euler 2, no self-intersections; Gaussian noise at the paper's SNR: Hausdorff ≤ 0.5 h on
+sphere and ellipsoid, smoother than marching cubes (lower H_std on the sphere, lower roughness on all four).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from _shape_gradient_common import h_std, hausdorff, marching_cubes, roughness_deg, topology
+from methods.shape_gradient import ShapeGradient
+from phantoms import add_noise, get_phantom
+
+pytestmark = pytest.mark.slow
+
+PHANTOMS = ("sphere", "ellipsoid", "fused_spheres", "cylinder")
+CLEAN_TARGET = {"sphere": 0.1, "ellipsoid": 0.3, "cylinder": 1.0, "fused_spheres": 1.0}
+
+_volumes: dict = {}
+_runs: dict = {}
+
+
+def volume(name: str, noisy: bool):
+    key = (name, noisy)
+    if key not in _volumes:
+        ph = get_phantom(name)
+        vol = ph.volume(n=96)
+        if noisy:
+            vol, _ = add_noise(vol, "gaussian", ph.paper_snr_db, seed=0)
+        _volumes[key] = vol
+    return _volumes[key]
+
+
+def run(name: str, noisy: bool):
+    key = (name, noisy)
+    if key not in _runs:
+        _runs[key] = ShapeGradient().reconstruct(volume(name, noisy))
+    return _runs[key]
+
+
+@pytest.mark.parametrize("noisy", [False, True], ids=["clean", "noisy"])
+@pytest.mark.parametrize("name", PHANTOMS)
+def test_topology_is_preserved(name, noisy):
+    """Watertight, Euler characteristic 2, no self-intersecting faces — on every phantom, clean or noisy."""
+    r = run(name, noisy)
+    assert topology(r.mesh) == {"watertight": True, "euler": 2, "self_intersections": 0}
+    assert r.mesh.volume > 0
+    assert r.info["stop_reason"] in ("converged", "max_iter", "line_search_floor")
+
+
+@pytest.mark.parametrize("name", [
+    "sphere", "ellipsoid", "cylinder",
+    pytest.param("fused_spheres", marks=pytest.mark.xfail(
+        strict=True, reason="not met: the discrete energy bridges the concave crease (≈ 2.5 h; marching cubes "
+                            "0.8 h). Started on the exact surface the flow still moves off it (0.4 h → 1.3 h) "
+                            "because faces straddling the crease pay β|∇_Γφ|² — see the closing note")),
+])
+def test_clean_hausdorff(name):
+    vol = volume(name, False)
+    d = hausdorff(run(name, False).mesh, get_phantom(name))
+    assert d <= CLEAN_TARGET[name] * vol.h
+
+
+@pytest.mark.parametrize("name", ["sphere", "ellipsoid"])
+def test_noisy_hausdorff(name):
+    vol = volume(name, True)
+    assert hausdorff(run(name, True).mesh, get_phantom(name)) <= 0.5 * vol.h
+
+
+@pytest.mark.parametrize("name", PHANTOMS)
+def test_noisy_smoother_than_marching_cubes(name):
+    vol = volume(name, True)
+    ph = get_phantom(name)
+    mesh = run(name, True).mesh
+    mc = marching_cubes(vol)
+    assert roughness_deg(mesh, ph) < roughness_deg(mc, ph)
+    if name == "sphere":
+        assert h_std(mesh, ph, vol.h) < h_std(mc, ph, vol.h)
+
+
+def test_fused_spheres_crease_is_the_hard_case():
+    """What the crease costs (documents the failure above): the flow leaves the groove open by ≤ 3 h, and
+    the β = 0 ablation gets closer than β = 1 (the alignment term is what holds the bridge)."""
+    ph = get_phantom("fused_spheres")
+    vol = volume("fused_spheres", False)
+    d1 = hausdorff(run("fused_spheres", False).mesh, ph) / vol.h
+    d0 = hausdorff(ShapeGradient(beta=0).reconstruct(vol).mesh, ph) / vol.h
+    assert 1.0 < d1 < 3.0
+    assert d0 < d1

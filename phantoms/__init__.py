@@ -10,11 +10,14 @@
 from .errors import InputError
 from .io import load_volume, mask_to_sdf, save_volume
 from .noise import NOISE_KINDS, add_noise, snr_db
-from .shapes import PHANTOMS, VARIANTS, Phantom, Truth, get_phantom, grid_volume, phantom_names
+from .shapes import (PHANTOMS, REAL_PHANTOMS, VARIANTS, Phantom, Truth, get_phantom, grid_volume, is_phantom_name,
+                     phantom_names)
 from .volume import Sample, Volume
+from .mesh_phantom import MeshPhantom  # noqa: E402  (after .shapes: it subclasses Phantom)
 
 __all__ = [
     "InputError", "Volume", "Sample", "Phantom", "Truth", "PHANTOMS", "VARIANTS", "NOISE_KINDS",
     "get_phantom", "phantom_names", "grid_volume", "add_noise", "snr_db",
-    "load_volume", "save_volume", "mask_to_sdf",
+    "load_volume", "save_volume", "mask_to_sdf", "REAL_PHANTOMS", "is_phantom_name", "MeshPhantom",
 ]
+

@@ -26,7 +26,7 @@ from .volume import Volume
 
 __all__ = [
     "Truth", "Phantom", "Sphere", "Ellipsoid", "FusedSpheres", "Cylinder", "Torus",
-    "PHANTOMS", "get_phantom", "phantom_names", "grid_volume",
+    "PHANTOMS", "REAL_PHANTOMS", "get_phantom", "phantom_names", "is_phantom_name", "grid_volume",
 ]
 
 DEFAULT_N = 96
@@ -503,14 +503,31 @@ PHANTOMS: dict[str, type[Phantom]] = {
 }
 
 
+#: named real shapes (data shipped inside installed packages), built lazily by ``phantoms/real.py``;
+#: any closed mesh file is a phantom as ``mesh:PATH``.  PHANTOMS keeps the analytic classes only.
+REAL_PHANTOMS: tuple[str, ...] = ("bunny", "cortex", "brain_mri")
+MESH_PREFIX = "mesh:"
+
+
 def phantom_names() -> list[str]:
-    return list(PHANTOMS)
+    """Analytic phantoms, then the named real shapes (``mesh:PATH`` is accepted too)."""
+    return list(PHANTOMS) + list(REAL_PHANTOMS)
+
+
+def is_phantom_name(name: str) -> bool:
+    """True for a registered phantom name or a ``mesh:PATH`` (the file is not checked here)."""
+    return name in PHANTOMS or name in REAL_PHANTOMS or (isinstance(name, str) and name.startswith(MESH_PREFIX))
 
 
 def get_phantom(name: str, **params) -> Phantom:
-    """The phantom called ``name`` (optionally with non-default parameters)."""
+    """The phantom called ``name`` (optionally with non-default parameters); ``mesh:PATH`` for a mesh file."""
+    if name in REAL_PHANTOMS or (isinstance(name, str) and name.startswith(MESH_PREFIX)):
+        from .real import get_real_phantom
+
+        return get_real_phantom(name, **params)
     if name not in PHANTOMS:
-        raise InputError(f"unknown phantom {name!r}; valid phantoms: {', '.join(PHANTOMS)}")
+        raise InputError(f"unknown phantom {name!r}; valid phantoms: {', '.join(phantom_names())}, "
+                         f"or {MESH_PREFIX}PATH for a closed mesh file")
     try:
         return PHANTOMS[name](**params)
     except TypeError as exc:

@@ -1,0 +1,294 @@
+"""Mesh-backed phantoms (phantoms/mesh_phantom.py) and the named real shapes (phantoms/real.py)."""
+
+import importlib.util
+import time
+
+import numpy as np
+import pytest
+import trimesh
+
+from phantoms import PHANTOMS, InputError, MeshPhantom, get_phantom, is_phantom_name, phantom_names
+from phantoms.mesh_phantom import closest_point_on_triangles, winding_number
+
+HAS_NILEARN = importlib.util.find_spec("nilearn") is not None
+
+
+def _icosphere(subdivisions=3, radius=1.5):
+    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def _chord_error(v, f, radius):
+    """Hausdorff distance between an inscribed polyhedron and its sphere: r − min distance to a face plane."""
+    tri = v[f]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return radius - np.abs((n * tri[:, 0]).sum(1)).min()
+
+
+@pytest.fixture(scope="module")
+def bunny():
+    return get_phantom("bunny")
+
+
+# ------------------------------------------------------------------------------------------ kernels
+def test_closest_point_on_triangles_matches_dense_sampling():
+    rng = np.random.default_rng(0)
+    a, b, c = (rng.normal(size=(300, 3)) for _ in range(3))
+    p = rng.normal(size=(300, 3)) * 2
+    bary, feat = closest_point_on_triangles(p, a, b, c)
+    assert np.all(bary >= -1e-12) and np.allclose(bary.sum(1), 1.0)
+    x = bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
+    d = np.linalg.norm(p - x, axis=1)
+    # dense barycentric sampling never beats the exact closest point
+    s = np.linspace(0, 1, 81)
+    uu, vv = np.meshgrid(s, s)
+    keep = uu + vv <= 1
+    uu, vv = uu[keep], vv[keep]
+    pts = (1 - uu - vv)[None, :, None] * a[:, None] + uu[None, :, None] * b[:, None] + vv[None, :, None] * c[:, None]
+    dense = np.linalg.norm(pts - p[:, None], axis=2).min(1)
+    assert np.all(d <= dense + 1e-12)
+    assert np.all(dense - d < 0.05 * np.linalg.norm(b - a, axis=1).max())
+    assert set(np.unique(feat)) <= set(range(7))
+
+
+def test_winding_number_of_a_closed_mesh():
+    v, f = _icosphere(2, 1.0)
+    w = winding_number(v, f, np.array([[0, 0, 0], [0.5, 0.2, 0.1], [2, 0, 0], [0, 0, -5.0]]))
+    assert np.allclose(w, [1, 1, 0, 0], atol=1e-9)
+
+
+# ------------------------------------------------------------------------------------------ icosphere
+def test_icosphere_volume_equals_sphere_sdf_within_chord_error():
+    v, f = _icosphere(3, 1.5)
+    ph = MeshPhantom(v, f, name="ico")
+    assert np.isclose(ph.scale, 1.0, atol=1e-9) and np.allclose(ph.centre, 0.0, atol=1e-9)
+    assert ph.genus == 0 and not ph.has_creases
+    eps = _chord_error(v, f, 1.5)
+    assert 0 < eps < 0.01
+    vol = ph.volume(n=40)
+    pts = vol.grid_points().reshape(-1, 3)
+    sphere = np.linalg.norm(pts, axis=1) - 1.5
+    diff = vol.values.ravel() - sphere
+    assert np.abs(diff).max() <= eps + 1e-9
+    # inscribed polyhedron: never outside the ball, so its signed distance is never below the sphere's
+    # (up to the far field's propagation, which can only overestimate)
+    assert diff.min() >= -1e-9
+    # exactly the certified query in the band, and the analytic-phantom contract elsewhere
+    near = np.abs(vol.values.ravel()) <= 3 * vol.h
+    assert np.allclose(vol.values.ravel()[near], ph.sdf(pts[near]), atol=1e-12, rtol=0)
+
+
+def test_icosphere_truth_contract():
+    v, f = _icosphere(4, 1.5)
+    ph = MeshPhantom(v, f)
+    rng = np.random.default_rng(3)
+    p = rng.uniform(-2.2, 2.2, (3000, 3))
+    t = ph.truth(p)
+    assert np.allclose(np.linalg.norm(p - t.closest, axis=1), t.distance, atol=1e-12)
+    assert np.allclose(np.abs(t.signed), t.distance)
+    assert np.all(np.sign(t.signed) == np.sign(np.linalg.norm(p, axis=1) - (1.5 - 1e-3 * (t.distance < 0.01))))
+    assert np.abs(ph.sdf(t.closest)).max() < 1e-12
+    assert np.allclose(np.linalg.norm(t.normal, axis=1), 1.0)
+    dots = ((p - t.closest) * t.normal).sum(1)
+    away = t.distance > 1e-6
+    assert np.all(np.sign(dots[away]) == np.sign(t.signed[away]))
+    # curvature of the fine mesh by the suite's estimator: H = 1/1.5, K = 1/1.5² to a few per cent
+    assert np.abs(t.H - 1 / 1.5).max() < 0.03 and np.abs(t.K - 1 / 1.5 ** 2).max() < 0.03
+    assert np.isinf(t.crease_distance).all()
+
+
+def test_sample_surface_is_seeded_and_area_uniform():
+    v, f = _icosphere(4, 1.5)
+    ph = MeshPhantom(v, f)
+    p1, n1 = ph.sample_surface(50_000, seed=4)
+    p2, _ = ph.sample_surface(50_000, seed=4)
+    p3, _ = ph.sample_surface(50_000, seed=5)
+    assert np.array_equal(p1, p2) and not np.array_equal(p1, p3)
+    assert np.abs(ph.sdf(p1[:2000])).max() < 1e-12
+    assert np.allclose(np.linalg.norm(n1, axis=1), 1.0) and (np.einsum("ij,ij->i", n1, p1) > 0).all()
+    # uniform on a (near) sphere: E[z²] = r²/3, E[z] = 0
+    assert abs((p1[:, 2] ** 2).mean() - 1.5 ** 2 / 3) < 0.02 and abs(p1[:, 2].mean()) < 0.02
+
+
+def test_normalisation_centres_and_scales():
+    v, f = _icosphere(2, 1.0)
+    v2 = v * 7.0 + [10.0, -3.0, 2.0]
+    ph = MeshPhantom(v2, f)
+    assert np.isclose(np.linalg.norm(ph.vertices, axis=1).max(), 1.5)
+    assert np.allclose(ph.centre, [10.0, -3.0, 2.0], atol=1e-6) and np.isclose(ph.scale, 1.5 / 7.0)
+    # inward-oriented input is flipped: still negative inside
+    ph_in = MeshPhantom(v, f[:, ::-1])
+    assert ph_in.sdf(np.zeros((1, 3)))[0] < 0
+
+
+# ------------------------------------------------------------------------------------------ rejection
+def test_non_watertight_mesh_is_rejected(tmp_path):
+    v, f = _icosphere(2, 1.0)
+    with pytest.raises(InputError, match="not watertight: 3 boundary edges"):
+        MeshPhantom(v, f[1:])
+    path = tmp_path / "open.obj"
+    trimesh.Trimesh(v, f[1:], process=False).export(path)
+    with pytest.raises(InputError, match=r"open\.obj: mesh is not watertight.*fill the holes"):
+        get_phantom(f"mesh:{path}")
+    with pytest.raises(InputError, match="inconsistent"):
+        g = f.copy()
+        g[0] = g[0, ::-1]
+        MeshPhantom(v, g)
+    with pytest.raises(InputError, match="no such mesh file"):
+        get_phantom(f"mesh:{tmp_path / 'missing.ply'}")
+
+
+def test_paper_variant_does_not_exist_for_meshes():
+    v, f = _icosphere(1, 1.0)
+    ph = MeshPhantom(v, f)
+    with pytest.raises(InputError, match="no 'paper' polynomial"):
+        ph.volume(n=8, variant="paper")
+    with pytest.raises(InputError, match="no 'paper' polynomial"):
+        ph.paper(np.zeros((1, 3)))
+
+
+def test_mesh_prefix_and_registry(tmp_path):
+    v, f = _icosphere(2, 3.0)
+    path = tmp_path / "ball.ply"
+    trimesh.Trimesh(v, f).export(path)
+    ph = get_phantom(f"mesh:{path}")
+    assert isinstance(ph, MeshPhantom) and ph.name == f"mesh:{path}" and ph.genus == 0
+    assert get_phantom(f"mesh:{path}") is ph                       # cached per process
+    assert ph.volume(n=16).is_closed()
+    assert list(PHANTOMS) == ["sphere", "ellipsoid", "fused_spheres", "cylinder", "torus"]
+    assert phantom_names()[-3:] == ["bunny", "cortex", "brain_mri"]
+    assert is_phantom_name("bunny") and is_phantom_name(f"mesh:{path}") and not is_phantom_name("blob")
+    with pytest.raises(InputError, match="valid phantoms: sphere.*brain_mri, or mesh:PATH"):
+        get_phantom("blob")
+
+
+# ------------------------------------------------------------------------------------------ bunny
+def test_bunny_is_the_closed_genus0_pymeshlab_mesh(bunny):
+    assert len(bunny.vertices) == 28088 and len(bunny.faces) == 56172
+    assert bunny.genus == 0 and bunny.n_components == 1 and bunny.euler == 2
+    assert np.isclose(np.linalg.norm(bunny.vertices, axis=1).max(), 1.5)
+    assert bunny.paper_snr_db is None and bunny.params["source"].startswith("pymeshlab:")
+
+
+def test_bunny_signs_in_concavities(bunny):
+    x, n = bunny.sample_surface(20_000, seed=7)
+    t = bunny.truth(x)
+    assert np.allclose(t.distance, 0.0, atol=1e-12)
+    concave = np.flatnonzero(t.H < -0.5)                          # saddle/concave regions (H < 0)
+    assert len(concave) > 200
+    rng = np.random.default_rng(0)
+    idx = np.concatenate([rng.choice(concave, 1500, replace=False), rng.choice(len(x), 1500, replace=False)])
+    for eps in (1e-4, 2e-3):
+        out = bunny.sdf(x[idx] + eps * n[idx])
+        inn = bunny.sdf(x[idx] - eps * n[idx])
+        assert np.all(out > 0) and np.all(inn < 0)
+        assert out.max() <= eps * (1 + 1e-9) and inn.min() >= -eps * (1 + 1e-9)
+    # deeper into the concavities (up to a grid step): the pseudonormal sign equals the exact winding number
+    deep = x[concave[:120]] + np.repeat([[0.02], [-0.02], [0.05], [-0.05]], 30, axis=0) * n[concave[:120]]
+    w = winding_number(bunny.vertices, bunny.faces, deep)
+    assert np.all(np.abs(w - np.round(w)) < 1e-6)
+    assert np.array_equal(bunny.sdf(deep) < 0, w > 0.5)
+
+
+def test_bunny_grid_volume_exact_band_and_far_field(bunny):
+    vol = bunny.volume(n=48)
+    assert vol.is_closed()
+    g = vol.values.ravel()
+    pts = vol.grid_points().reshape(-1, 3)
+    rng = np.random.default_rng(2)
+    band = np.flatnonzero(np.abs(g) <= 3 * vol.h)
+    far = np.flatnonzero(np.abs(g) > 3 * vol.h)
+    ib = rng.choice(band, 800, replace=False)
+    assert np.allclose(g[ib], bunny.sdf(pts[ib]), atol=1e-12, rtol=0)
+    jf = rng.choice(far, 800, replace=False)
+    exact = bunny.sdf(pts[jf])
+    assert np.array_equal(np.sign(exact), np.sign(g[jf]))
+    err = np.abs(g[jf]) - np.abs(exact)
+    assert err.min() >= -1e-12 and err.max() < 0.05 * vol.h
+    # signs of grid points near the surface against the exact winding number
+    k = rng.choice(band, 150, replace=False)
+    w = winding_number(bunny.vertices, bunny.faces, pts[k])
+    assert np.array_equal(g[k] < 0, w > 0.5)
+    # enclosed volume matches the mesh's
+    assert abs((g < 0).sum() * vol.h ** 3 - trimesh.Trimesh(bunny.vertices, bunny.faces).volume) < 0.05
+
+
+def test_bunny_truth_contract(bunny):
+    rng = np.random.default_rng(5)
+    p = rng.uniform(-1.8, 1.8, (2000, 3))
+    t = bunny.truth(p)
+    assert np.allclose(np.linalg.norm(p - t.closest, axis=1), t.distance, atol=1e-12)
+    assert np.allclose(np.linalg.norm(t.normal, axis=1), 1.0)
+    away = t.distance > 1e-6
+    dots = ((p - t.closest) * t.normal).sum(1)
+    assert np.all(np.sign(dots[away]) == np.sign(t.signed[away]))
+    # no mesh vertex is closer than the closest point (point-to-triangle, not point-to-vertex)
+    from scipy.spatial import cKDTree
+
+    dv, _ = cKDTree(bunny.vertices).query(p)
+    assert np.all(t.distance <= dv + 1e-12)
+    assert bunny.has_creases and np.isfinite(t.crease_distance).all()
+    # H, K are NaN exactly where the closest point lies on a crease edge
+    on = t.crease_distance <= 1e-12
+    assert np.array_equal(np.isnan(t.H), on) and np.array_equal(np.isnan(t.K), on)
+    x, _ = bunny.sample_surface(5000, seed=1)
+    assert np.isfinite(bunny.truth(x).H).mean() > 0.999
+
+
+# ------------------------------------------------------------------------------------------ cortex / MRI
+@pytest.mark.skipif(HAS_NILEARN, reason="nilearn installed")
+def test_missing_nilearn_says_what_to_install():
+    with pytest.raises(InputError, match=r'pip install -e "\.\[real\]"'):
+        get_phantom("cortex")
+
+
+@pytest.mark.skipif(not HAS_NILEARN, reason='needs nilearn: pip install -e ".[real]"')
+def test_cortex_loads():
+    ph = get_phantom("cortex")
+    assert len(ph.vertices) == 10242 and ph.genus == 0 and ph.n_components == 1
+    vol = ph.volume(n=32)
+    assert vol.is_closed()
+    x, n = ph.sample_surface(300, seed=0)
+    assert np.all(ph.sdf(x + 1e-4 * n) > 0) and np.all(ph.sdf(x - 1e-4 * n) < 0)
+    t = ph.truth(x)
+    assert np.isfinite(t.H).mean() > 0.8
+
+
+@pytest.mark.skipif(not HAS_NILEARN, reason='needs nilearn: pip install -e ".[real]"')
+def test_brain_mri_loads():
+    ph = get_phantom("brain_mri")
+    assert "marching-cubes" in ph.truth_note and ph.genus == 0
+    vol = ph.volume(n=32)
+    assert vol.is_closed()
+    # the resampled MRI distance vanishes on the truth surface (to within a voxel) and has the right sign
+    x, n = ph.sample_surface(2000, seed=1)
+    vox = ph.voxel_mm * ph.scale
+    assert np.abs(ph.mri_sdf(x)).max() < vox
+    assert np.all(ph.mri_sdf(x + 2 * vox * n) > 0) and np.all(ph.mri_sdf(x - 2 * vox * n) < 0)
+    t = ph.truth(x[:300] + 0.01 * n[:300])
+    assert np.all(t.signed > 0) and np.all(t.signed <= 0.01 + 1e-12)
+    with pytest.raises(InputError, match="only variant 'sdf'"):
+        ph.volume(n=16, variant="paper")
+
+
+def test_cli_volume_for_a_real_shape(tmp_path):
+    from bench.cli import main
+
+    out = tmp_path / "b.npz"
+    assert main(["volume", "bunny", "--n", "24", "--noise", "gaussian", "--snr", "40", "-o", str(out)]) == 0
+    assert out.exists()
+
+
+# ------------------------------------------------------------------------------------------ timing (slow)
+@pytest.mark.slow
+@pytest.mark.parametrize("name,limit", [("bunny", 30.0), ("cortex", 30.0)])
+def test_grid_sdf_at_n96_is_fast(name, limit):
+    if name == "cortex" and not HAS_NILEARN:
+        pytest.skip("needs nilearn")
+    ph = get_phantom(name)
+    t0 = time.perf_counter()
+    stats = {}
+    g = ph.signed_distance_grid(96, 2.5, stats)
+    assert time.perf_counter() - t0 < limit
+    assert (g < 0).any() and (g > 0).any()

@@ -27,6 +27,7 @@ from geometry.sphere import fibonacci_sphere
 from methods import get_method
 from methods.shape_gradient import (
     STOP_REASONS,
+    GridSampler,
     ShapeGradient,
     discrete_energy,
     estimate_noise,
@@ -321,23 +322,38 @@ def test_leaving_the_box_or_nan_stops_as_diverged(sphere32):
 
 
 def test_nan_during_the_flow_stops_as_diverged_with_the_iteration(sphere32, monkeypatch):
-    """A curvature fit that turns NaN (a degenerate 1-ring) in iteration 3 ends the run as 'diverged'."""
-    real = MeshOperators.curvature
+    """Derivatives that turn NaN in iteration 3 end the run as 'diverged', keeping the last good mesh."""
+    real = GridSampler.sample_t
     calls = {"n": 0}
 
-    def flaky(self, geo, **kw):
-        calls["n"] += 1
-        H, K = real(self, geo, **kw)
-        if calls["n"] == 3:
-            H = H.copy()
-            H[5] = np.nan
-        return H, K
+    def flaky(self, xt, derivatives=2):
+        out = real(self, xt, derivatives)
+        if derivatives == 2:                       # the vertex samples of the gradient step
+            calls["n"] += 1
+            if calls["n"] == 4:                    # the first is the setup call
+                out = out.copy()
+                out[5, 7] = np.nan
+        return out
 
-    monkeypatch.setattr(MeshOperators, "curvature", flaky)
+    monkeypatch.setattr(GridSampler, "sample_t", flaky)
     r = ShapeGradient(tol=0, move_tol=0).reconstruct(sphere32)
     assert r.info["stop_reason"] == "diverged"
     assert r.info["stop_message"].startswith("iteration 3:") and r.info["iterations"] == 2
     assert len(r.info["energy_history"]) == 3 and np.isfinite(r.mesh.vertices).all()
+
+
+def test_undetermined_curvature_fit_falls_back_to_the_cotangent_curvature(sphere32, monkeypatch):
+    real = MeshOperators.curvature
+
+    def flaky(self, geo, **kw):
+        H, K = real(self, geo, **kw)
+        H = H.copy()
+        H[5] = np.nan
+        return H, K
+
+    monkeypatch.setattr(MeshOperators, "curvature", flaky)
+    r = ShapeGradient(max_iter=5).reconstruct(sphere32)
+    assert r.info["stop_reason"] != "diverged" and r.info["curvature_fallbacks"] >= 5
 
 
 def test_noise_estimate():

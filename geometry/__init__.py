@@ -14,8 +14,20 @@ from .mesh import (
     radius_neighbors,
     vertex_normals,
 )
+from .operators import (
+    MeshOperators,
+    cotangent_stiffness,
+    divergence,
+    face_gradient,
+    gradient_operator,
+    jacobi_cg,
+    lumped_mass,
+)
+from .sphere import fibonacci_sphere
 
 __all__ = [
     "face_normals", "face_areas", "vertex_normals", "lumped_vertex_areas", "edges_unique",
     "one_ring", "radius_neighbors", "padded_from_pairs", "paraboloid_curvature",
+    "MeshOperators", "cotangent_stiffness", "lumped_mass", "face_gradient", "gradient_operator", "divergence",
+    "jacobi_cg", "fibonacci_sphere",
 ]

@@ -1,0 +1,63 @@
+"""Speed of the shape-gradient flow (pytest-benchmark; not a timed test).
+
+    pytest tests/benchmarks/test_bench_shape_gradient.py -m benchmark --benchmark-enable
+
+Targets (issue 3, this 2-core machine): 100 iterations at 1,896 vertices ≤ 0.5 s; one iteration at ~100k
+vertices ≤ 0.5 s.  The per-phase seconds (interpolation, curvature, gradient, preconditioner, energy,
+relax) of the last round are stored in the benchmark's ``extra_info``.
+
+* 100 iterations: the fused spheres (N = 96, defaults, tol = move_tol = 0) — the paper phantom whose run
+  does not converge before 100 iterations, so every round is exactly 100 iterations, backtracking
+  included.  The volume's derivative grids and noise estimate are cached on the volume by a warm-up run,
+  so a round is the flow itself plus the final curvature.
+* One iteration at 100,000 vertices (sphere, N = 96): ``flow.step()`` only; building the initial sphere
+  and its operators (``prepare``) is the per-round setup and is not timed.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from methods.shape_gradient import ShapeGradient
+from phantoms import get_phantom
+
+pytestmark = pytest.mark.benchmark
+
+PHASES = ("interpolation", "curvature", "gradient", "preconditioner", "energy", "relax")
+
+
+@pytest.fixture(scope="module")
+def fused_volume():
+    return get_phantom("fused_spheres").volume(n=96)
+
+
+@pytest.fixture(scope="module")
+def sphere_volume():
+    return get_phantom("sphere").volume(n=96)
+
+
+def test_100_iterations_at_1896_vertices(benchmark, fused_volume):
+    method = ShapeGradient(max_iter=100, tol=0, move_tol=0)
+    method.reconstruct(fused_volume)                     # warm-up: cached derivative grids, noise estimate
+    rec = benchmark.pedantic(method.reconstruct, args=(fused_volume,), rounds=5, iterations=1)
+    assert rec.info["iterations"] == 100 and len(rec.mesh.vertices) == 1896
+    t = rec.info["timings"]
+    benchmark.extra_info.update({f"{p}_s": round(t[p], 4) for p in PHASES})
+    benchmark.extra_info["backtracks"] = rec.info["n_backtracks"]
+
+
+def test_one_iteration_at_100k_vertices(benchmark, sphere_volume):
+    method = ShapeGradient(init_vertices=100_000, max_iter=1)
+    ops = method.prepare(sphere_volume).ops              # the operators of the 100k sphere, built once
+    flows = []
+
+    def setup():
+        flow = method.prepare(sphere_volume, ops=ops)
+        flows.append((flow, dict(flow.timings)))
+        return (flow,), {}
+
+    benchmark.pedantic(lambda flow: flow.step(), setup=setup, rounds=5, iterations=1)
+    flow, before = flows[-1]
+    assert flow.iteration == 1 and len(flow.state.x) == 100_000
+    benchmark.extra_info.update({f"{p}_s": round(flow.timings[p] - before[p], 4) for p in PHASES})
+    benchmark.extra_info["cg_iterations"] = flow.cg_iterations[-1]

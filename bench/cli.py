@@ -122,6 +122,8 @@ from .cli_run import register as _register_run  # noqa: E402  (python -m bench r
 _EXTRA_COMMANDS.append(_register_run)
 from .cli_methods import register as _register_methods  # noqa: E402  (python -m bench methods / reconstruct)
 _EXTRA_COMMANDS.append(_register_methods)
+from .cli_perf import register as _register_perf  # noqa: E402  (python -m bench perf)
+_EXTRA_COMMANDS.append(_register_perf)
 
 
 def main(argv: list[str] | None = None) -> int:

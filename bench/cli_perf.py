@@ -1,0 +1,160 @@
+"""``python -m bench perf``: run the benchmark suites, print median / ratio / change, gate against a baseline."""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import math
+import sys
+
+from phantoms import InputError
+
+from . import perf
+
+PERF_HELP = """\
+Run the pytest-benchmark suites (tests/benchmarks) and print each benchmark's median time and its ratio to
+the same-session reference (marching cubes on the ellipsoid at N = 96). With --compare, also the change of
+each ratio against the baseline; exit code 1 when a ratio is worse than the baseline by more than
+--tolerance (or when a benchmark fails), 0 otherwise, 2 on bad input.
+
+Benchmarks over the tolerance are rerun (--retries) and keep their best ratio: a real regression is slow
+every time, a load spike on a shared machine rarely hits the same benchmark twice.
+
+Typical uses:
+  python -m bench perf --compare bench/perf_baseline.json            # check this tree
+  python -m bench perf --quick --compare bench/perf_baseline.json    # CI: fewer rounds, slow ones skipped
+  python -m bench perf --repeat 3 --save bench/perf_baseline.json    # refresh the baseline"""
+
+
+def _tolerance(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (v >= 0 and math.isfinite(v)):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0: {text!r}")
+    return v
+
+
+def _count(minimum: int):
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if v < minimum:
+            raise argparse.ArgumentTypeError(f"must be >= {minimum}: {text!r}")
+        return v
+    return parse
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("perf", help="run the performance suites and gate against a baseline",
+                              description=PERF_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--compare", metavar="BASELINE.json",
+                   help="baseline to compare with (a perf summary or a pytest-benchmark JSON file)")
+    p.add_argument("--save", metavar="OUT.json", help="write this run's summary (e.g. a new baseline)")
+    p.add_argument("--tolerance", type=_tolerance, default=perf.DEFAULT_TOLERANCE, metavar="T",
+                   help="fail when ratio > baseline ratio × (1 + T) (default 0.5, i.e. 50 %% slower)")
+    p.add_argument("--quick", action="store_true",
+                   help="short mode: fewer rounds, benchmarks marked perf_slow skipped (CI)")
+    p.add_argument("--repeat", type=_count(1), default=1, metavar="K",
+                   help="run the suite K times and keep per benchmark the median ratio (for baselines)")
+    p.add_argument("--retries", type=_count(0), default=1, metavar="R",
+                   help="rerun the benchmarks over the tolerance up to R times, keeping their best ratio "
+                        "(default 1; 0 = none)")
+    p.add_argument("--rounds", type=_count(1), default=None, metavar="N",
+                   help="force N rounds for every benchmark (default: each benchmark's own for the mode)")
+    p.add_argument("-k", dest="keyword", metavar="EXPR", help="only the benchmarks matching this pytest -k "
+                                                              "expression")
+    p.add_argument("--input", metavar="RUN.json", action="append", default=None,
+                   help="use measurements already made (perf summaries or pytest-benchmark JSON files; "
+                        "repeatable, merged like --repeat) instead of running the suite")
+    p.add_argument("--fail-on-missing", action="store_true",
+                   help="also fail when a baseline benchmark did not run (not counting --quick skips)")
+    p.set_defaults(func=_cmd_perf)
+
+
+def _run(args, select=None, keyword=None) -> tuple[int, dict | None]:
+    return perf.run_suite(quick=args.quick, select=select, keyword=keyword, n_rounds=args.rounds)
+
+
+def _cmd_perf(args) -> int:
+    baseline = perf.load_summary(args.compare) if args.compare else None
+    if args.input:
+        runs = [perf.load_summary(p) for p in args.input]
+        code = 0
+    else:
+        runs, code = [], 0
+        for i in range(args.repeat):
+            if args.repeat > 1:
+                print(f"perf: suite run {i + 1}/{args.repeat}", file=sys.stderr)
+            rc, summary = _run(args, keyword=args.keyword)
+            if rc != 0:
+                print(f"perf: the benchmark suite exited with code {rc}", file=sys.stderr)
+                code = 1
+            if summary is None:
+                print("perf: no benchmark results (see the pytest output above)", file=sys.stderr)
+                return 1
+            runs.append(summary)
+    current = perf.merge_runs(runs)
+    result = perf.gate(baseline, current, args.tolerance, fail_on_missing=args.fail_on_missing)
+
+    retried: dict[str, list] = {}
+    for attempt in range(args.retries if (baseline is not None and not args.input) else 0):
+        bad = [r["name"] for r in result.rows if r["status"] == perf.REGRESSION]
+        if not bad:
+            break
+        ids = [current["benchmarks"][n].get("fullname") for n in bad]
+        ids = [i for i in ids if i]
+        if not ids:
+            break
+        print(f"perf: {len(bad)} benchmark(s) over the tolerance, rerun {attempt + 1}/{args.retries}: "
+              f"{', '.join(bad)}", file=sys.stderr)
+        rc, again = _run(args, select=ids)
+        if again is None:
+            break
+        for n in bad:
+            new = again["benchmarks"].get(n)
+            old = current["benchmarks"][n]
+            if new is None or new.get("ratio") is None:
+                continue
+            retried.setdefault(n, [old.get("ratio")]).append(new["ratio"])
+            if old.get("ratio") is None or new["ratio"] < old["ratio"]:
+                current["benchmarks"][n] = dict(new, attempts=retried[n])
+            else:
+                old["attempts"] = retried[n]
+        result = perf.gate(baseline, current, args.tolerance, fail_on_missing=args.fail_on_missing)
+
+    ref = current.get("reference") or {}
+    load = current.get("loadavg") or {}
+    print(f"reference (marching cubes, ellipsoid N = 96): median {perf._secs(ref.get('median_s'))}; "
+          f"mode {current.get('mode') or '?'}; load average {load}")
+    print(perf.format_table(result))
+    if baseline is not None:
+        print(f"baseline: {args.compare} ({baseline.get('created', '?')}, mode {baseline.get('mode', '?')}); "
+              f"tolerance {100 * args.tolerance:g} %")
+        for r in result.rows:
+            if r["status"] in (perf.MISSING, perf.NEW, perf.SKIPPED, perf.FASTER):
+                what = {perf.MISSING: "in the baseline, not in this run",
+                        perf.NEW: "new: not in the baseline (refresh it to gate this one)",
+                        perf.SKIPPED: "skipped in this mode",
+                        perf.FASTER: "faster than the baseline beyond the tolerance: refresh the baseline"}
+                print(f"  {r['name']}: {what[r['status']]}")
+        if n := len(retried):
+            print(f"  rerun: {n} benchmark(s) — ratios per attempt: "
+                  + "; ".join(f"{k} {[round(x, 3) for x in v if x is not None]}" for k, v in retried.items()))
+    if args.save:
+        note = {"saved": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+                "argv": sys.argv[1:], **perf.machine_note()}
+        path = perf.save_summary(current, args.save, note)
+        print(f"wrote {path}")
+    if not result.passed:
+        print(f"perf: FAILED — {', '.join(result.failures)} slower than the baseline by more than "
+              f"{100 * args.tolerance:g} %", file=sys.stderr)
+        return 1
+    if code:
+        return code
+    if baseline is not None:
+        print("perf: passed")
+    return 0

@@ -1,0 +1,38 @@
+"""The ``--quick`` grid end to end (``python -m bench run --quick``): 12 cells — volumes, methods, metrics,
+per-cell worker processes, results.csv, run.json and the HTML report with its pictures.
+
+Run in-process through :func:`bench.runner.run_grid` (what the CLI calls) with **one** worker: the time is
+then the total work of the grid, which compares with the single-threaded reference on any machine, instead
+of depending on how many cores are free at that moment.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+
+from bench.perf import rounds
+
+
+@pytest.mark.benchmark(group="grid")
+def test_quick_grid_end_to_end(benchmark, tmp_path):
+    from bench.config import builtin_config
+    from bench.runner import run_grid
+
+    counter = itertools.count()
+    summaries = []
+
+    def run():
+        cfg = builtin_config("quick")
+        out = tmp_path / f"run{next(counter)}"
+        summaries.append(run_grid(cfg, out, jobs=1, progress=False, report=True, argv=["perf"]))
+        return out
+
+    out = benchmark.pedantic(run, rounds=rounds(2, 1), iterations=1, warmup_rounds=0)
+    s = summaries[-1]
+    benchmark.extra_info["cells"] = s.total
+    benchmark.extra_info["jobs"] = 1
+    assert s.total == 12 and s.ok == 12, s.line()
+    assert s.report_error is None, s.report_error
+    assert (out / "index.html").stat().st_size > 10_000

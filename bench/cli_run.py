@@ -79,6 +79,16 @@ def register(subparsers) -> None:
     g.add_argument("--import", dest="imports", action="append", metavar="MODULE", default=None,
                    help="import MODULE first (e.g. one that calls methods.register_method); repeatable")
     g.add_argument("--n-samples", type=_positive_int, default=None, help="surface samples for the distances")
+    e = p.add_argument_group("executor")
+    e.add_argument("--executor", choices=("local", "dask"), default="local",
+                   help="local: a process pool on this machine (default); dask: one Dask task per cell "
+                        "(needs pip install -e \".[dask]\")")
+    e.add_argument("--scheduler", metavar="ADDRESS",
+                   help="with --executor dask: the scheduler of a running Dask cluster, e.g. tcp://host:8786 "
+                        "(default: a local cluster of --workers processes)")
+    e.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                   help="with --executor dask and no --scheduler: worker processes of the local cluster "
+                        "(default: CPU cores)")
     p.set_defaults(func=_cmd_run)
 
     r = subparsers.add_parser("report", help="re-render the HTML report of a run folder",
@@ -131,9 +141,29 @@ def _resolve_config(args) -> RunConfig:
     return cfg
 
 
-def _cmd_run(args) -> int:
-    from .runner import check_output_dir, expand_grid, run_grid
+def _check_executor_args(args) -> None:
+    if args.executor == "local":
+        for opt in ("scheduler", "workers"):
+            if getattr(args, opt) is not None:
+                raise InputError(f"--{opt} needs --executor dask")
+        return
+    from .dask_executor import parse_scheduler_address, require_dask
 
+    require_dask()
+    if args.jobs is not None:
+        raise InputError("--jobs sizes the local process pool; with --executor dask use --workers N "
+                         "(local cluster) or --scheduler ADDRESS")
+    if args.scheduler is not None:
+        parse_scheduler_address(args.scheduler)
+        if args.workers is not None:
+            raise InputError("--workers sets the size of the local Dask cluster; with --scheduler the "
+                             "cluster's own workers run the cells")
+
+
+def _cmd_run(args) -> int:
+    from .runner import CACHE_DIR, check_output_dir, expand_grid, run_grid
+
+    _check_executor_args(args)
     if args.retry_failed and not args.resume:
         raise InputError("--retry-failed needs --resume")
     if args.resume and not args.out:
@@ -147,15 +177,34 @@ def _cmd_run(args) -> int:
         return 0
     out = Path(args.out) if args.out else Path("reports") / _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     check_output_dir(out, args.resume)
+    executor = None
+    if args.executor == "dask":
+        from .dask_executor import DaskExecutor
+
+        timeout = cfg.timeout if args.timeout is None else (args.timeout or None)  # as run_grid resolves it
+        executor = DaskExecutor(scheduler=args.scheduler, workers=args.workers, timeout=timeout,
+                                cache_dir=str(out / CACHE_DIR), imports=list(cfg.imports))
     print(f"{cfg.name}: {len(cells)} cells → {out}", file=sys.stderr)
     try:
+        if executor is not None:
+            executor.connect()
+            print(f"dask: {executor.describe()}", file=sys.stderr)
         summary = run_grid(cfg, out, jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
                            timeout=args.timeout, save_meshes=args.save_meshes, report=not args.no_report,
-                           argv=sys.argv[1:])
+                           argv=sys.argv[1:], executor=executor)
     except KeyboardInterrupt:
         print(f"interrupted: the finished cells are in {out}; complete the run with "
               f"`python -m bench run --resume --out {out}`", file=sys.stderr)
         raise
+    except Exception as exc:
+        if type(exc).__name__ != "DaskRunIncomplete":
+            raise
+        print(f"error: {exc}; the finished cells are in {out}; complete the run with "
+              f"`python -m bench run --resume --out {out} --executor dask ...`", file=sys.stderr)
+        return 1
+    finally:
+        if executor is not None:
+            executor.close()
     print(summary.line())
     if summary.report_error:
         print(f"warning: the report could not be written ({summary.report_error}); results are in "

@@ -693,7 +693,8 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
         except (OSError, ValueError):
             previous = {}
     session = {"start": start_iso, "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
-               "timeout_s": timeout, "cells_to_run": len(todo), "resumed_from": len(cells) - len(todo)}
+               "timeout_s": timeout, "cells_to_run": len(todo), "resumed_from": len(cells) - len(todo),
+               "executor": (executor.describe() if hasattr(executor, "describe") else {"executor": "local"})}
 
     def write_meta(end: bool) -> None:
         sessions = list(previous.get("sessions", []))

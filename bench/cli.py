@@ -29,6 +29,12 @@ def _cmd_phantoms(args) -> int:
         params = ", ".join(f"{k}={v}" for k, v in ph.params.items())
         print(f"{name:<15} {ph.genus:>5} {str(ph.has_creases).lower():>7} {snr:>9}  {params}")
         print(f"{'':<40}{ph.description}")
+    from phantoms.real import REAL_SHAPES  # real shapes: listed from class facts, not loaded
+
+    for name, cls in REAL_SHAPES.items():
+        print(f"{name:<15} {cls.genus:>5} {str(cls.has_creases).lower():>7} {'-':>9}  data: {cls.data}")
+        print(f"{'':<40}{cls.description}")
+    print(f"{'mesh:PATH':<15} {'':>5} {'':>7} {'-':>9}  any closed triangle mesh file trimesh reads (OBJ, PLY, STL, OFF, ...)")
     print(f"\nvariants: {', '.join(VARIANTS)} (default sdf); grid: N³ points over [-2.5, 2.5]³ (default N = 96)")
     return 0
 

@@ -287,8 +287,8 @@ def test_grid_sdf_at_n96_is_fast(name, limit):
     if name == "cortex" and not HAS_NILEARN:
         pytest.skip("needs nilearn")
     ph = get_phantom(name)
-    t0 = time.perf_counter()
+    t0 = time.process_time()                 # CPU time: the machine's other jobs do not count
     stats = {}
     g = ph.signed_distance_grid(96, 2.5, stats)
-    assert time.perf_counter() - t0 < limit
+    assert time.process_time() - t0 < limit
     assert (g < 0).any() and (g > 0).any()

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .mesh_phantom import MeshPhantom, TARGET_RADIUS
+from .mesh_phantom import MeshPhantom
 from .shapes import DEFAULT_EXTENT, DEFAULT_N, _as_points, _check_n, grid_volume
 from .volume import Volume
 

@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from phantoms import NOISE_KINDS, VARIANTS, InputError, get_phantom, phantom_names
+from phantoms import NOISE_KINDS, VARIANTS, InputError, get_phantom, is_phantom_name, phantom_names
 
 __all__ = ["NoiseSpec", "MethodSpec", "RunConfig", "load_config", "config_from_dict", "builtin_config",
            "parse_method_spec", "parse_noise_spec", "BUILTIN_CONFIGS"]
@@ -216,8 +216,10 @@ class RunConfig:
             raise InputError("methods: no methods to run")
         known = phantom_names()
         for p in self.phantoms:
-            if p not in known:
-                raise InputError(f"unknown phantom {p!r}; valid phantoms: {', '.join(known)}")
+            if not is_phantom_name(p):
+                raise InputError(f"unknown phantom {p!r}; valid phantoms: {', '.join(known)}, or mesh:PATH")
+            if p.startswith("mesh:") and not Path(p[len("mesh:"):]).expanduser().is_file():
+                raise InputError(f"phantom {p!r}: no such mesh file {p[len('mesh:'):]!r}")
         if len(set(self.phantoms)) != len(self.phantoms):
             raise InputError("grid.phantoms: a phantom is listed twice")
         for v in self.variants:

@@ -66,8 +66,9 @@ _AUTO_PRESMOOTH_NOISE = 0.05  # ... i.e. when the estimated noise is at least th
 
 _NOISE: "weakref.WeakKeyDictionary[Volume, float]" = weakref.WeakKeyDictionary()
 
-#: pre-smoothed copies of volumes (so that repeated runs on one volume filter it once)
-_SMOOTHED: "weakref.WeakKeyDictionary[Volume, dict[float, Volume]]" = weakref.WeakKeyDictionary()
+#: per volume, the channel grids of its pre-smoothed versions {(σ, presmooth_phi): {order: (N, C)}}, so that
+#: repeated runs on one volume filter and differentiate it once (freed with the volume)
+_SMOOTHED: "weakref.WeakKeyDictionary[Volume, dict]" = weakref.WeakKeyDictionary()
 
 
 def estimate_noise(volume: Volume) -> float:
@@ -92,8 +93,6 @@ def estimate_noise(volume: Volume) -> float:
 
 
 # ====================================================================== fast trilinear sampling
-#: per smoothed volume: its derivative grids with φ replaced by the unsmoothed volume's (presmooth_phi=False)
-_CHANNELS_MIXED: "weakref.WeakKeyDictionary[Volume, dict]" = weakref.WeakKeyDictionary()
 _HESS_INDEX = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]]).ravel()
 
 
@@ -109,9 +108,9 @@ class GridSampler:
     check :meth:`contains_t` first.
     """
 
-    def __init__(self, volume: Volume, phi_volume: Volume | None = None):
+    def __init__(self, volume: Volume, channels: dict[int, np.ndarray] | None = None):
         self.volume = volume
-        self.phi_volume = phi_volume     # if given: φ from this volume, the derivatives from ``volume``
+        self._given = channels or {}     # {order: (N, C) array} used instead of the volume's own grids
         n = np.asarray(volume.shape)
         self._nmax = (n - 1).astype(float)
         self._imax = n - 2
@@ -124,18 +123,11 @@ class GridSampler:
         self._lower, self._upper = volume.lower, volume.upper
 
     def _channels(self, order: int) -> np.ndarray:
-        """The stacked grids as an (N, C) array (the volume's own cache; a copy when φ comes from elsewhere)."""
-        ch = self.volume._channel_array(order)                  # cached by the volume
-        flat = ch.reshape(-1, ch.shape[-1])
-        if self.phi_volume is None:
-            return flat
-        cache = _CHANNELS_MIXED.setdefault(self.volume, {})
-        key = (id(self.phi_volume), order)
-        if key not in cache:
-            arr = flat.copy()
-            arr[:, 0] = self.phi_volume.values.ravel()
-            cache[key] = arr
-        return cache[key]
+        """The stacked grids as an (N, C) array: given ones, else the volume's own (cached by the volume)."""
+        if order in self._given:
+            return self._given[order]
+        ch = self.volume._channel_array(order)
+        return ch.reshape(-1, ch.shape[-1])
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         return np.all((points >= self._lower) & (points <= self._upper), axis=-1)
@@ -540,15 +532,21 @@ class ShapeGradient(Method):
 
     # ------------------------------------------------------------------ the flow
     def _field(self, volume: Volume, sigma: float) -> GridSampler:
+        """The sampler: the volume itself, or its grids after Gaussian pre-smoothing (σ voxels) — by default
+        only the derivative grids, φ itself stays the data's (presmooth_phi=False)."""
         if sigma <= 0:
             return GridSampler(volume)
         cache = _SMOOTHED.setdefault(volume, {})
-        if sigma not in cache:
+        key = (float(sigma), bool(self.config["presmooth_phi"]))
+        if key not in cache:
             from scipy.ndimage import gaussian_filter
-            cache[sigma] = volume.with_values(gaussian_filter(volume.values, sigma=sigma, mode="nearest"))
-        if self.config["presmooth_phi"]:
-            return GridSampler(cache[sigma])
-        return GridSampler(cache[sigma], phi_volume=volume)
+            smooth = volume.with_values(gaussian_filter(volume.values, sigma=sigma, mode="nearest"))
+            ch2 = smooth._channel_array(2).reshape(-1, 10)          # a new array, owned by ``smooth``
+            if not key[1]:
+                ch2[:, 0] = volume.values.ravel()
+            cache[key] = {2: ch2, 1: np.ascontiguousarray(ch2[:, :4])}
+            del smooth                                               # its own cache goes with it
+        return GridSampler(volume, channels=cache[key])
 
     def prepare(self, volume: Volume, *, ops: MeshOperators | None = None) -> "ShapeGradientFlow":
         """Check the input, build the initial surface, the (pre-smoothed) field and the operators, and

@@ -1,25 +1,41 @@
 """The paper's method: shape-gradient descent of E(Γ) = ∫_Γ α φ² + β |∇_Γ φ|² dΓ (MATH.md).
 
-One iteration, every step vectorised over all vertices/faces:
+Before the loop: the initial surface (Fibonacci sphere, radius 2, 1,896 vertices / 3,788 triangles, or a
+user's closed genus-0 mesh, checked to lie in the grid), the noise estimate of the volume and — on noisy
+volumes (``presmooth='auto'``) — Gaussian pre-smoothing of the grids ∇φ and D²φ are computed from (φ
+itself is kept, so the data term has no shrinkage bias).
 
-1. **interpolation** – φ, ∇φ and D²φ at every vertex in one gather of the 8 corner values
-   (:meth:`phantoms.Volume.sample`);
-2. **curvature** – area-weighted vertex normals and the batched paraboloid fit (H, κ = 2H);
+One iteration, every step vectorised over all vertices/faces (the only Python loops are over the
+≤ 3 coordinates, the ≤ 30 halvings of a line search and the CG iterations):
+
+1. **interpolation** – φ, ∇φ and D²φ at every vertex in one gather of the 8 corner rows of the volume's
+   cached, stacked derivative grids (:class:`GridSampler`, the interpolation of
+   :meth:`phantoms.Volume.sample`);
+2. **curvature** – area-weighted vertex normals and the batched paraboloid fit (H; κ = 2H) over the
+   1-ring (:meth:`geometry.operators.MeshOperators.curvature`);
 3. **gradient** – the shape gradient at every vertex
 
        G = 2αφφ_n + 2β[(D²φ∇φ)·n − φ_n nᵀD²φ n] + κ[αφ² + β(|∇φ|² − φ_n²)] − 2β div_Γ(φ_n ∇_Γφ)
 
-   (``gradient='full'``, the true gradient of E) or without the last term (``gradient='paper'``, the
-   paper's eq. (dJ_finel)).  The divergence term is the weak divergence (transpose of the P1 gradient)
-   of the per-face field φ_n∇_Γφ sampled at the face centroids with the face normals — the same samples
-   the discrete energy uses, so that this term is the exact derivative of the discrete energy;
+   (``gradient='full'``, the gradient of E) or without the last term (``gradient='paper'``, the paper's
+   eq. (dJ_finel)).  The divergence term is the weak divergence (transpose of the P1 gradient) of the
+   per-face field φ_n∇_Γφ sampled at the face centroids with the face normals — the samples the discrete
+   energy uses, so that this term is the exact derivative of the discrete energy;
 4. **preconditioner** – ``precondition='h1'``: the Sobolev velocity V = (M + sK)⁻¹ M G (M lumped areas,
-   K cotangent stiffness) by Jacobi-preconditioned CG; ``'none'``: V = G;
-5. **step** – ``step='capped'``: the largest vertex move is capped at ``max_move`` voxels, then the step
-   is halved until the discrete energy E = Σ_f a_f g(centroid_f, n_f) decreases (Armijo);
-   ``step='fixed'``: x ← x − τ V n with the constant ``tau`` (the paper's printed loop, unguarded);
-6. **relaxation** – optional tangential smoothing (toward the 1-ring centroid, within the tangent plane);
-7. **energy** – E of the new mesh; stop when its relative change stays below ``tol`` for 3 iterations.
+   K cotangent stiffness) by Jacobi-preconditioned CG, warm-started; ``'none'``: V = G;
+5. **step** – ``step='capped'``: the largest vertex move is capped at ``max_move`` voxels, then halved
+   until the discrete energy E = Σ_f a_f g(centroid_f, n_f) decreases (Armijo) and no face normal turns
+   by more than 60° (no fold); ``step='fixed'``: x ← x − τVn with the constant ``tau`` (the paper's
+   printed loop, unguarded);
+6. **relaxation** – tangential smoothing (toward the 1-ring centroid, within the tangent plane), added
+   to the trial step (retried without it if the line search fails);
+7. **energy** – E of the new mesh (from the accepted trial); stop when its relative change stays below
+   ``tol`` or the largest normal move below ``move_tol`` voxels for 3 iterations.
+
+Stop reasons: ``converged``, ``max_iter``, ``line_search_floor`` (no decrease of E down to a 1e-4-voxel
+move: the gradient no longer predicts a decrease of the discrete energy), ``diverged`` (non-finite
+gradient, the mesh leaving the grid under ``step='fixed'``) — always with the iteration in
+``info['stop_message']``; the returned mesh is the last finite one.
 """
 
 from __future__ import annotations

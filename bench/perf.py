@@ -5,13 +5,22 @@
 prints a table and, with ``--compare``, exits 1 when a benchmark got slower than the baseline by more than the
 tolerance.
 
-Why ratios
-----------
-Absolute times depend on the machine and on its load.  Every benchmark records in ``extra_info["ratio"]`` its
-median time divided by the median time of a *reference* measured in the same pytest session (marching cubes on
-the ellipsoid at N = 96; ``tests/benchmarks/conftest.py``).  A machine twice as fast, or uniformly slowed by
-other work, changes both alike; the ratio moves when the benchmarked code itself changes speed.  The gate
-compares ratios only; absolute medians are shown for information.
+Why ratios, and why CPU time
+----------------------------
+Absolute times depend on the machine and on its load.  Every benchmark records in ``extra_info`` its median
+time divided by the median time of a *reference* measured in the same pytest session (marching cubes on the
+ellipsoid at N = 96; ``tests/benchmarks/conftest.py``): ``ratio`` with wall-clock times and ``cpu_ratio`` with
+CPU times (user + system of the process, its threads and its worker processes: :func:`process_tree_cpu`).  A
+faster machine changes the benchmark and the reference alike; the ratio moves when the benchmarked code itself
+changes speed.
+
+Wall-clock ratios are not enough on a shared machine: other processes slow a 15-second benchmark and a
+0.1-second reference round by different amounts depending on when they run.  On this project's 2-core machine
+with 3–6 busy processes of other jobs, the wall-clock ratio of the same code moved by up to 85 % between two
+runs.  CPU time is charged only while the process runs, so the CPU-time ratio stays put under such load; the
+gate compares ``cpu_ratio`` (``--metric cpu``, the default) and falls back to ``ratio`` for a benchmark without
+CPU times on both sides.  What CPU time cannot see — time spent waiting, lost parallelism — is in the wall-clock
+column, for information (``--metric wall`` gates on it).
 
 The gate (:func:`gate`, a pure function)
 ---------------------------------------
@@ -77,6 +86,89 @@ def rounds(full: int, quick: int) -> int:
     return quick if perf_mode() == "quick" else full
 
 
+# ---------------------------------------------------------------------------------------------- CPU time
+_CLK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+def _children_of(pid: int) -> list[int]:
+    try:
+        tasks = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return []
+    out: list[int] = []
+    for t in tasks:
+        try:
+            with open(f"/proc/{pid}/task/{t}/children") as fh:
+                out += [int(x) for x in fh.read().split()]
+        except (OSError, ValueError):
+            continue
+    return out
+
+
+def _descendants_cpu() -> float:
+    """CPU seconds (user + system, own + reaped children) of the live descendants of this process (Linux
+    ``/proc``; 0 elsewhere).  A descendant that is reaped later moves its time into its parent's children
+    time, which is counted too: nothing is lost or counted twice between two readings."""
+    total = 0.0
+    todo, seen = _children_of(os.getpid()), set()
+    while todo:
+        pid = todo.pop()
+        if pid in seen:
+            continue
+        seen.add(pid)
+        try:
+            with open(f"/proc/{pid}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+            total += sum(int(x) for x in fields[11:15]) / _CLK   # utime stime cutime cstime
+        except (OSError, ValueError, IndexError):
+            continue
+        todo += _children_of(pid)
+    return total
+
+
+def _own_cpu() -> float:
+    import resource
+
+    s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime
+
+
+def process_tree_cpu(*, self_last: bool = True) -> float:
+    """CPU seconds used so far by this process, its threads and every descendant process (the worker processes
+    of the grid runner, forked from a fork server, included).  ``self_last``: read this process's own time
+    after scanning ``/proc`` (use at the start of a measured interval, and ``self_last=False`` at its end, so
+    the scan's own CPU falls outside the interval)."""
+    if self_last:
+        d = _descendants_cpu()
+        return d + _own_cpu()
+    own = _own_cpu()
+    return own + _descendants_cpu()
+
+
+class CpuRecordingTimer:
+    """A pytest-benchmark timer: returns ``time.perf_counter()`` (the statistics stay wall-clock) and records
+    the CPU time of the process tree over each timed interval in :attr:`cpu` (one entry per timed call,
+    warm-up rounds included; the calls alternate start, end)."""
+
+    __name__ = "perf_counter+cpu"
+
+    def __init__(self) -> None:
+        import time
+
+        self._clock = time.perf_counter
+        self._start: float | None = None
+        self.cpu: list[float] = []
+
+    def __call__(self) -> float:
+        if self._start is None:
+            self._start = process_tree_cpu(self_last=True)
+            return self._clock()
+        t = self._clock()
+        self.cpu.append(process_tree_cpu(self_last=False) - self._start)
+        self._start = None
+        return t
+
+
 # ---------------------------------------------------------------------------------------------- summaries
 def _finite(x) -> float | None:
     try:
@@ -107,6 +199,8 @@ def summarise(raw: dict) -> dict:
             "iqr_s": _finite(st.get("iqr")),
             "rounds": st.get("rounds"),
             "ratio": _finite(extra.get("ratio")),
+            "cpu_median_s": _finite(extra.get("cpu_median_s")),
+            "cpu_ratio": _finite(extra.get("cpu_ratio")),
             "loadavg_1min": extra.get("loadavg_1min"),
         }
     lb = raw.get("levelset_bench") or {}
@@ -163,17 +257,18 @@ def merge_runs(runs: list[dict]) -> dict:
     for n in names:
         rows = [r["benchmarks"][n] for r in runs if n in r["benchmarks"]]
         b = dict(rows[0])
-        for k in ("median_s", "ratio"):
+        for k in ("median_s", "ratio", "cpu_median_s", "cpu_ratio"):
             b[k] = _median(r.get(k) for r in rows)
         b["min_s"] = min((r["min_s"] for r in rows if r.get("min_s") is not None), default=None)
         b["max_s"] = max((r["max_s"] for r in rows if r.get("max_s") is not None), default=None)
         b["rounds"] = sum(int(r.get("rounds") or 0) for r in rows)
-        b["runs"] = {"ratio": [r.get("ratio") for r in rows], "median_s": [r.get("median_s") for r in rows]}
+        b["runs"] = {k: [r.get(k) for r in rows] for k in ("ratio", "cpu_ratio", "median_s")}
         benches[n] = b
     out["benchmarks"] = benches
     out["loadavg"] = {"runs": [r.get("loadavg") for r in runs]}
-    out["reference"] = {"median_s": _median((r.get("reference") or {}).get("median_s") for r in runs),
-                        "runs": [r.get("reference") for r in runs]}
+    out["reference"] = {k: _median((r.get("reference") or {}).get(k) for r in runs)
+                        for k in ("median_s", "cpu_median_s")}
+    out["reference"]["runs"] = [r.get("reference") for r in runs]
     out["skipped"] = sorted(set.intersection(*(set(r.get("skipped") or []) for r in runs)))
     out["repeats"] = len(runs)
     return out
@@ -206,22 +301,31 @@ def _bench_map(summary: dict | None) -> dict[str, dict]:
 
 
 def gate(baseline: dict | None, current: dict, tolerance: float = DEFAULT_TOLERANCE, *,
-         fail_on_missing: bool = False) -> GateResult:
+         fail_on_missing: bool = False, metric: str = "cpu") -> GateResult:
     """Compare the ratios of ``current`` with those of ``baseline`` (summaries, or plain ``{name: ratio}``).
 
+    ``metric``: ``"cpu"`` compares the CPU-time ratios (``cpu_ratio``) of the benchmarks that have one on both
+    sides and the wall-clock ratios of the others; ``"wall"`` always the wall-clock ratios (``ratio``).
     Pure: no I/O.  ``baseline=None`` gives the rows without a verdict (every row passes).  See the module
     docstring for the statuses.
     """
     if not (tolerance >= 0 and math.isfinite(tolerance)):
         raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
+    if metric not in ("cpu", "wall"):
+        raise ValueError(f"metric must be 'cpu' or 'wall', got {metric!r}")
     base, cur = _bench_map(baseline), _bench_map(current)
     skipped = set((current or {}).get("skipped") or []) if isinstance(current, dict) else set()
     rows = []
     for name in sorted(set(base) | set(cur)):
         b, c = base.get(name), cur.get(name)
-        row = {"name": name, "median_s": (c or {}).get("median_s"), "ratio": _finite((c or {}).get("ratio")),
-               "baseline_ratio": _finite((b or {}).get("ratio")), "baseline_median_s": (b or {}).get("median_s"),
-               "change": None, "failed": False}
+        key = "ratio"
+        if metric == "cpu" and (c is None or _finite(c.get("cpu_ratio")) is not None) \
+                and (b is None or _finite(b.get("cpu_ratio")) is not None):
+            key = "cpu_ratio"
+        row = {"name": name, "median_s": (c or {}).get("median_s"), "wall_ratio": _finite((c or {}).get("ratio")),
+               "cpu_ratio": _finite((c or {}).get("cpu_ratio")), "metric": "cpu" if key == "cpu_ratio" else "wall",
+               "ratio": _finite((c or {}).get(key)), "baseline_ratio": _finite((b or {}).get(key)),
+               "baseline_median_s": (b or {}).get("median_s"), "change": None, "failed": False}
         if c is None:
             row["status"] = SKIPPED if name in skipped else MISSING
             row["failed"] = fail_on_missing and baseline is not None and name not in skipped
@@ -252,12 +356,17 @@ def _secs(v) -> str:
 
 def format_table(result: GateResult) -> str:
     """The perf table: benchmark, median time, ratio, baseline ratio, change, status."""
-    head = ["benchmark", "median", "ratio"] + (["baseline", "change", "status"] if result.compared else [])
+    head = ["benchmark", "median", "ratio", "cpu ratio"] + (["baseline", "change", "status"] if result.compared
+                                                            else [])
     body = []
     for r in result.rows:
-        line = [r["name"], _secs(r["median_s"]), "–" if r["ratio"] is None else f"{r['ratio']:.3f}"]
+        wall, cpu = r.get("wall_ratio", r["ratio"]), r.get("cpu_ratio")
+        line = [r["name"], _secs(r["median_s"]), "–" if wall is None else f"{wall:.3f}",
+                "–" if cpu is None else f"{cpu:.3f}"]
         if result.compared:
-            line += ["–" if r["baseline_ratio"] is None else f"{r['baseline_ratio']:.3f}",
+            # the baseline of the ratio the gate compared (marked * for the wall-clock ratio)
+            line += ["–" if r["baseline_ratio"] is None else f"{r['baseline_ratio']:.3f}"
+                     + ("*" if r.get("metric") == "wall" else ""),
                      "–" if r["change"] is None else f"{100 * r['change']:+.0f} %", r["status"]]
         body.append(line)
     widths = [max(len(str(x)) for x in col) for col in zip(head, *body)] if body else [len(h) for h in head]
@@ -279,11 +388,24 @@ def benchmarks_dir() -> Path:
     return d
 
 
+def pinned_cpus(cpus: int) -> list[int] | None:
+    """The CPUs the suite is pinned to: the last ``cpus`` of this process's allowed set (None: no pinning,
+    ``cpus`` = 0 or no ``sched_setaffinity`` on this platform)."""
+    if cpus <= 0 or not hasattr(os, "sched_getaffinity"):
+        return None
+    allowed = sorted(os.sched_getaffinity(0))
+    return allowed[-cpus:] if cpus < len(allowed) else allowed
+
+
 def run_suite(*, quick: bool = False, select: list[str] | None = None, keyword: str | None = None,
-              n_rounds: int | None = None, stream=None) -> tuple[int, dict | None]:
+              n_rounds: int | None = None, cpus: int = 0, stream=None) -> tuple[int, dict | None]:
     """Run the benchmark suites once in a fresh ``python -m pytest``; return (exit code, summary or None).
 
     ``select``: pytest node ids to run instead of the whole ``tests/benchmarks`` (reruns); ``keyword``: ``-k``.
+    ``cpus``: pin the suite (and the worker processes it starts) to that many CPUs (0 = no pinning, the
+    default).  On one CPU every benchmark, multi-threaded or multi-process, competes for the same core as the
+    single-threaded reference, so its *wall-clock* ratio does not depend on how many cores happen to be free
+    (the CPU-time ratios the gate uses do not need it).
     pytest's own output goes to ``stream`` (default: this process's stderr).
     """
     bdir = benchmarks_dir()
@@ -301,13 +423,18 @@ def run_suite(*, quick: bool = False, select: list[str] | None = None, keyword: 
                "--benchmark-columns=median,min,max,rounds"]
         if keyword:
             cmd += ["-k", keyword]
+        pin = pinned_cpus(cpus)
+        pre = (lambda: os.sched_setaffinity(0, pin)) if pin else None
         target = stream if stream is not None else sys.stderr
         try:
             fd = target.fileno()
-            proc = subprocess.run(cmd, cwd=root, env=env, stdout=fd, stderr=fd)
         except (AttributeError, OSError, ValueError):  # a stream without a file descriptor (tests)
+            fd = None
+        if fd is not None:
+            proc = subprocess.run(cmd, cwd=root, env=env, stdout=fd, stderr=fd, preexec_fn=pre)
+        else:
             proc = subprocess.run(cmd, cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                  text=True)
+                                  text=True, preexec_fn=pre)
             target.write(proc.stdout)
         summary = None
         if out.exists():
@@ -317,6 +444,7 @@ def run_suite(*, quick: bool = False, select: list[str] | None = None, keyword: 
                 summary = None
     if summary is not None:
         summary["threads"] = {k: env[k] for k in THREAD_ENV}
+        summary["pinned_cpus"] = pin
     return proc.returncode, summary
 
 

@@ -9,9 +9,18 @@ median of a *reference* measured in the same session does much less.  The refere
   the same pool, so the reference samples the machine's load all through the session and not only during
   its first second; after the benchmark it writes into ``benchmark.extra_info``::
 
-      ratio               benchmark median / reference median (pool so far; final value: see below)
-      reference_median_s  the reference median the ratio uses
+      ratio               benchmark median / reference median (wall clock; pool so far, final: see below)
+      cpu_ratio           the same with CPU time: user + system seconds of the process, its threads and its
+                          descendant processes over each round (bench.perf.process_tree_cpu)
+      cpu_median_s        the benchmark's median CPU seconds per round
+      reference_median_s, reference_cpu_median_s   the reference medians the ratios use
+      ratio_of_minima     fastest round / fastest reference round (information only)
       loadavg_1min        the 1-minute load average when the benchmark finished
+
+  CPU time is recorded by swapping pytest-benchmark's timer for :class:`bench.perf.CpuRecordingTimer`, which
+  still returns wall-clock time, so pytest-benchmark's own statistics stay wall-clock.  CPU time barely moves
+  when other processes compete for the cores (a time-sliced process is not charged for the time it waits),
+  which is why the gate compares ``cpu_ratio`` by default.
 
   At the end of the session every ratio is recomputed with the whole pool (``ratio_at_test`` keeps the
   value seen at the time), so all ratios of one session share one denominator.  ``--benchmark-json`` also
@@ -33,7 +42,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.perf import perf_mode
+from bench.perf import CpuRecordingTimer, perf_mode, process_tree_cpu
 
 HERE = Path(__file__).resolve().parent
 
@@ -62,44 +71,58 @@ class Reference:
         self.volume = volume
         self.method = get_method("marching_cubes")
         self.times: list[float] = []
+        self.cpu_times: list[float] = []
         self.loadavg_start = _loadavg()
         self._records: list[tuple[dict, float, float]] = []  # (extra_info, median, min) to finalise
 
     def sample(self, n: int) -> None:
         for _ in range(n):
+            c0 = process_tree_cpu(self_last=True)
             t0 = time.perf_counter()
             self.method.reconstruct(self.volume)
-            self.times.append(time.perf_counter() - t0)
+            t1 = time.perf_counter()
+            self.cpu_times.append(process_tree_cpu(self_last=False) - c0)
+            self.times.append(t1 - t0)
 
     @property
     def median(self) -> float:
         return statistics.median(self.times)
 
-    def record(self, extra_info: dict, median_s: float, min_s: float) -> None:
-        extra_info["ratio"] = median_s / self.median
-        extra_info["ratio_of_minima"] = min_s / min(self.times)   # for information: the gate uses medians
-        extra_info["ratio_at_test"] = extra_info["ratio"]
-        extra_info["reference_median_s"] = self.median
+    @property
+    def cpu_median(self) -> float:
+        return statistics.median(self.cpu_times)
+
+    def record(self, extra_info: dict, median_s: float, min_s: float, cpu_median_s: float | None) -> None:
+        extra_info["ratio_at_test"] = median_s / self.median
         extra_info["loadavg_1min"] = (_loadavg() or [None])[0]
         extra_info["mode"] = MODE
-        self._records.append((extra_info, median_s, min_s))
+        extra_info["cpu_median_s"] = cpu_median_s
+        self._records.append((extra_info, median_s, min_s, cpu_median_s))
+        self._fill(extra_info, median_s, min_s, cpu_median_s)
+
+    def _fill(self, extra: dict, med: float, lo: float, cpu: float | None) -> None:
+        extra["ratio"] = med / self.median
+        extra["ratio_of_minima"] = lo / min(self.times)   # for information: the gate uses medians
+        extra["reference_median_s"] = self.median
+        cm = self.cpu_median
+        extra["cpu_ratio"] = cpu / cm if cpu is not None and cm > 0 else None
+        extra["reference_cpu_median_s"] = cm
 
     def finalise(self) -> None:
-        m = self.median
-        for extra, med, lo in self._records:
-            extra["ratio"] = med / m
-            extra["ratio_of_minima"] = lo / min(self.times)
-            extra["reference_median_s"] = m
+        for rec in self._records:
+            self._fill(*rec)
 
     def summary(self) -> dict:
         t = sorted(self.times)
         return {
             "what": f"methods.get_method('marching_cubes').reconstruct({REF_PHANTOM} sdf volume, N = {REF_N})",
             "median_s": self.median if t else None,
+            "cpu_median_s": self.cpu_median if t else None,
             "min_s": t[0] if t else None,
             "max_s": t[-1] if t else None,
             "rounds": len(t),
             "times_s": [round(x, 5) for x in self.times],
+            "cpu_times_s": [round(x, 5) for x in self.cpu_times],
         }
 
 
@@ -120,6 +143,7 @@ def reference(ellipsoid_volume_96):
     ref = Reference(ellipsoid_volume_96)
     ref.sample(1)          # warm-up (imports, first-touch allocations): not kept
     ref.times.clear()
+    ref.cpu_times.clear()
     ref.sample(REF_ROUNDS)
     _SESSION["reference"] = ref
     yield ref
@@ -136,11 +160,18 @@ def _ratio_to_reference(request):
     ref: Reference = request.getfixturevalue("reference")
     bm = request.getfixturevalue("benchmark")
     ref.sample(REF_TOPUP)
+    timer = None
+    if hasattr(bm, "_timer"):  # pytest-benchmark internals: a wall-clock timer that also records CPU time
+        timer = bm._timer = CpuRecordingTimer()
     yield
     stats = getattr(bm, "stats", None)
     if stats is None or getattr(bm, "disabled", False):   # --benchmark-disable, or the test never timed
         return
-    ref.record(bm.extra_info, float(stats.stats.median), float(stats.stats.min))
+    n = int(stats.stats.rounds)
+    cpu = None
+    if timer is not None and len(timer.cpu) >= n > 0:
+        cpu = statistics.median(timer.cpu[-n:]) / max(1, int(getattr(stats, "iterations", 1) or 1))
+    ref.record(bm.extra_info, float(stats.stats.median), float(stats.stats.min), cpu)
 
 
 def pytest_configure(config):

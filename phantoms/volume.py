@@ -190,13 +190,14 @@ class Volume:
         sx, sy = n[1] * n[2], n[2]
         base = i0[:, 0] * sx + i0[:, 1] * sy + i0[:, 2]
         offsets = np.array([dx * sx + dy * sy + dz for dx in (0, 1) for dy in (0, 1) for dz in (0, 1)])
-        corners = flat[base[:, None] + offsets[None, :]]  # (P, 8, C): the one gather
-        tx, ty, tz = t[:, 0:1], t[:, 1:2], t[:, 2:3]
-        wx = np.concatenate([1 - tx, tx], axis=1)
-        wy = np.concatenate([1 - ty, ty], axis=1)
-        wz = np.concatenate([1 - tz, tz], axis=1)
-        w = (wx[:, :, None, None] * wy[:, None, :, None] * wz[:, None, None, :]).reshape(-1, 8)
-        out = np.einsum("pk,pkc->pc", w, corners)
+        # the one gather: all channels of the 8 corners; np.take is much faster than fancy indexing here
+        corners = np.take(flat, base[:, None] + offsets[None, :], axis=0)  # (P, 8, C)
+        tx, ty, tz = t[:, 0], t[:, 1], t[:, 2]
+        wx = (1 - tx, tx)
+        wy = (1 - ty, ty)
+        wz = (1 - tz, tz)
+        w = np.stack([wx[a] * wy[b] * wz[c] for a in (0, 1) for b in (0, 1) for c in (0, 1)], axis=1)
+        out = np.matmul(w[:, None, :], corners)[:, 0, :]
         phi = out[:, 0]
         grad = hess = None
         if derivatives >= 1:

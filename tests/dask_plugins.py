@@ -21,3 +21,21 @@ class NappingMethod(Method):
     def reconstruct(self, volume):
         time.sleep(self.config["seconds"])
         return get_method("marching_cubes").reconstruct(volume)
+
+
+@register_method
+class WorkerKillerMethod(Method):
+    name = "worker_killer"
+    description = "SIGKILLs the Dask worker process that runs it (a cell that keeps killing its workers)"
+    params = {"seconds": Param(0.0, "how long to sleep first", float, min=0.0)}
+
+    def reconstruct(self, volume):
+        import os
+        import signal
+
+        import psutil
+
+        time.sleep(self.config["seconds"])
+        # this cell's process <- the worker's fork server <- the Dask worker process
+        os.kill(psutil.Process(os.getppid()).ppid(), signal.SIGKILL)
+        time.sleep(60)  # the lifeline ends this process once its worker is gone

@@ -156,6 +156,29 @@ def test_a_worker_killed_mid_cell_still_gives_every_cell_exactly_once(tmp_path, 
     assert [r["status"] for r in _rows(out / "results.csv")] == ["ok"] * 6
 
 
+def test_a_cell_that_keeps_killing_its_workers_becomes_a_failed_row(tmp_path, plugins_on_path):
+    """Dask retries a cell whose worker died (allowed-failures, here 1); then KilledWorker -> a failed row."""
+    import dask
+
+    from bench.dask_executor import DaskExecutor
+
+    cfg = config_from_dict({
+        "grid": {"phantoms": ["sphere"], "n": [16], "noise": [{"kind": "none"}]},
+        "methods": [{"name": "worker_killer", "params": {"seconds": 1.0}}, {"name": "marching_cubes"}],
+        "metrics": {"n_samples": 2000}, "run": {"imports": ["dask_plugins"]},
+    })
+    cfg.validate()
+    out = tmp_path / "run"
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        with DaskExecutor(workers=2, imports=cfg.imports, cache_dir=str(out / "cache")) as ex:
+            summary = run_grid(cfg, out, executor=ex, progress=False, report=False)
+    rows = {r["method"]: r for r in _rows(out / "results.csv")}
+    assert len(_rows(out / "results.csv")) == 2 and set(rows) == {"worker_killer", "marching_cubes"}
+    assert rows["worker_killer"]["status"] == "failed" and "KilledWorker" in rows["worker_killer"]["error"]
+    assert rows["marching_cubes"]["status"] == "ok"
+    assert (summary.ok, summary.failed) == (1, 1)
+
+
 # ---------------------------------------------------------------------------------------------- bad input
 @pytest.mark.parametrize("args, message", [
     (["--executor", "dask", "--scheduler", "http://host:8786"], "unknown protocol 'http'"),

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .mesh import lumped_vertex_areas, one_ring
+from .mesh import edges_unique, lumped_vertex_areas, one_ring
 
 __all__ = [
     "face_gradient_basis", "face_gradient", "gradient_operator", "divergence", "cotangent_stiffness",
@@ -284,6 +284,13 @@ class MeshOperators:
             np.where(self.ring_valid, self.ring, np.arange(V)[:, None]).T)   # (W, V)
         self._ring_t = np.ascontiguousarray(self._ring_safe.T)              # (W, V)
         self.ring_weight_t = np.ascontiguousarray(self.ring_weight.T)
+
+    @property
+    def edges(self) -> np.ndarray:
+        """Unique undirected edges (E, 2), ``e[:, 0] < e[:, 1]`` (computed on first use)."""
+        if getattr(self, "_edges", None) is None:
+            self._edges = edges_unique(self.faces)
+        return self._edges
 
     # ---------------------------------------------------------------- per-configuration geometry
     def geometry(self, vertices: np.ndarray) -> MeshGeometry:

@@ -32,6 +32,17 @@ One iteration, every step vectorised over all vertices/faces (the only Python lo
 7. **energy** – E of the new mesh (from the accepted trial); stop when its relative change stays below
    ``tol`` or the largest normal move below ``move_tol`` voxels for 3 iterations.
 
+After the last iteration, on clean volumes (``polish='auto'``; ``'on'``/``'off'`` force it), the **crease
+polish** (:func:`crease_polish`) — a geometric post-step, not part of the descent: edges whose endpoints'
+∇φ (at their Newton projections onto φ = 0) differ by more than ``polish_angle`` (45°) cross a sharp crease;
+their endpoints are Newton-projected onto φ = 0 and one endpoint of each such edge is moved onto the crease
+(the dual-contouring quadric of its 1-ring's tangent planes).  Why: the discrete energy prefers to bridge a
+concave crease (near the kink the interpolated ∇φ blends both sides, so faces lying in the groove pay
+β|∇_Γφ|²) — the fused spheres at N = 96 end at 2.5 h without it, 0.70 h with it (marching cubes 0.83 h).
+Smooth surfaces have no crease edges: the polish leaves them untouched.  Off on noisy volumes: at 20–30 dB
+it finds spurious creases and roughens the mesh.  The connectivity never changes; ``info['snapshots']`` are
+flow iterates (before the polish), ``info['polish']`` records what it did (counts, the energy after it).
+
 Stop reasons: ``converged``, ``max_iter``, ``line_search_floor`` (no decrease of E down to a 1e-4-voxel
 move: the gradient no longer predicts a decrease of the discrete energy), ``diverged`` (non-finite
 gradient, the mesh leaving the grid under ``step='fixed'``) — always with the iteration in
@@ -66,7 +77,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # paraboloid fit, no relaxation, no pre-smoothing.  The step stays capped + backtracked: taken literally
     # (step='fixed', tau=0.1) the first step throws Γ0 past the target and the mesh tangles.
     "paper": {"gradient": "paper", "precondition": "none", "relax": 0.0, "presmooth": 0.0,
-              "curvature": "paper"},
+              "curvature": "paper", "polish": "off"},
 }
 
 _CONVERGE_PATIENCE = 3     # consecutive iterations with relative energy change < tol
@@ -346,6 +357,119 @@ def _no_fold(old: MeshGeometry, new: MeshGeometry) -> bool:
     return bool((a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).min() > _FOLD_COS)
 
 
+# ====================================================================== the crease polish
+_POLISH_NEWTON_STEPS = 3      # Newton projections x ← x − φ∇φ/|∇φ|² of the crease-zone vertices
+_POLISH_MAX_ROUNDS = 50       # rounds of the vectorised greedy choice of the vertices put on the crease
+
+
+def newton_project(field, x: np.ndarray, steps: int = _POLISH_NEWTON_STEPS, max_step: float = np.inf,
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """``steps`` Newton projections onto φ = 0 along ∇φ (DistMesh's p ← p − φ∇φ/|∇φ|²), each capped at
+    ``max_step``; returns the projected points (P, 3) and the unit ∇φ there (P, 3)."""
+    xt = np.ascontiguousarray(np.asarray(x, float).T).copy()
+    for k in range(steps + 1):
+        ch = field.sample_t(xt, 1)
+        g = ch[1:4]
+        g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+        if k == steps:
+            break
+        ok = g2 > 1e-12
+        d = np.where(ok, ch[0] / np.where(ok, g2, 1.0), 0.0) * g                   # (3, P)
+        dn = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        xt -= d * np.minimum(1.0, max_step / np.maximum(dn, 1e-300))
+    nu = g / np.maximum(np.sqrt(g2), 1e-300)
+    return xt.T.copy(), nu.T.copy()
+
+
+def crease_polish(field, ops: MeshOperators, x: np.ndarray, h: float, *, angle: float = 45.0,
+                  weight: float = 0.1) -> tuple[np.ndarray, dict]:
+    """Put vertices on the sharp creases of the level set (run once on the final mesh; ``polish``).
+
+    Why: on a concave crease (the fused spheres' groove) the discrete energy prefers a bridge over the
+    groove — near the kink the interpolated ∇φ is a blend of the two sides, so faces lying in the groove
+    pay β|∇_Γφ|² while a bridging face is aligned with the blended gradient — and no mesh vertex sits on
+    the crease.  Nothing here changes where the flow goes; this is a geometric post-step:
+
+    1. every vertex is Newton-projected onto φ = 0 (3 steps, each capped at 2 voxels) and ν = ∇φ/|∇φ| is
+       sampled there (for the test only);
+    2. crease edges: edges whose endpoints' ν differ by more than ``angle`` degrees (on a smooth surface
+       meshed at ~2 voxels neighbouring normals differ by a few degrees);
+    3. crease zone: the endpoints of crease edges.  For each of them the crease point
+       y = argmin Σ_j (ν_j·(y − p_j))² + w|y − p_i|² over the vertex and its 1-ring (p the projected
+       positions, w = ``weight``) — the quadric error function of dual contouring: where the ring's
+       planes come from both sides of the crease y is the nearest point of their intersection line;
+    4. one endpoint of every crease edge goes onto its crease point: a vectorised greedy choice, cheapest
+       move first, no two chosen vertices on one crease edge, so that the chosen vertices form a chain of
+       edges along the crease and no edge crosses it; the other zone vertices take their Newton projection;
+    5. vertices of faces that this turns upside down (normal reversed) are put back.
+
+    Vertices outside the crease zone do not move: on a smooth surface the polish is a no-op.
+    Returns the new vertices and counts for ``info['polish']``.
+    """
+    x = np.asarray(x, float)
+    V = len(x)
+    stats = {"crease_edges": 0, "zone_vertices": 0, "snapped": 0, "reverted": 0, "max_move_voxels": 0.0}
+    xp, nu = newton_project(field, x, max_step=2.0 * h)
+    ok = np.isfinite(xp).all(1) & np.isfinite(nu).all(1)
+    e = ops.edges
+    c = np.einsum("ed,ed->e", nu[e[:, 0]], nu[e[:, 1]])
+    crease = e[(c < np.cos(np.radians(angle))) & ok[e[:, 0]] & ok[e[:, 1]]]
+    stats["crease_edges"] = int(len(crease))
+    if len(crease) == 0:
+        return x.copy(), stats
+    zone = np.unique(crease)
+    stats["zone_vertices"] = int(len(zone))
+    # QEF of each zone vertex over itself and its 1-ring (padded slots point at the vertex itself, weight 0)
+    idx = np.concatenate([zone[:, None], np.where(ops.ring_valid[zone], ops.ring[zone], zone[:, None])], 1)
+    wgt = np.concatenate([np.ones((len(zone), 1)), ops.ring_weight[zone]], 1) * ok[idx]
+    N, P = nu[idx], xp[idx]                                                   # (Z, W+1, 3)
+    A = np.einsum("zw,zwi,zwj->zij", wgt, N, N) + weight * np.eye(3)
+    b = np.einsum("zw,zwi->zi", wgt * np.einsum("zwd,zwd->zw", N, P), N) + weight * xp[zone]
+    y = np.full_like(x, np.nan)
+    y[zone] = np.linalg.solve(A, b[..., None])[..., 0]
+    cost = np.full(V, np.inf)
+    cost[zone] = np.linalg.norm(y[zone] - xp[zone], axis=1)
+    # greedy, vectorised in rounds: a crease edge proposes its cheaper endpoint; it wins when its
+    # (cost, index) rank is the smallest of all open crease edges at both its endpoints
+    a, bb = crease[:, 0], crease[:, 1]
+    cand = np.where(cost[a] <= cost[bb], a, bb)
+    rank = np.empty(len(crease), np.int64)
+    rank[np.lexsort((np.arange(len(crease)), cost[cand]))] = np.arange(len(crease))
+    chosen = np.zeros(V, bool)
+    open_ = np.isfinite(cost[cand])
+    for _ in range(_POLISH_MAX_ROUNDS):
+        if not open_.any():
+            break
+        best = np.full(V, np.iinfo(np.int64).max)
+        r = np.where(open_, rank, np.iinfo(np.int64).max)
+        np.minimum.at(best, a, r)
+        np.minimum.at(best, bb, r)
+        win = open_ & (best[a] == rank) & (best[bb] == rank)
+        chosen[cand[win]] = True
+        open_ &= ~(chosen[a] | chosen[bb])
+    out = x.copy()
+    zone_ok = zone[ok[zone]]
+    out[zone_ok] = xp[zone_ok]
+    out[chosen] = y[chosen]
+    # put back the vertices of faces the polish turned upside down (a few rounds: putting back can expose more)
+    n_old = ops.geometry(x).normals_t
+    for _ in range(5):
+        n_new = ops.geometry(out).normals_t
+        bad = (n_old * n_new).sum(0) <= 0.0
+        if not bad.any():
+            break
+        back = np.unique(ops.faces[bad])
+        back = back[np.any(out[back] != x[back], axis=1)]
+        if len(back) == 0:
+            break
+        stats["reverted"] += int(len(back))
+        out[back] = x[back]
+        chosen[back] = False
+    stats["snapped"] = int(chosen.sum())
+    stats["max_move_voxels"] = float(np.linalg.norm(out - x, axis=1).max() / h)
+    return out, stats
+
+
 # ====================================================================== input checks
 def _parse_snapshots(value) -> tuple[int, ...]:
     if value is None or (isinstance(value, str) and value.strip().lower() in ("", "none")):
@@ -472,6 +596,16 @@ class ShapeGradient(Method):
                            "(robust std of 4th differences) is at least 0.05 voxel, else off", object),
         "presmooth_phi": Param(False, "pre-smooth φ itself too (True: the data term then sees the shrunken "
                                "level set of the smoothed volume), or only the derivative grids (False)", bool),
+        "polish": Param("auto", "crease polish of the final mesh (crease_polish): vertices next to sharp creases "
+                        "of the level set are Newton-projected onto φ = 0 and one endpoint of every edge "
+                        "crossing a crease is put on the crease; smooth regions are not touched. 'auto': on "
+                        "for clean volumes (estimated noise below 0.05 voxel, i.e. no pre-smoothing), off on "
+                        "noisy ones (projection onto the noisy level set would roughen the mesh)", str,
+                        choices=("auto", "on", "off")),
+        "polish_angle": Param(45.0, "crease polish: an edge crosses a crease when ∇φ at its two (projected) "
+                              "endpoints differs by more than this many degrees", float, min=1.0, max=179.0),
+        "polish_weight": Param(0.1, "crease polish: weight w of |y − p_i|² in the crease-point quadric "
+                               "(relative to one plane; smaller = sharper but less stable)", float, min=1e-6),
         "curvature": Param("tilted", "paraboloid fit for H: 'tilted' adds linear terms (robust to a tilted "
                            "vertex normal), 'paper' is z = A/2x² + Bxy + C/2y² as printed", str,
                            choices=("tilted", "paper")),
@@ -579,6 +713,8 @@ class ShapeGradient(Method):
         if sigma == "auto":
             sigma = _AUTO_PRESMOOTH_SIGMA if noise >= _AUTO_PRESMOOTH_NOISE * volume.h else 0.0
         cfg["presmooth_used"] = float(sigma)
+        cfg["polish_used"] = (cfg["polish"] == "on"
+                              or (cfg["polish"] == "auto" and noise < _AUTO_PRESMOOTH_NOISE * volume.h))
         field = self._field(volume, sigma)
         if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):
             ops = MeshOperators(faces, len(x))
@@ -607,7 +743,7 @@ class ShapeGradientFlow:
         self.field, self.ops, self.cfg, self.h = field, ops, cfg, float(h)
         self.t_start = time.perf_counter() - setup_seconds
         self.timings = dict.fromkeys(("setup", "interpolation", "curvature", "gradient", "preconditioner",
-                                      "energy", "relax"), 0.0)
+                                      "energy", "relax", "polish"), 0.0)
         self.timings["setup"] = setup_seconds
         self.alpha, self.beta = cfg["alpha"], cfg["beta"]
         self.kind, self.linear = cfg["gradient"], cfg["curvature"] == "tilted"
@@ -633,6 +769,7 @@ class ShapeGradientFlow:
         self._grow = True
         self.cg_iterations: list[int] = []
         self.moves: list[float] = []
+        self._polished = None
 
     # ------------------------------------------------------------------ one iteration
     def _end(self, reason: str, message: str) -> bool:
@@ -749,14 +886,32 @@ class ShapeGradientFlow:
         return self
 
     # ------------------------------------------------------------------ the result
+    def _polish(self):
+        """(geometry of the final mesh, info['polish']): the last iterate, crease-polished if asked."""
+        info = {"used": bool(self.cfg.get("polish_used", False))}
+        if not info["used"]:
+            return self.state.geo, info
+        t0 = time.perf_counter()
+        x, stats = crease_polish(self.field, self.ops, self.state.x, self.h, angle=self.cfg["polish_angle"],
+                                 weight=self.cfg["polish_weight"])
+        geo = self.ops.geometry(x)
+        info.update(stats)
+        info["energy"] = float(evaluate_state(self.field, self.ops, x, self.alpha, self.beta).E) \
+            if stats["zone_vertices"] else float(self.state.E)
+        self.timings["polish"] += time.perf_counter() - t0
+        return geo, info
+
     def result(self) -> Reconstruction:
         """The mesh (closed, outward, the initial connectivity) and the info dict."""
         cfg, h = self.cfg, self.h
         t0 = time.perf_counter()
-        H_final, K_final = self.ops.curvature(self.state.geo, linear=self.linear)
+        if self._polished is None:
+            self._polished = self._polish()
+        final_geo, polish_info = self._polished
+        H_final, K_final = self.ops.curvature(final_geo, linear=self.linear)
         self.timings["curvature"] += time.perf_counter() - t0
         self.timings["total"] = time.perf_counter() - self.t_start
-        mesh = trimesh.Trimesh(self.state.x.copy(), self.ops.faces.copy(), process=False)
+        mesh = trimesh.Trimesh(final_geo.vertices.copy(), self.ops.faces.copy(), process=False)
         params_used = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in cfg.items()}
         params_used["init_mesh"] = None if cfg["init_mesh"] is None else "user mesh"
         params_used["snapshots"] = list(cfg["snapshots"])
@@ -781,5 +936,6 @@ class ShapeGradientFlow:
             "noise_estimate_voxels": float(self.noise / h),
             "presmooth_used": float(cfg.get("presmooth_used", 0.0)),
             "grid_spacing": float(h),
+            "polish": polish_info,
         }
         return Reconstruction(mesh, info)

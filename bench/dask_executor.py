@@ -300,6 +300,8 @@ class DaskExecutor:
             return self.workers
 
     def _run(self, cells, on_start, on_result) -> None:
+        from concurrent.futures import CancelledError
+
         from distributed import as_completed
         from distributed.scheduler import KilledWorker
 
@@ -335,6 +337,8 @@ class DaskExecutor:
                 if fut.status == "finished":
                     try:
                         result = fut.result()
+                    except CancelledError:  # lost between "finished" and the fetch: no row, --resume
+                        result = None
                     except Exception as exc:  # noqa: BLE001 - e.g. a result that cannot be deserialised
                         result = failed_result(cell, "failed", f"dask: cannot fetch the result: {_error_text(exc)}")
                 elif fut.status == "error":

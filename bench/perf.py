@@ -12,7 +12,8 @@ time divided by the median time of a *reference* measured in the same pytest ses
 ellipsoid at N = 96; ``tests/benchmarks/conftest.py``): ``ratio`` with wall-clock times and ``cpu_ratio`` with
 CPU times (user + system of the process, its threads and its worker processes: :func:`process_tree_cpu`).  A
 faster machine changes the benchmark and the reference alike; the ratio moves when the benchmarked code itself
-changes speed.
+changes speed.  The reference rounds a benchmark is divided by are the ones timed around it (before, between its
+rounds, after): the speed of a shared virtual machine drifts over tens of seconds.
 
 Wall-clock ratios are not enough on a shared machine: other processes slow a 15-second benchmark and a
 0.1-second reference round by different amounts depending on when they run.  On this project's 2-core machine
@@ -148,19 +149,23 @@ def process_tree_cpu(*, self_last: bool = True) -> float:
 class CpuRecordingTimer:
     """A pytest-benchmark timer: returns ``time.perf_counter()`` (the statistics stay wall-clock) and records
     the CPU time of the process tree over each timed interval in :attr:`cpu` (one entry per timed call,
-    warm-up rounds included; the calls alternate start, end)."""
+    warm-up rounds included; the calls alternate start, end).  ``before``: called at each start, before the
+    clocks are read (outside the timed interval) — the benchmarks time a reference round there."""
 
     __name__ = "perf_counter+cpu"
 
-    def __init__(self) -> None:
+    def __init__(self, before=None) -> None:
         import time
 
         self._clock = time.perf_counter
+        self._before = before
         self._start: float | None = None
         self.cpu: list[float] = []
 
     def __call__(self) -> float:
         if self._start is None:
+            if self._before is not None:
+                self._before()
             self._start = process_tree_cpu(self_last=True)
             return self._clock()
         t = self._clock()

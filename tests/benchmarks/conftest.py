@@ -4,30 +4,31 @@ Absolute times depend on the machine and on what else it is doing; the ratio of 
 median of a *reference* measured in the same session does much less.  The reference is marching cubes
 (``methods.get_method("marching_cubes")``) on the ellipsoid at N = 96, the volume the method benchmarks use.
 
-* :func:`reference` (session scope) times the reference ``REF_ROUNDS`` times after one warm-up call.
-* Before every benchmark the autouse fixture :func:`_ratio_to_reference` times ``REF_TOPUP`` more rounds into
-  the same pool, so the reference samples the machine's load all through the session and not only during
-  its first second; after the benchmark it writes into ``benchmark.extra_info``::
+* :func:`reference` (session scope) warms the reference up and times it ``REF_ROUNDS`` times.
+* Around every benchmark the autouse fixture :func:`_ratio_to_reference` times more reference rounds:
+  ``REF_TOPUP`` before the benchmark, one just before each of its rounds (outside the timed interval) and
+  ``REF_TOPUP`` after it.  The machine's speed drifts in phases of tens of seconds on a shared (virtual)
+  machine — the reference's own CPU time went from 44 to 75 ms and back within one session here — so each
+  benchmark is divided by the median of the reference rounds measured *around it*.  The fixture writes into
+  ``benchmark.extra_info``::
 
-      ratio               benchmark median / reference median (wall clock; pool so far, final: see below)
+      ratio               benchmark median / median of the reference rounds around it (wall clock)
       cpu_ratio           the same with CPU time: user + system seconds of the process, its threads and its
                           descendant processes over each round (bench.perf.process_tree_cpu)
       cpu_median_s        the benchmark's median CPU seconds per round
-      reference_median_s, reference_cpu_median_s   the reference medians the ratios use
-      ratio_of_minima     fastest round / fastest reference round (information only)
+      reference_median_s, reference_cpu_median_s, reference_rounds   the reference medians the ratios use
+      ratio_session, cpu_ratio_session   the ratios to the median of every reference round of the session
+      ratio_of_minima     fastest round / fastest reference round of the session (information only)
       loadavg_1min        the 1-minute load average when the benchmark finished
 
   CPU time is recorded by swapping pytest-benchmark's timer for :class:`bench.perf.CpuRecordingTimer`, which
   still returns wall-clock time, so pytest-benchmark's own statistics stay wall-clock.  CPU time barely moves
   when other processes compete for the cores (a time-sliced process is not charged for the time it waits),
-  which is why the gate compares ``cpu_ratio`` by default.
-
-  At the end of the session every ratio is recomputed with the whole pool (``ratio_at_test`` keeps the
-  value seen at the time), so all ratios of one session share one denominator.  ``--benchmark-json`` also
-  gains a top-level ``levelset_bench`` entry (reference times, load averages, mode).
+  which is why the gate compares ``cpu_ratio`` by default.  ``--benchmark-json`` also gains a top-level
+  ``levelset_bench`` entry (every reference round, load averages, mode).
 
 Modes (environment ``LSB_PERF_MODE``, set by ``python -m bench perf``): ``full`` (default) or ``quick`` —
-fewer rounds (:func:`rounds`) and the tests marked ``perf_slow`` skipped.
+fewer rounds (:func:`bench.perf.rounds`) and the tests marked ``perf_slow`` skipped.
 
 Every test collected under ``tests/benchmarks`` is marked ``benchmark``, so the default ``pytest`` run (which
 deselects ``-m benchmark``) never runs one by accident.
@@ -63,7 +64,7 @@ def _loadavg() -> list[float] | None:
 
 
 class Reference:
-    """The same-session reference: a growing pool of marching-cubes timings and their median."""
+    """The same-session reference: a growing pool of marching-cubes timings (wall and CPU seconds)."""
 
     def __init__(self, volume) -> None:
         from methods import get_method
@@ -73,16 +74,20 @@ class Reference:
         self.times: list[float] = []
         self.cpu_times: list[float] = []
         self.loadavg_start = _loadavg()
-        self._records: list[tuple[dict, float, float]] = []  # (extra_info, median, min) to finalise
+        self._records: list[tuple[dict, float, float, float | None]] = []  # to finalise: extra, median, min, cpu
 
-    def sample(self, n: int) -> None:
+    def sample(self, n: int) -> list[tuple[float, float]]:
+        """Time ``n`` rounds; add them to the pool and return them as (wall, cpu) pairs."""
+        out = []
         for _ in range(n):
             c0 = process_tree_cpu(self_last=True)
             t0 = time.perf_counter()
             self.method.reconstruct(self.volume)
             t1 = time.perf_counter()
-            self.cpu_times.append(process_tree_cpu(self_last=False) - c0)
-            self.times.append(t1 - t0)
+            out.append((t1 - t0, process_tree_cpu(self_last=False) - c0))
+        self.times += [w for w, _ in out]
+        self.cpu_times += [c for _, c in out]
+        return out
 
     @property
     def median(self) -> float:
@@ -92,25 +97,32 @@ class Reference:
     def cpu_median(self) -> float:
         return statistics.median(self.cpu_times)
 
-    def record(self, extra_info: dict, median_s: float, min_s: float, cpu_median_s: float | None) -> None:
-        extra_info["ratio_at_test"] = median_s / self.median
-        extra_info["loadavg_1min"] = (_loadavg() or [None])[0]
-        extra_info["mode"] = MODE
-        extra_info["cpu_median_s"] = cpu_median_s
-        self._records.append((extra_info, median_s, min_s, cpu_median_s))
-        self._fill(extra_info, median_s, min_s, cpu_median_s)
+    def record(self, extra: dict, median_s: float, min_s: float, cpu_median_s: float | None,
+               local: list[tuple[float, float]]) -> None:
+        """Write the ratios of a benchmark (its medians and the reference rounds ``local`` around it)."""
+        ref_wall = statistics.median(w for w, _ in local)
+        ref_cpu = statistics.median(c for _, c in local)
+        extra["ratio"] = median_s / ref_wall
+        extra["cpu_ratio"] = cpu_median_s / ref_cpu if cpu_median_s is not None and ref_cpu > 0 else None
+        extra["cpu_median_s"] = cpu_median_s
+        extra["reference_median_s"] = ref_wall
+        extra["reference_cpu_median_s"] = ref_cpu
+        extra["reference_rounds"] = len(local)
+        extra["loadavg_1min"] = (_loadavg() or [None])[0]
+        extra["mode"] = MODE
+        self._records.append((extra, median_s, min_s, cpu_median_s))
+        self._session_ratios(extra, median_s, min_s, cpu_median_s)
 
-    def _fill(self, extra: dict, med: float, lo: float, cpu: float | None) -> None:
-        extra["ratio"] = med / self.median
-        extra["ratio_of_minima"] = lo / min(self.times)   # for information: the gate uses medians
-        extra["reference_median_s"] = self.median
+    def _session_ratios(self, extra: dict, med: float, lo: float, cpu: float | None) -> None:
+        extra["ratio_session"] = med / self.median
         cm = self.cpu_median
-        extra["cpu_ratio"] = cpu / cm if cpu is not None and cm > 0 else None
-        extra["reference_cpu_median_s"] = cm
+        extra["cpu_ratio_session"] = cpu / cm if cpu is not None and cm > 0 else None
+        extra["ratio_of_minima"] = lo / min(self.times)
 
     def finalise(self) -> None:
+        """At the end of the session: the session ratios against the whole pool."""
         for rec in self._records:
-            self._fill(*rec)
+            self._session_ratios(*rec)
 
     def summary(self) -> dict:
         t = sorted(self.times)
@@ -153,25 +165,26 @@ def reference(ellipsoid_volume_96):
 
 @pytest.fixture(autouse=True)
 def _ratio_to_reference(request):
-    """For tests using ``benchmark``: top up the reference pool, then record the ratio in ``extra_info``."""
+    """For tests using ``benchmark``: time reference rounds around it, then record the ratios in ``extra_info``."""
     if "benchmark" not in request.fixturenames:
         yield
         return
     ref: Reference = request.getfixturevalue("reference")
     bm = request.getfixturevalue("benchmark")
-    ref.sample(REF_TOPUP)
+    local = ref.sample(REF_TOPUP)
     timer = None
     if hasattr(bm, "_timer"):  # pytest-benchmark internals: a wall-clock timer that also records CPU time
-        timer = bm._timer = CpuRecordingTimer()
+        timer = bm._timer = CpuRecordingTimer(before=lambda: local.extend(ref.sample(1)))
     yield
     stats = getattr(bm, "stats", None)
     if stats is None or getattr(bm, "disabled", False):   # --benchmark-disable, or the test never timed
         return
+    local += ref.sample(REF_TOPUP)
     n = int(stats.stats.rounds)
     cpu = None
     if timer is not None and len(timer.cpu) >= n > 0:
         cpu = statistics.median(timer.cpu[-n:]) / max(1, int(getattr(stats, "iterations", 1) or 1))
-    ref.record(bm.extra_info, float(stats.stats.median), float(stats.stats.min), cpu)
+    ref.record(bm.extra_info, float(stats.stats.median), float(stats.stats.min), cpu, local)
 
 
 def pytest_configure(config):

@@ -36,9 +36,9 @@ def test_marching_cubes_ellipsoid_n96(benchmark, ellipsoid_volume_96):
 
 @pytest.mark.benchmark(group="methods")
 def test_poisson_ellipsoid_n96(benchmark, ellipsoid_volume_96):
-    _bench(benchmark, ellipsoid_volume_96, "poisson", rounds(5, 2))
+    _bench(benchmark, ellipsoid_volume_96, "poisson", rounds(5, 3))
 
 
 @pytest.mark.benchmark(group="methods")
 def test_distmesh_ellipsoid_n96(benchmark, ellipsoid_volume_96):
-    _bench(benchmark, ellipsoid_volume_96, "distmesh", rounds(3, 1))
+    _bench(benchmark, ellipsoid_volume_96, "distmesh", rounds(3, 2))

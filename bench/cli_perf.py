@@ -68,9 +68,9 @@ def register(subparsers) -> None:
     p.add_argument("--metric", choices=("cpu", "wall"), default="cpu",
                    help="ratio the gate compares: CPU time (default; robust to other load on the machine) or "
                         "wall-clock time")
-    p.add_argument("--cpus", type=_count(0), default=0, metavar="C",
-                   help="pin the suite to C CPUs (0 = no pinning, the default); pinning to 1 makes the "
-                        "wall-clock ratios of multi-threaded benchmarks independent of free cores")
+    p.add_argument("--cpus", type=_count(0), default=1, metavar="C",
+                   help="pin the suite to C CPUs (default 1: a multi-threaded benchmark's ratio then does not "
+                        "depend on how many cores are free; 0 = no pinning)")
     p.add_argument("-k", dest="keyword", metavar="EXPR", help="only the benchmarks matching this pytest -k "
                                                               "expression")
     p.add_argument("--input", metavar="RUN.json", action="append", default=None,

@@ -206,7 +206,7 @@ def summarise(raw: dict) -> dict:
             "iqr_s": _finite(st.get("iqr")),
             "rounds": st.get("rounds"),
             "ratio": _finite(extra.get("ratio")),
-            "cpu_median_s": _finite(extra.get("cpu_median_s")),
+            "cpu_mean_s": _finite(extra.get("cpu_mean_s")),
             "cpu_ratio": _finite(extra.get("cpu_ratio")),
             "loadavg_1min": extra.get("loadavg_1min"),
         }
@@ -264,7 +264,7 @@ def merge_runs(runs: list[dict]) -> dict:
     for n in names:
         rows = [r["benchmarks"][n] for r in runs if n in r["benchmarks"]]
         b = dict(rows[0])
-        for k in ("median_s", "ratio", "cpu_median_s", "cpu_ratio"):
+        for k in ("median_s", "ratio", "cpu_mean_s", "cpu_ratio"):
             b[k] = _median(r.get(k) for r in rows)
         b["min_s"] = min((r["min_s"] for r in rows if r.get("min_s") is not None), default=None)
         b["max_s"] = max((r["max_s"] for r in rows if r.get("max_s") is not None), default=None)
@@ -274,7 +274,7 @@ def merge_runs(runs: list[dict]) -> dict:
     out["benchmarks"] = benches
     out["loadavg"] = {"runs": [r.get("loadavg") for r in runs]}
     out["reference"] = {k: _median((r.get("reference") or {}).get(k) for r in runs)
-                        for k in ("median_s", "cpu_median_s")}
+                        for k in ("median_s", "cpu_mean_s")}
     out["reference"]["runs"] = [r.get("reference") for r in runs]
     out["skipped"] = sorted(set.intersection(*(set(r.get("skipped") or []) for r in runs)))
     out["repeats"] = len(runs)

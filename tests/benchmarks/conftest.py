@@ -7,25 +7,30 @@ median of a *reference* measured in the same session does much less.  The refere
 * :func:`reference` (session scope) warms the reference up and times it ``REF_ROUNDS`` times.
 * Around every benchmark the autouse fixture :func:`_ratio_to_reference` times more reference rounds:
   ``REF_TOPUP`` before the benchmark, one just before each of its rounds (outside the timed interval) and
-  ``REF_TOPUP`` after it.  The machine's speed drifts in phases of tens of seconds on a shared (virtual)
-  machine — the reference's own CPU time went from 44 to 75 ms and back within one session here — so each
-  benchmark is divided by the median of the reference rounds measured *around it*.  The fixture writes into
-  ``benchmark.extra_info``::
+  ``REF_TOPUP`` after it, and divides the benchmark by those rounds — the ones measured *around it*.  It writes
+  into ``benchmark.extra_info``::
 
       ratio               benchmark median / median of the reference rounds around it (wall clock)
-      cpu_ratio           the same with CPU time: user + system seconds of the process, its threads and its
-                          descendant processes over each round (bench.perf.process_tree_cpu)
-      cpu_median_s        the benchmark's median CPU seconds per round
-      reference_median_s, reference_cpu_median_s, reference_rounds   the reference medians the ratios use
-      ratio_session, cpu_ratio_session   the ratios to the median of every reference round of the session
+      cpu_ratio           benchmark mean / mean of the reference rounds around it, in CPU time (user + system
+                          seconds of the process, its threads and its descendant processes, over each round:
+                          bench.perf.process_tree_cpu); means trimmed of the lowest and highest tenth
+      cpu_mean_s, cpu_median_s   the benchmark's CPU seconds per round
+      reference_median_s, reference_cpu_mean_s, reference_rounds   the reference values the ratios use
+      ratio_session, cpu_ratio_session   the same against every reference round of the session
       ratio_of_minima     fastest round / fastest reference round of the session (information only)
       loadavg_1min        the 1-minute load average when the benchmark finished
 
+  Why CPU time: a time-sliced process is not charged for the time it waits, so other processes competing for
+  the cores barely move it; the gate compares ``cpu_ratio`` by default.  Why means, around the benchmark, for
+  CPU time: on the shared virtual machine the CPU itself changes speed in phases of a few seconds — the
+  reference's *user* time alternates between ≈ 50 and ≈ 80 ms with no page faults and no other load — so a
+  benchmark round of several seconds averages over phases, and the reference rounds spread around it estimate
+  the same average (a median would snap to one phase or the other).  Wall-clock times still use medians
+  (preemption makes their outliers one-sided).
+
   CPU time is recorded by swapping pytest-benchmark's timer for :class:`bench.perf.CpuRecordingTimer`, which
-  still returns wall-clock time, so pytest-benchmark's own statistics stay wall-clock.  CPU time barely moves
-  when other processes compete for the cores (a time-sliced process is not charged for the time it waits),
-  which is why the gate compares ``cpu_ratio`` by default.  ``--benchmark-json`` also gains a top-level
-  ``levelset_bench`` entry (every reference round, load averages, mode).
+  still returns wall-clock time, so pytest-benchmark's own statistics stay wall-clock.  ``--benchmark-json``
+  also gains a top-level ``levelset_bench`` entry (every reference round, load averages, mode).
 
 Modes (environment ``LSB_PERF_MODE``, set by ``python -m bench perf``): ``full`` (default) or ``quick`` —
 fewer rounds (:func:`bench.perf.rounds`) and the tests marked ``perf_slow`` skipped.
@@ -54,6 +59,14 @@ REF_ROUNDS = int(os.environ.get("LSB_PERF_REF_ROUNDS", "5" if QUICK else "9"))
 REF_TOPUP = int(os.environ.get("LSB_PERF_REF_TOPUP", "2" if QUICK else "3"))
 #: the reference: marching cubes on the ellipsoid (sdf variant) at N = 96
 REF_PHANTOM, REF_N = "ellipsoid", 96
+
+
+def trimmed_mean(values: list[float]) -> float:
+    """Mean without the lowest and highest tenth (none below 10 values)."""
+    v = sorted(values)
+    k = len(v) // 10
+    v = v[k:len(v) - k] if k else v
+    return sum(v) / len(v)
 
 
 def _loadavg() -> list[float] | None:
@@ -97,25 +110,27 @@ class Reference:
     def cpu_median(self) -> float:
         return statistics.median(self.cpu_times)
 
-    def record(self, extra: dict, median_s: float, min_s: float, cpu_median_s: float | None,
+    def record(self, extra: dict, median_s: float, min_s: float, cpu_rounds: list[float] | None,
                local: list[tuple[float, float]]) -> None:
-        """Write the ratios of a benchmark (its medians and the reference rounds ``local`` around it)."""
+        """Write the ratios of a benchmark (its round times and the reference rounds ``local`` around it)."""
         ref_wall = statistics.median(w for w, _ in local)
-        ref_cpu = statistics.median(c for _, c in local)
+        ref_cpu = trimmed_mean([c for _, c in local])
+        cpu = trimmed_mean(cpu_rounds) if cpu_rounds else None
         extra["ratio"] = median_s / ref_wall
-        extra["cpu_ratio"] = cpu_median_s / ref_cpu if cpu_median_s is not None and ref_cpu > 0 else None
-        extra["cpu_median_s"] = cpu_median_s
+        extra["cpu_ratio"] = cpu / ref_cpu if cpu is not None and ref_cpu > 0 else None
+        extra["cpu_mean_s"] = cpu
+        extra["cpu_median_s"] = statistics.median(cpu_rounds) if cpu_rounds else None
         extra["reference_median_s"] = ref_wall
-        extra["reference_cpu_median_s"] = ref_cpu
+        extra["reference_cpu_mean_s"] = ref_cpu
         extra["reference_rounds"] = len(local)
         extra["loadavg_1min"] = (_loadavg() or [None])[0]
         extra["mode"] = MODE
-        self._records.append((extra, median_s, min_s, cpu_median_s))
-        self._session_ratios(extra, median_s, min_s, cpu_median_s)
+        self._records.append((extra, median_s, min_s, cpu))
+        self._session_ratios(extra, median_s, min_s, cpu)
 
     def _session_ratios(self, extra: dict, med: float, lo: float, cpu: float | None) -> None:
         extra["ratio_session"] = med / self.median
-        cm = self.cpu_median
+        cm = trimmed_mean(self.cpu_times)
         extra["cpu_ratio_session"] = cpu / cm if cpu is not None and cm > 0 else None
         extra["ratio_of_minima"] = lo / min(self.times)
 
@@ -130,6 +145,7 @@ class Reference:
             "what": f"methods.get_method('marching_cubes').reconstruct({REF_PHANTOM} sdf volume, N = {REF_N})",
             "median_s": self.median if t else None,
             "cpu_median_s": self.cpu_median if t else None,
+            "cpu_mean_s": trimmed_mean(self.cpu_times) if t else None,
             "min_s": t[0] if t else None,
             "max_s": t[-1] if t else None,
             "rounds": len(t),
@@ -183,7 +199,8 @@ def _ratio_to_reference(request):
     n = int(stats.stats.rounds)
     cpu = None
     if timer is not None and len(timer.cpu) >= n > 0:
-        cpu = statistics.median(timer.cpu[-n:]) / max(1, int(getattr(stats, "iterations", 1) or 1))
+        per = max(1, int(getattr(stats, "iterations", 1) or 1))
+        cpu = [c / per for c in timer.cpu[-n:]]      # the timed rounds (warm-up rounds come first)
     ref.record(bm.extra_info, float(stats.stats.median), float(stats.stats.min), cpu, local)
 
 

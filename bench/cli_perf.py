@@ -163,8 +163,12 @@ def _cmd_perf(args) -> int:
         path = perf.save_summary(current, args.save, note)
         print(f"wrote {path}")
     if not result.passed:
-        print(f"perf: FAILED — {', '.join(result.failures)} slower than the baseline by more than "
-              f"{100 * args.tolerance:g} %", file=sys.stderr)
+        status = {r["name"]: r["status"] for r in result.rows}
+        slow = [n for n in result.failures if status[n] == perf.REGRESSION]
+        gone = [n for n in result.failures if status[n] != perf.REGRESSION]
+        why = ([f"{', '.join(slow)} slower than the baseline by more than {100 * args.tolerance:g} %"] if slow
+               else []) + ([f"{', '.join(gone)} did not run"] if gone else [])
+        print(f"perf: FAILED — {'; '.join(why)}", file=sys.stderr)
         return 1
     if code:
         return code

@@ -253,31 +253,43 @@ def _median(values: Iterable) -> float | None:
 
 def merge_runs(runs: list[dict]) -> dict:
     """Several summaries of the same suite → one: per benchmark the median over runs of the median time and of
-    the ratio (the ``runs`` field keeps every run's ratio).  Metadata of the first run; all load averages."""
+    each ratio (``runs`` keeps every run's values).  Summaries that are themselves merges count with each of
+    their runs.  Metadata of the first summary; every run's load averages and reference."""
     if not runs:
         raise ValueError("no runs to merge")
     if len(runs) == 1:
         return runs[0]
+    keys = ("median_s", "ratio", "cpu_mean_s", "cpu_ratio")
+
+    def values(b: dict, k: str) -> list:
+        return list(b["runs"][k]) if isinstance(b.get("runs"), dict) and k in b["runs"] else [b.get(k)]
+
     out = json.loads(json.dumps(runs[0]))
     names = sorted({n for r in runs for n in r["benchmarks"]})
     benches = {}
     for n in names:
         rows = [r["benchmarks"][n] for r in runs if n in r["benchmarks"]]
-        b = dict(rows[0])
-        for k in ("median_s", "ratio", "cpu_mean_s", "cpu_ratio"):
-            b[k] = _median(r.get(k) for r in rows)
+        b = {k: v for k, v in rows[0].items() if k not in ("runs", "attempts")}
+        allv = {k: [x for r in rows for x in values(r, k)] for k in keys}
+        for k in keys:
+            b[k] = _median(allv[k])
         b["min_s"] = min((r["min_s"] for r in rows if r.get("min_s") is not None), default=None)
         b["max_s"] = max((r["max_s"] for r in rows if r.get("max_s") is not None), default=None)
         b["rounds"] = sum(int(r.get("rounds") or 0) for r in rows)
-        b["runs"] = {k: [r.get(k) for r in rows] for k in ("ratio", "cpu_ratio", "median_s")}
+        b["runs"] = allv
         benches[n] = b
     out["benchmarks"] = benches
-    out["loadavg"] = {"runs": [r.get("loadavg") for r in runs]}
-    out["reference"] = {k: _median((r.get("reference") or {}).get(k) for r in runs)
-                        for k in ("median_s", "cpu_mean_s")}
-    out["reference"]["runs"] = [r.get("reference") for r in runs]
+
+    def each(r: dict, key: str) -> list:
+        v = r.get(key) or {}
+        return list(v["runs"]) if isinstance(v, dict) and "runs" in v else [v]
+
+    out["loadavg"] = {"runs": [x for r in runs for x in each(r, "loadavg")]}
+    refs = [x for r in runs for x in each(r, "reference")]
+    out["reference"] = {k: _median((x or {}).get(k) for x in refs) for k in ("median_s", "cpu_mean_s")}
+    out["reference"]["runs"] = refs
     out["skipped"] = sorted(set.intersection(*(set(r.get("skipped") or []) for r in runs)))
-    out["repeats"] = len(runs)
+    out["repeats"] = sum(int(r.get("repeats") or 1) for r in runs)
     return out
 
 

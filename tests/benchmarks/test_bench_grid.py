@@ -4,6 +4,10 @@ per-cell worker processes, results.csv, run.json and the HTML report with its pi
 Run in-process through :func:`bench.runner.run_grid` (what the CLI calls) with **one** worker: the time is
 then the total work of the grid, which compares with the single-threaded reference on any machine, instead
 of depending on how many cores are free at that moment.
+
+A one-cell grid runs first, untimed: it starts the runner's fork server (a process that preloads the suite,
+≈ 1–2 s of CPU, once per session) and imports what the report needs, so every timed round costs the same —
+otherwise the first round would carry it, and the mean over 1 round (``--quick``) and over 2 (full) would differ.
 """
 
 from __future__ import annotations
@@ -19,6 +23,13 @@ from bench.perf import rounds
 def test_quick_grid_end_to_end(benchmark, tmp_path):
     from bench.config import builtin_config
     from bench.runner import run_grid
+
+    from bench.config import parse_method_spec
+
+    warm = builtin_config("quick")
+    warm.phantoms, warm.n, warm.noise = ["sphere"], [16], warm.noise[:1]
+    warm.methods = [parse_method_spec("marching_cubes")]
+    assert run_grid(warm, tmp_path / "warm-up", jobs=1, progress=False, report=True, argv=["perf"]).ok == 1
 
     counter = itertools.count()
     summaries = []

@@ -23,7 +23,7 @@ every time, a load spike on a shared machine rarely hits the same benchmark twic
 Typical uses:
   python -m bench perf --compare bench/perf_baseline.json            # check this tree
   python -m bench perf --quick --compare bench/perf_baseline.json    # CI: fewer rounds, slow ones skipped
-  python -m bench perf --repeat 3 --save bench/perf_baseline.json    # refresh the baseline"""
+  python -m bench perf --repeat 5 --save bench/perf_baseline.json    # refresh the baseline (quiet machine)"""
 
 
 def _tolerance(text: str) -> float:

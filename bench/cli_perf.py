@@ -7,8 +7,6 @@ import datetime as _dt
 import math
 import sys
 
-from phantoms import InputError
-
 from . import perf
 
 PERF_HELP = """\

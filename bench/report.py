@@ -653,7 +653,7 @@ def write_report(out: str | Path) -> Path:
     df = pd.read_csv(out / "results.csv", keep_default_na=True)
     for col in ("error", "label", "method", "noise", "phantom", "variant", "status", "parameters", "cell_id"):
         if col in df.columns:
-            df[col] = df[col].fillna("").astype(str)
+            df[col] = df[col].astype(object).where(df[col].notna(), "").astype(str)
     meta: dict = {}
     if (out / "run.json").exists():
         try:

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
-from bench.config import builtin_config, config_from_dict, parse_method_spec, parse_noise_spec
+from bench.config import CONFIG_DIR, builtin_config, config_from_dict, load_config, parse_method_spec, parse_noise_spec
 from bench.runner import expand_grid
 
 pytest.importorskip("bench.metrics")
@@ -304,6 +304,13 @@ def test_paper_config_is_the_paper_grid():
     sg = cfg.methods[0]
     assert sg.params["alpha"] == 5 and sg.params["beta"] == 1 and cfg.methods[1].params["beta"] == 0
     assert len(expand_grid(cfg)) == 4 * 3 * 6
+
+
+def test_scale_config_is_48_cells_of_the_baselines():
+    cfg = load_config(CONFIG_DIR / "scale48.toml")
+    cells = expand_grid(cfg)
+    assert len(cells) == 48 and {c["method"] for c in cells} == {"marching_cubes", "mc_taubin", "distmesh", "poisson"}
+    assert {c["N"] for c in cells} == {48}
 
 
 def test_method_and_noise_specs():

@@ -310,7 +310,7 @@ def test_scale_config_is_48_cells_of_the_baselines():
     cfg = load_config(CONFIG_DIR / "scale48.toml")
     cells = expand_grid(cfg)
     assert len(cells) == 48 and {c["method"] for c in cells} == {"marching_cubes", "mc_taubin", "distmesh", "poisson"}
-    assert {c["N"] for c in cells} == {48}
+    assert {c["n"] for c in cells} == {48}
 
 
 def test_method_and_noise_specs():

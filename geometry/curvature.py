@@ -15,20 +15,111 @@ from __future__ import annotations
 import numpy as np
 
 
+def tangent_frames_t(n) -> tuple[tuple, tuple]:
+    """Orthonormal tangent frames of unit normals stored by coordinate ``n`` (3, V): (t1, t2), each a
+    tuple of three (V,) arrays.  Branch-free (Duff et al. 2017), valid for every unit n (no singularity
+    at n = −z as Rodrigues' formula has)."""
+    nx, ny, nz = n[0], n[1], n[2]
+    sg = np.where(nz >= 0, 1.0, -1.0)
+    a = -1.0 / (sg + nz)
+    bb = nx * ny * a
+    return (1.0 + sg * nx * nx * a, sg * bb, -sg * nx), (bb, sg + ny * ny * a, -ny)
+
+
 def tangent_frames(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit tangent vectors (V, 3) each, orthonormal to ``normals`` and to each other."""
-    n = np.asarray(normals, float)
-    # pick the coordinate axis least aligned with n as a helper
-    helper = np.zeros_like(n)
-    helper[np.arange(len(n)), np.argmin(np.abs(n), axis=1)] = 1.0
-    t1 = np.cross(n, helper)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    t2 = np.cross(n, t1)
-    return t1, t2
+    """Two unit tangent vectors (V, 3) each, orthonormal to ``normals`` (V, 3) and to each other."""
+    t1, t2 = tangent_frames_t(np.asarray(normals, float).T)
+    return np.stack(t1, axis=1), np.stack(t2, axis=1)
+
+
+def fit_ring(u, v, z, count, *, linear: bool = True):
+    """(H, K, A, B, C) of the least-squares paraboloid fit of every vertex at once, in closed form.
+
+    ``u``, ``v``, ``z`` (W, V): the neighbours' coordinates in the vertex's frame (tangent, tangent,
+    normal), vertex at the origin, laid out neighbour-slot first so that the sums over a neighbourhood
+    run over the short leading axis; padded slots must be exactly 0 (they then add nothing).  ``count``
+    (V,): the number of real neighbours.
+
+    The 5×5 (``linear``) or 3×3 normal equations of all vertices are solved at once: the 2×2 block of
+    the linear terms is eliminated by its Schur complement and the remaining symmetric 3×3 system is
+    solved by its adjugate — several times faster than a batched ``np.linalg.solve`` on small systems.
+    A tiny relative ridge (1e-12 of the trace) keeps exactly-singular systems solvable; such fits are
+    flagged: NaN where ``count`` < 3 or the quadratic block is (almost) rank-deficient.  Vertices with
+    fewer than 5 neighbours fit the linear terms as zero (the paper's fit).
+    """
+    uu, uv, vv = u * u, u * v, v * v
+    S = lambda p: p.sum(0)  # noqa: E731 - sum over the neighbourhood
+    # moments of the design columns a = (u²/2, uv, v²/2, u, v)
+    q11, q12, q13 = 0.25 * S(uu * uu), 0.5 * S(uu * uv), 0.25 * S(uu * vv)
+    q22, q23, q33 = S(uv * uv), 0.5 * S(uv * vv), 0.25 * S(vv * vv)
+    r1, r2, r3 = 0.5 * S(uu * z), S(uv * z), 0.5 * S(vv * z)
+    trace = q11 + q22 + q33
+    scale = np.where(trace > 0, trace, 1.0)
+    ridge = 1e-12 * scale
+    cnt = np.asarray(count)
+    # determinant of the unregularised quadratic block: the degeneracy test
+    det_q = q11 * (q22 * q33 - q23 * q23) - q12 * (q12 * q33 - q23 * q13) + q13 * (q12 * q23 - q22 * q13)
+    q11r, q22r, q33r = q11 + ridge, q22 + ridge, q33 + ridge
+    if linear:
+        c14, c15 = 0.5 * S(uu * u), 0.5 * S(uu * v)
+        c24, c25 = S(uv * u), S(uv * v)
+        c34, c35 = 0.5 * S(vv * u), 0.5 * S(vv * v)
+        l44, l45, l55 = S(uu) + ridge, S(uv), S(vv) + ridge
+        r4, r5 = S(u * z), S(v * z)
+        few = cnt < 5                      # too few neighbours for the linear terms: fit them as zero
+        if few.any():
+            for arr in (c14, c15, c24, c25, c34, c35, l45, r4, r5):
+                arr[few] = 0.0
+            l44[few] = l55[few] = 1.0 + ridge[few]
+        det_l = l44 * l55 - l45 * l45
+        det_l = np.where(det_l != 0, det_l, np.inf)
+        i44, i45, i55 = l55 / det_l, -l45 / det_l, l44 / det_l
+        # C L⁻¹ (rows 1..3)
+        e1 = (c14 * i44 + c15 * i45, c14 * i45 + c15 * i55)
+        e2 = (c24 * i44 + c25 * i45, c24 * i45 + c25 * i55)
+        e3 = (c34 * i44 + c35 * i45, c34 * i45 + c35 * i55)
+        s11 = q11r - (e1[0] * c14 + e1[1] * c15)
+        s12 = q12 - (e1[0] * c24 + e1[1] * c25)
+        s13 = q13 - (e1[0] * c34 + e1[1] * c35)
+        s22 = q22r - (e2[0] * c24 + e2[1] * c25)
+        s23 = q23 - (e2[0] * c34 + e2[1] * c35)
+        s33 = q33r - (e3[0] * c34 + e3[1] * c35)
+        b1 = r1 - (e1[0] * r4 + e1[1] * r5)
+        b2 = r2 - (e2[0] * r4 + e2[1] * r5)
+        b3 = r3 - (e3[0] * r4 + e3[1] * r5)
+    else:
+        s11, s12, s13, s22, s23, s33 = q11r, q12, q13, q22r, q23, q33r
+        b1, b2, b3 = r1, r2, r3
+    # adjugate solve of the symmetric 3×3 system
+    m11 = s22 * s33 - s23 * s23
+    m12 = s13 * s23 - s12 * s33
+    m13 = s12 * s23 - s13 * s22
+    m22 = s11 * s33 - s13 * s13
+    m23 = s12 * s13 - s11 * s23
+    m33 = s11 * s22 - s12 * s12
+    det = s11 * m11 + s12 * m12 + s13 * m13
+    safe = np.where(det != 0, det, np.inf)
+    A = (m11 * b1 + m12 * b2 + m13 * b3) / safe
+    B = (m12 * b1 + m22 * b2 + m23 * b3) / safe
+    C = (m13 * b1 + m23 * b2 + m33 * b3) / safe
+    if linear:
+        fx = i44 * (r4 - c14 * A - c24 * B - c34 * C) + i45 * (r5 - c15 * A - c25 * B - c35 * C)
+        fy = i45 * (r4 - c14 * A - c24 * B - c34 * C) + i55 * (r5 - c15 * A - c25 * B - c35 * C)
+        g = 1.0 + fx * fx + fy * fy
+        H = -((1 + fy * fy) * A - 2 * fx * fy * B + (1 + fx * fx) * C) / (2.0 * g ** 1.5)
+        K = (A * C - B * B) / (g * g)
+    else:
+        H = -0.5 * (A + C)
+        K = A * C - B * B
+    bad = (cnt < 3) | ~(np.abs(det_q) > 1e-10 * scale ** 3) | ~(det > 0)
+    if bad.any():
+        H[bad] = np.nan
+        K[bad] = np.nan
+    return H, K, A, B, C
 
 
 def paraboloid_curvature(vertices, normals, neighbors, *, linear: bool = True, return_coeffs: bool = False):
-    """Batched paraboloid-fit curvature.
+    """Batched paraboloid-fit curvature over arbitrary (padded) neighbourhoods.
 
     Parameters
     ----------
@@ -46,62 +137,21 @@ def paraboloid_curvature(vertices, normals, neighbors, *, linear: bool = True, r
     -------
     H, K : (V,) arrays (NaN where a vertex has fewer than 3 neighbours or a degenerate fit);
     with ``return_coeffs`` also the (V, 3) array of (A, B, C).
+
+    The fit itself is :func:`fit_ring`, the one implementation the shape-gradient flow's in-loop
+    curvature (:meth:`geometry.operators.MeshOperators.curvature`) also calls.
     """
-    x = np.asarray(vertices, float)
-    n = np.asarray(normals, float)
-    nb = np.asarray(neighbors)
+    xt = np.asarray(vertices, float).T                         # (3, V)
+    n = np.asarray(normals, float).T
+    nb = np.asarray(neighbors).T                               # (W, V)
     valid = nb >= 0
-    d = x[np.where(valid, nb, 0)] - x[:, None, :]            # (V, W, 3)
-    t1, t2 = tangent_frames(n)
-    # local coordinates (u, v, z) of every neighbour: one batched matmul with the frames (V, 3, 3)
-    uvz = np.matmul(d, np.stack([t1, t2, n], axis=2))
-    u, v, z = uvz[..., 0], uvz[..., 1], uvz[..., 2]
-    w = valid.astype(float)
-    cnt = valid.sum(1)
-    k = 5 if linear else 3
-    a = np.empty(u.shape + (k,))                                # (V, W, k) weighted design matrix
-    np.multiply(0.5 * u, u, out=a[..., 0])
-    np.multiply(u, v, out=a[..., 1])
-    np.multiply(0.5 * v, v, out=a[..., 2])
-    if linear:
-        a[..., 3] = u
-        a[..., 4] = v
-    a *= w[..., None]
-    # normal equations by batched matmul (several times faster than the equivalent einsum)
-    aT = np.swapaxes(a, 1, 2)
-    M = np.matmul(aT, a)
-    rhs = np.matmul(aT, z[..., None])[..., 0]
-    if linear:
-        # vertices with fewer than 5 neighbours: decouple the linear terms (fit them as zero)
-        few = cnt < 5
-        if few.any():
-            M[few, 3:, :] = 0.0
-            M[few, :, 3:] = 0.0
-            M[few, 3, 3] = M[few, 4, 4] = 1.0
-            rhs[few, 3:] = 0.0
-    # tiny relative ridge keeps exactly-singular systems solvable; they are flagged below
-    tr = np.trace(M[:, :3, :3], axis1=1, axis2=2)
-    scale = np.where(tr > 0, tr, 1.0)
-    M_reg = M + (1e-12 * scale)[:, None, None] * np.eye(k)
-    coeffs = np.linalg.solve(M_reg, rhs[..., None])[..., 0]
-    A, B, C = coeffs[:, 0], coeffs[:, 1], coeffs[:, 2]
-    if linear:
-        fx, fy = coeffs[:, 3], coeffs[:, 4]
-        g = 1.0 + fx * fx + fy * fy
-        H = -((1 + fy * fy) * A - 2 * fx * fy * B + (1 + fx * fx) * C) / (2.0 * g ** 1.5)
-        K = (A * C - B * B) / (g * g)
-    else:
-        H = -0.5 * (A + C)
-        K = A * C - B * B
-    # flag fits that are not determined: < 3 neighbours or an (almost) rank-deficient quadratic block
-    Mq = M[:, :3, :3]
-    det = np.linalg.det(Mq)
-    bad = (cnt < 3) | ~(np.abs(det) > 1e-10 * np.maximum(scale, 1e-300) ** 3)
-    if bad.any():
-        H = H.copy(); K = K.copy()
-        H[bad] = np.nan
-        K[bad] = np.nan
-    coeffs = coeffs[:, :3]
+    idx = np.where(valid, nb, np.arange(nb.shape[1]))          # padded slots → the vertex itself: offset 0
+    d = [np.take(xt[c], idx) - xt[c] for c in range(3)]        # (W, V) each
+    t1, t2 = tangent_frames_t(n)
+    u = d[0] * t1[0] + d[1] * t1[1] + d[2] * t1[2]
+    v = d[0] * t2[0] + d[1] * t2[1] + d[2] * t2[2]
+    z = d[0] * n[0] + d[1] * n[1] + d[2] * n[2]
+    H, K, A, B, C = fit_ring(u, v, z, valid.sum(0), linear=linear)
     if return_coeffs:
-        return H, K, coeffs
+        return H, K, np.stack([A, B, C], axis=1)
     return H, K

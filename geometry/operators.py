@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .curvature import fit_ring, tangent_frames_t
 from .mesh import edges_unique, lumped_vertex_areas, one_ring
 
 __all__ = [
@@ -344,22 +345,12 @@ class MeshOperators:
     def curvature(self, geo: MeshGeometry, *, linear: bool = True, normals: np.ndarray | None = None):
         """Per-vertex (H, K) by the batched paraboloid fit over the 1-ring.
 
-        The same estimator as :func:`geometry.curvature.paraboloid_curvature` (the same fit, the same tiny
-        ridge, the same degeneracy flags; the results agree to rounding), written for an inner loop: the
-        1-ring is precomputed, the tangent frame is built branch-free (H and K do not depend on the
-        rotation of the frame about the normal), and the 5×5 (or 3×3) normal equations of all vertices
-        are solved at once in closed form — the 2×2 block of the linear terms is eliminated by its Schur
-        complement and the remaining 3×3 system solved by its adjugate.  NaN where the fit is not
-        determined.
+        :func:`geometry.curvature.paraboloid_curvature` restricted to the precomputed 1-ring, for an inner
+        loop: the ring offsets are gathered in (W, V) layout and handed to the same closed-form solver,
+        :func:`geometry.curvature.fit_ring`.  NaN where the fit is not determined.
         """
         n = geo.vertex_normals_t if normals is None else np.asarray(normals, float).T
-        nx, ny, nz = n[0], n[1], n[2]
-        # orthonormal tangent frame (Duff et al. 2017), valid for every unit n
-        sg = np.where(nz >= 0, 1.0, -1.0)
-        a = -1.0 / (sg + nz)
-        bb = nx * ny * a
-        t1 = (1.0 + sg * nx * nx * a, sg * bb, -sg * nx)
-        t2 = (bb, sg + ny * ny * a, -ny)
+        t1, t2 = tangent_frames_t(n)
         # ring offsets in (W, V) layout, so that sums over the ring run over the short leading axis
         xt = geo.vertices_t
         dx = np.take(xt[0], self._ring_self_t) - xt[0]                        # padded slots → 0
@@ -367,73 +358,6 @@ class MeshOperators:
         dz = np.take(xt[2], self._ring_self_t) - xt[2]
         u = dx * t1[0] + dy * t1[1] + dz * t1[2]
         v = dx * t2[0] + dy * t2[1] + dz * t2[2]
-        z = dx * nx + dy * ny + dz * nz
-        uu, uv, vv = u * u, u * v, v * v
-        S = lambda p: p.sum(0)  # noqa: E731 - sum over the ring
-        # moments of the design columns a = (u²/2, uv, v²/2, u, v)
-        q11, q12, q13 = 0.25 * S(uu * uu), 0.5 * S(uu * uv), 0.25 * S(uu * vv)
-        q22, q23, q33 = S(uv * uv), 0.5 * S(uv * vv), 0.25 * S(vv * vv)
-        r1, r2, r3 = 0.5 * S(uu * z), S(uv * z), 0.5 * S(vv * z)
-        trace = q11 + q22 + q33
-        scale = np.where(trace > 0, trace, 1.0)
-        ridge = 1e-12 * scale
-        cnt = self.ring_count
-        # determinant of the unregularised quadratic block (degeneracy test of the reference estimator)
-        det_q = q11 * (q22 * q33 - q23 * q23) - q12 * (q12 * q33 - q23 * q13) + q13 * (q12 * q23 - q22 * q13)
-        q11r, q22r, q33r = q11 + ridge, q22 + ridge, q33 + ridge
-        if linear:
-            c14, c15 = 0.5 * S(uu * u), 0.5 * S(uu * v)
-            c24, c25 = S(uv * u), S(uv * v)
-            c34, c35 = 0.5 * S(vv * u), 0.5 * S(vv * v)
-            l44, l45, l55 = S(uu) + ridge, S(uv), S(vv) + ridge
-            r4, r5 = S(u * z), S(v * z)
-            few = cnt < 5                      # too few neighbours for the linear terms: fit them as zero
-            if few.any():
-                for arr in (c14, c15, c24, c25, c34, c35, l45, r4, r5):
-                    arr[few] = 0.0
-                l44[few] = l55[few] = 1.0 + ridge[few]
-            det_l = l44 * l55 - l45 * l45
-            det_l = np.where(det_l != 0, det_l, np.inf)
-            i44, i45, i55 = l55 / det_l, -l45 / det_l, l44 / det_l
-            # C L⁻¹ (rows 1..3)
-            e1 = (c14 * i44 + c15 * i45, c14 * i45 + c15 * i55)
-            e2 = (c24 * i44 + c25 * i45, c24 * i45 + c25 * i55)
-            e3 = (c34 * i44 + c35 * i45, c34 * i45 + c35 * i55)
-            s11 = q11r - (e1[0] * c14 + e1[1] * c15)
-            s12 = q12 - (e1[0] * c24 + e1[1] * c25)
-            s13 = q13 - (e1[0] * c34 + e1[1] * c35)
-            s22 = q22r - (e2[0] * c24 + e2[1] * c25)
-            s23 = q23 - (e2[0] * c34 + e2[1] * c35)
-            s33 = q33r - (e3[0] * c34 + e3[1] * c35)
-            b1 = r1 - (e1[0] * r4 + e1[1] * r5)
-            b2 = r2 - (e2[0] * r4 + e2[1] * r5)
-            b3 = r3 - (e3[0] * r4 + e3[1] * r5)
-        else:
-            s11, s12, s13, s22, s23, s33 = q11r, q12, q13, q22r, q23, q33r
-            b1, b2, b3 = r1, r2, r3
-        # adjugate solve of the symmetric 3×3 system
-        m11 = s22 * s33 - s23 * s23
-        m12 = s13 * s23 - s12 * s33
-        m13 = s12 * s23 - s13 * s22
-        m22 = s11 * s33 - s13 * s13
-        m23 = s12 * s13 - s11 * s23
-        m33 = s11 * s22 - s12 * s12
-        det = s11 * m11 + s12 * m12 + s13 * m13
-        safe = np.where(det != 0, det, np.inf)
-        A = (m11 * b1 + m12 * b2 + m13 * b3) / safe
-        B = (m12 * b1 + m22 * b2 + m23 * b3) / safe
-        C = (m13 * b1 + m23 * b2 + m33 * b3) / safe
-        if linear:
-            fx = i44 * (r4 - c14 * A - c24 * B - c34 * C) + i45 * (r5 - c15 * A - c25 * B - c35 * C)
-            fy = i45 * (r4 - c14 * A - c24 * B - c34 * C) + i55 * (r5 - c15 * A - c25 * B - c35 * C)
-            g = 1.0 + fx * fx + fy * fy
-            H = -((1 + fy * fy) * A - 2 * fx * fy * B + (1 + fx * fx) * C) / (2.0 * g ** 1.5)
-            K = (A * C - B * B) / (g * g)
-        else:
-            H = -0.5 * (A + C)
-            K = A * C - B * B
-        bad = (cnt < 3) | ~(np.abs(det_q) > 1e-10 * scale ** 3) | ~(det > 0)
-        if bad.any():
-            H[bad] = np.nan
-            K[bad] = np.nan
+        z = dx * n[0] + dy * n[1] + dz * n[2]
+        H, K = fit_ring(u, v, z, self.ring_count, linear=linear)[:2]
         return H, K

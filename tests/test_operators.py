@@ -169,15 +169,42 @@ def test_mesh_operators_agree_with_the_plain_functions(bumpy):
     np.testing.assert_allclose(ring_mean[i], v[nbrs].mean(0))
 
 
+def _lstsq_curvature(v, normals, ring, linear):
+    """Oracle: the paraboloid fit vertex by vertex with np.linalg.lstsq, in a frame built another way
+    (Gram–Schmidt against the coordinate axis least aligned with the normal)."""
+    H = np.full(len(v), np.nan)
+    K = np.full(len(v), np.nan)
+    for i in range(len(v)):
+        nb = ring[i][ring[i] >= 0]
+        n = normals[i]
+        e = np.eye(3)[np.argmin(np.abs(n))]
+        t1 = e - (e @ n) * n
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(n, t1)
+        d = v[nb] - v[i]
+        u, w, z = d @ t1, d @ t2, d @ n
+        cols = [0.5 * u * u, u * w, 0.5 * w * w] + ([u, w] if linear and len(nb) >= 5 else [])
+        c = np.linalg.lstsq(np.stack(cols, 1), z, rcond=None)[0]
+        A, B, C = c[:3]
+        fx, fy = (c[3], c[4]) if len(c) == 5 else (0.0, 0.0)
+        g = 1.0 + fx * fx + fy * fy
+        H[i] = -((1 + fy * fy) * A - 2 * fx * fy * B + (1 + fx * fx) * C) / (2.0 * g ** 1.5)
+        K[i] = (A * C - B * B) / (g * g)
+    return H, K
+
+
 @pytest.mark.parametrize("linear", [True, False])
-def test_fast_curvature_is_the_shared_paraboloid_fit(bumpy, linear):
+def test_closed_form_curvature_equals_a_direct_least_squares_fit(bumpy, linear):
     v, f = bumpy
     ops = MeshOperators(f, len(v))
     geo = ops.geometry(v)
     H1, K1 = ops.curvature(geo, linear=linear)
     H2, K2 = paraboloid_curvature(v, geo.vertex_normals, ops.ring, linear=linear)
-    np.testing.assert_allclose(H1, H2, rtol=1e-9, atol=1e-9)
-    np.testing.assert_allclose(K1, K2, rtol=1e-8, atol=1e-8)
+    H3, K3 = _lstsq_curvature(v, geo.vertex_normals, ops.ring, linear)
+    np.testing.assert_allclose(H1, H2, rtol=1e-12, atol=1e-12)      # the 1-ring path and the general one
+    np.testing.assert_allclose(K1, K2, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(H2, H3, rtol=1e-8, atol=1e-8)        # against the oracle
+    np.testing.assert_allclose(K2, K3, rtol=1e-7, atol=1e-7)
 
 
 def test_fast_curvature_flags_degenerate_fits():

@@ -62,6 +62,7 @@ import trimesh
 from geometry.operators import MeshGeometry, MeshOperators, jacobi_cg
 from geometry.sphere import PAPER_SPHERE_RADIUS, PAPER_SPHERE_VERTICES, fibonacci_sphere
 from phantoms import InputError, Sample, Volume
+from phantoms.volume import trilinear_channels
 
 from .base import Method, Param, Reconstruction, check_volume
 
@@ -126,25 +127,18 @@ _HESS_INDEX = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]]).ravel()
 class GridSampler:
     """Trilinear φ, ∇φ, D²φ of a :class:`phantoms.Volume` at many points: one gather of the 8 corners.
 
-    The same interpolation as :meth:`phantoms.Volume.sample` — the volume's own cached stacked
-    derivative grids (central differences), the same cell and weights; results agree to rounding — laid
-    out for an inner loop: points given and results returned by coordinate/channel ((3, P) in, (C, P)
-    out), one ``np.take`` of the 8 corner rows of every point (all channels of a corner are adjacent in
-    memory), weights as 8 products of coordinate arrays.  ``np.take`` is ~13× faster than the fancy
-    indexing ``Volume.sample`` uses (numpy 2.x).  Points outside the grid box are clamped onto it; callers
-    check :meth:`contains_t` first.
+    The interpolation of :meth:`phantoms.Volume.sample` (the same kernel,
+    :func:`phantoms.volume.trilinear_channels`, on the volume's own cached stacked derivative grids),
+    laid out for an inner loop: points given and results returned by coordinate/channel ((3, P) in,
+    (C, P) out), no bounds check.  Points outside the grid box are clamped onto it; callers check
+    :meth:`contains_t` first.
     """
 
     def __init__(self, volume: Volume, channels: dict[int, np.ndarray] | None = None):
         self.volume = volume
         self._given = channels or {}     # {order: (N, C) array} used instead of the volume's own grids
-        n = np.asarray(volume.shape)
-        self._nmax = (n - 1).astype(float)
-        self._imax = n - 2
-        sx, sy = int(n[1] * n[2]), int(n[2])
-        self._sx, self._sy = sx, sy
-        self._offsets = np.array([dx * sx + dy * sy + dz for dx in (0, 1) for dy in (0, 1) for dz in (0, 1)],
-                                 dtype=np.intp)[:, None]
+        self._shape = tuple(int(k) for k in volume.shape)
+        self._nmax = np.asarray(self._shape, float) - 1.0
         self._origin = volume.origin
         self._inv_spacing = 1.0 / volume.spacing
         self._lower, self._upper = volume.lower, volume.upper
@@ -166,22 +160,11 @@ class GridSampler:
 
     def sample_t(self, xt: np.ndarray, derivatives: int = 2) -> np.ndarray:
         """Channels at the points of the (3, P) array: (C, P) with rows φ, ∇φ (3), Hessian (xx xy xz yy yz zz)."""
-        flat = self._channels(derivatives)
-        ijk = []
-        frac = []
+        idx = np.empty_like(xt)
         for c in range(3):
-            idx = (xt[c] - self._origin[c]) * self._inv_spacing[c]
-            np.clip(idx, 0.0, self._nmax[c], out=idx)
-            i0 = np.minimum(idx.astype(np.intp), self._imax[c])   # idx >= 0: truncation is floor
-            ijk.append(i0)
-            frac.append(idx - i0)
-        base = ijk[0] * self._sx + ijk[1] * self._sy + ijk[2]
-        corners = np.take(flat, base + self._offsets, axis=0)          # (8, P, C): the one gather
-        tx, ty, tz = frac
-        ux, uy, uz = 1.0 - tx, 1.0 - ty, 1.0 - tz
-        a00, a01, a10, a11 = ux * uy, ux * ty, tx * uy, tx * ty
-        w = np.stack([a00 * uz, a00 * tz, a01 * uz, a01 * tz, a10 * uz, a10 * tz, a11 * uz, a11 * tz])
-        return np.einsum("kpc,kp->cp", corners, w)
+            np.multiply(xt[c] - self._origin[c], self._inv_spacing[c], out=idx[c])
+            np.clip(idx[c], 0.0, self._nmax[c], out=idx[c])
+        return trilinear_channels(self._channels(derivatives), self._shape, idx)
 
     def sample(self, points, derivatives: int = 0, clamp: bool = True) -> Sample:
         """Like :meth:`phantoms.Volume.sample` (points (P, 3)), always clamping."""

@@ -17,7 +17,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["Volume", "Sample"]
+__all__ = ["Volume", "Sample", "trilinear_channels"]
 
 
 @dataclass(frozen=True)
@@ -34,6 +34,33 @@ class Sample:
 
 # Order of the six independent Hessian entries in the cached channel array.
 _HESS_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray) -> np.ndarray:
+    """Trilinear interpolation of stacked grids at fractional grid indices: the one gather.
+
+    ``flat`` (N0·N1·N2, C): C grids of ``shape`` (N0, N1, N2), raveled in C order, all channels of a
+    grid point adjacent in memory.  ``idx_t`` (3, P): fractional indices, already inside
+    [0, N − 1] per axis (callers check or clamp).  Returns (C, P).  One ``np.take`` fetches the 8
+    corner rows of every point (~13× faster than fancy indexing with numpy 2.x); the weights are 8
+    products of coordinate arrays.  Shared by :meth:`Volume.sample` and the shape-gradient flow's
+    inner loop.
+    """
+    n1, n2 = int(shape[1]), int(shape[2])
+    sx = n1 * n2
+    ijk, frac = [], []
+    for c in range(3):
+        i0 = np.minimum(idx_t[c].astype(np.intp), int(shape[c]) - 2)   # idx >= 0: truncation is floor
+        ijk.append(i0)
+        frac.append(idx_t[c] - i0)
+    base = ijk[0] * sx + ijk[1] * n2 + ijk[2]
+    offsets = np.array([0, 1, n2, n2 + 1, sx, sx + 1, sx + n2, sx + n2 + 1], dtype=np.intp)[:, None]
+    corners = np.take(flat, base + offsets, axis=0)                      # (8, P, C)
+    tx, ty, tz = frac
+    ux, uy, uz = 1.0 - tx, 1.0 - ty, 1.0 - tz
+    a00, a01, a10, a11 = ux * uy, ux * ty, tx * uy, tx * ty
+    w = np.stack([a00 * uz, a00 * tz, a01 * uz, a01 * tz, a10 * uz, a10 * tz, a11 * uz, a11 * tz])
+    return np.einsum("kpc,kp->cp", corners, w)
 
 
 @dataclass(eq=False)
@@ -182,22 +209,9 @@ class Volume:
                 f"[{self.lower.round(4).tolist()}, {self.upper.round(4).tolist()}] "
                 f"(first: {first.round(4).tolist()}); pass clamp=True to clamp them"
             )
-        idx = np.clip(idx, 0.0, n - 1)
-        i0 = np.minimum(np.floor(idx).astype(np.intp), n - 2)
-        t = idx - i0  # in [0, 1]
+        idx_t = np.clip(idx, 0.0, n - 1).T
         chans = self._channel_array(derivatives)
-        flat = chans.reshape(-1, chans.shape[-1])
-        sx, sy = n[1] * n[2], n[2]
-        base = i0[:, 0] * sx + i0[:, 1] * sy + i0[:, 2]
-        offsets = np.array([dx * sx + dy * sy + dz for dx in (0, 1) for dy in (0, 1) for dz in (0, 1)])
-        # the one gather: all channels of the 8 corners; np.take is much faster than fancy indexing here
-        corners = np.take(flat, base[:, None] + offsets[None, :], axis=0)  # (P, 8, C)
-        tx, ty, tz = t[:, 0], t[:, 1], t[:, 2]
-        wx = (1 - tx, tx)
-        wy = (1 - ty, ty)
-        wz = (1 - tz, tz)
-        w = np.stack([wx[a] * wy[b] * wz[c] for a in (0, 1) for b in (0, 1) for c in (0, 1)], axis=1)
-        out = np.matmul(w[:, None, :], corners)[:, 0, :]
+        out = trilinear_channels(chans.reshape(-1, chans.shape[-1]), n, idx_t).T      # (P, C)
         phi = out[:, 0]
         grad = hess = None
         if derivatives >= 1:

@@ -25,6 +25,10 @@ HTML report — is shared, not reimplemented.
 * **Plug-in modules** (``--import MODULE``): a :class:`WorkerPlugin` imports them in every worker (also in
   workers that join later), each cell imports them again in its own process (``run_cell``), and before any
   work starts the client checks that every worker can import the suite and the modules.
+* **Same code everywhere.**  The same check compares every worker's :func:`suite_fingerprint` with the
+  client's: a worker on another git commit of the suite stops the run (exit 2) before any work; other
+  Python or dependency versions are printed as warnings and recorded in run.json
+  (``executor.version_differences``).
 * **Cluster.**  ``scheduler=None``: a :class:`distributed.LocalCluster` of ``workers`` processes with one
   thread each (the cells share the volume cache ``DIR/cache`` like the local executor).  Otherwise the client
   connects to the scheduler at that address (``dask scheduler`` / ``dask worker ADDRESS`` on any machines with
@@ -41,6 +45,7 @@ import multiprocessing
 import os
 import re
 import socket
+import sys
 import time
 import uuid
 from typing import Callable
@@ -103,9 +108,53 @@ def _import_all(modules) -> dict[str, str]:
     return errors
 
 
-def _worker_check(imports: list[str]) -> dict[str, str]:
-    """Run on every worker before the grid: can it import the suite and the plug-in modules?"""
-    return _import_all(["bench.runner", "bench.metrics", "methods", *imports])
+def suite_fingerprint() -> dict:
+    """What must match between the client and every worker for their results to be comparable: the git
+    commit of the suite's checkout (None when it is not a git checkout), the Python version and the
+    versions of the suite's dependencies."""
+    from bench.runner import _dependency_versions, _git_commit
+
+    git = _git_commit()
+    return {"commit": git["commit"] if git else None, "python": sys.version.split()[0],
+            "dependencies": _dependency_versions()}
+
+
+def _worker_check(imports: list[str]) -> dict:
+    """Run on every worker before the grid: can it import the suite and the plug-in modules, and which
+    code does it run (:func:`suite_fingerprint`)?"""
+    errors = _import_all(["bench.runner", "bench.metrics", "methods", *imports])
+    fingerprint = None
+    if not errors:
+        try:
+            fingerprint = suite_fingerprint()
+        except Exception as exc:  # noqa: BLE001 - reported to the client
+            errors["fingerprint"] = f"{type(exc).__name__}: {exc}"
+    return {"errors": errors, "fingerprint": fingerprint}
+
+
+def compare_fingerprints(local: dict, workers: dict[str, dict]) -> tuple[str | None, list[str]]:
+    """(error, warnings) from the client's :func:`suite_fingerprint` and the workers' ones.
+
+    A worker on another git commit of the suite is an error (its cells would come from other code);
+    another Python or dependency version is a warning (recorded in run.json, printed).  A missing commit
+    (not a git checkout) on either side is not compared.
+    """
+    error = None
+    warnings: list[str] = []
+    for worker, fp in sorted(workers.items()):
+        if not fp:
+            continue
+        if local.get("commit") and fp.get("commit") and fp["commit"] != local["commit"]:
+            error = error or (f"Dask worker {worker} runs the suite at git commit {fp['commit'][:12]}, this machine "
+                              f"at {local['commit'][:12]}: install the same checkout on every worker machine "
+                              f"(README: Running the grid on a cluster)")
+        if fp.get("python") != local.get("python"):
+            warnings.append(f"{worker}: Python {fp.get('python')} (here {local.get('python')})")
+        ldeps, wdeps = local.get("dependencies") or {}, fp.get("dependencies") or {}
+        for name in sorted(set(ldeps) | set(wdeps)):
+            if ldeps.get(name) != wdeps.get(name):
+                warnings.append(f"{worker}: {name} {wdeps.get(name)} (here {ldeps.get(name)})")
+    return error, warnings
 
 
 def _allow_child_processes() -> None:
@@ -186,6 +235,7 @@ class DaskExecutor:
         self.wait_for_workers_s = wait_for_workers_s
         self.client = None
         self.cluster = None
+        self.version_warnings: list[str] = []
 
     # ------------------------------------------------------------------ cluster
     def describe(self) -> dict:
@@ -201,6 +251,8 @@ class DaskExecutor:
                 d["threads"] = sum(w.get("nthreads", 0) for w in info.get("workers", {}).values())
             except Exception:  # noqa: BLE001 - metadata only
                 pass
+        if self.version_warnings:
+            d["version_differences"] = list(self.version_warnings)
         return d
 
     def _check_reachable(self) -> None:
@@ -253,18 +305,28 @@ class DaskExecutor:
         if self.imports:
             self.client.register_plugin(_plugin_class()(self.imports))
         try:
-            errors = self.client.run(_worker_check, self.imports)
+            checks = self.client.run(_worker_check, self.imports)
         except Exception as exc:  # noqa: BLE001 - e.g. the workers cannot even unpickle bench.dask_executor
             raise InputError(f"the Dask workers cannot run the suite ({type(exc).__name__}: {exc}); install it "
                              f"on every worker machine: {INSTALL_HINT}") from None
-        bad = {w: e for w, e in errors.items() if e}
+        bad = {w: c["errors"] for w, c in checks.items() if c["errors"]}
         if bad:
             worker, errs = next(iter(bad.items()))
             mod, err = next(iter(errs.items()))
             hint = (f"install the suite on every worker machine: {INSTALL_HINT}" if mod in ("bench.runner",
                     "bench.metrics", "methods") else "the module must be importable on every worker "
                     "(installed, or on the workers' PYTHONPATH)")
+            if mod == "fingerprint":
+                raise InputError(f"Dask worker {worker} cannot report which version of the suite it runs: {err}")
             raise InputError(f"{len(bad)} Dask worker(s) cannot import {mod!r} (e.g. {worker}: {err}); {hint}")
+        error, self.version_warnings = compare_fingerprints(
+            suite_fingerprint(), {w: c["fingerprint"] for w, c in checks.items()})
+        if error:
+            raise InputError(error)
+        for line in self.version_warnings[:10]:
+            print(f"warning: version differs on a Dask worker: {line}", file=sys.stderr)
+        if len(self.version_warnings) > 10:
+            print(f"warning: ... {len(self.version_warnings) - 10} more (all in run.json)", file=sys.stderr)
 
     def close(self) -> None:
         for obj in (self.client, self.cluster):

@@ -222,3 +222,38 @@ def test_without_dask_installed_the_message_names_the_extra(tmp_path, capsys, mo
     assert main(["run", "--quick", "--executor", "dask", "--out", str(tmp_path / "o"), "--dry-run"]) == 2
     err = capsys.readouterr().err
     assert 'pip install -e ".[dask]"' in err and "Traceback" not in err
+
+
+# ---------------------------------------------------------------------------------------------- same code
+def test_compare_fingerprints():
+    from bench.dask_executor import compare_fingerprints, suite_fingerprint
+
+    here = suite_fingerprint()
+    assert compare_fingerprints(here, {"w1": dict(here), "w2": dict(here)}) == (None, [])
+    other = dict(here, commit="f" * 40, python="3.99.0", dependencies=dict(here["dependencies"], numpy="0.1"))
+    error, warnings = compare_fingerprints(dict(here, commit="a" * 40), {"tcp://w:1": other})
+    assert "tcp://w:1" in error and "ffffffffffff" in error and "aaaaaaaaaaaa" in error
+    assert "tcp://w:1: Python 3.99.0" in warnings[0] and any("numpy 0.1" in w for w in warnings)
+    # not a git checkout on one side: the commit is not compared, versions still are
+    error, warnings = compare_fingerprints(dict(here, commit=None), {"w": other})
+    assert error is None and len(warnings) >= 2
+
+
+def test_a_worker_on_another_commit_stops_the_run_before_any_cell(tmp_path):
+    from bench.dask_executor import suite_fingerprint
+
+    if suite_fingerprint()["commit"] is None:
+        pytest.skip("not a git checkout: the commit is not compared")
+    out = tmp_path / "o"
+    proc = _bench("--quick", "--phantoms", "sphere", "--import", "dask_foreign_commit", "--executor", "dask",
+                  "--workers", "1", "--out", str(out))
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert "git commit 0123456789ab" in proc.stderr and "Traceback" not in proc.stderr
+    assert not list(out.glob("cells/*.json"))
+
+
+def test_the_dask_run_records_no_version_differences_on_one_machine(local_and_dask):
+    _, dask, proc = local_and_dask
+    executor = json.loads((dask / "run.json").read_text())["sessions"][-1]["executor"]
+    assert executor["executor"] == "dask" and executor["workers_connected"] == 2
+    assert "version_differences" not in executor and "version differs" not in proc.stderr

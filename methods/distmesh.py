@@ -40,6 +40,7 @@ import trimesh
 from scipy import sparse
 
 from phantoms import InputError, Volume
+from phantoms.volume import trilinear_channels
 
 from .base import Method, Param, Reconstruction, check_volume
 from .marching_cubes import marching_cubes_mesh, mesh_facts, orient_outward
@@ -143,31 +144,21 @@ def _unique_edges(t: np.ndarray, n: int) -> np.ndarray:
 
 
 class _TrilinearSampler:
-    """φ and ∇φ at points, trilinearly interpolated exactly as :meth:`phantoms.Volume.sample` with
-    ``derivatives=1, clamp=True`` does (φ grid and its ``numpy.gradient`` grids, edge_order=2), but with
-    the channel array and index arithmetic precomputed: the projection calls it once per iteration."""
+    """φ and ∇φ at points (P, 3), clamped onto the grid box: :meth:`phantoms.Volume.sample` with
+    ``derivatives=1, clamp=True`` without its per-call checks (the projection calls it every iteration);
+    the volume's cached channel grids and the shared kernel :func:`phantoms.volume.trilinear_channels`."""
 
     def __init__(self, volume: Volume):
-        v = volume.values
-        grads = np.gradient(v, *volume.spacing, edge_order=2)
-        self.flat = np.ascontiguousarray(np.stack([v, *grads], axis=-1)).reshape(-1, 4)
-        self.shape = np.asarray(v.shape)
+        ch = volume._channel_array(1)
+        self.flat = ch.reshape(-1, ch.shape[-1])
+        self.shape = volume.shape
         self.origin, self.spacing = volume.origin, volume.spacing
-        sx, sy = v.shape[1] * v.shape[2], v.shape[2]
-        self.offsets = [(dx, dy, dz, dx * sx + dy * sy + dz) for dx in (0, 1) for dy in (0, 1) for dz in (0, 1)]
-        self.strides = np.array([sx, sy, 1])
+        self.nmax = np.asarray(volume.shape, float) - 1.0
 
     def __call__(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        idx = np.clip((p - self.origin) / self.spacing, 0.0, self.shape - 1)
-        i0 = np.minimum(idx.astype(np.intp), self.shape - 2)
-        t = idx - i0
-        base = i0 @ self.strides
-        w = (1.0 - t, t)
-        out = np.zeros((len(p), 4))
-        for dx, dy, dz, off in self.offsets:
-            wk = w[dx][:, 0] * w[dy][:, 1] * w[dz][:, 2]
-            out += wk[:, None] * self.flat[base + off]
-        return out[:, 0], out[:, 1:]
+        idx = np.clip((p - self.origin) / self.spacing, 0.0, self.nmax)
+        out = trilinear_channels(self.flat, self.shape, np.ascontiguousarray(idx.T))
+        return out[0], np.ascontiguousarray(out[1:].T)
 
 
 class DistMesh(Method):

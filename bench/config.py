@@ -31,6 +31,13 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
     timeout = 3600                          # seconds per cell (0 or absent: none)
     imports = ["my_package.my_methods"]     # modules imported first (e.g. to register_method plug-ins)
 
+    [report]                                # optional: what the report shows side by side
+    paper_columns = [                       # the paper-style tables of an iterative method: one column
+      { title = "β = 0", label = "sg_beta0", noise = "none" },   # per entry (a method label of this
+      { title = "β = 1", label = "shape_gradient", noise = "none" },   # config and a noise kind), rows
+    ]                                       # its snapshots
+    uniform_label = "shape_gradient"        # the label whose uniform-noise table is shown
+
 Everything is validated before any work starts (:func:`load_config` / :func:`RunConfig.validate`): unknown
 keys, phantoms, variants, noise kinds, methods and parameters raise :class:`phantoms.InputError`, which the
 command line turns into a one-line message and exit code 2.
@@ -39,7 +46,6 @@ command line turns into a one-line message and exit code 2.
 from __future__ import annotations
 
 import copy
-import importlib
 import itertools
 import math
 import tomllib
@@ -57,12 +63,14 @@ CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 #: shipped configurations (``bench/configs/<name>.toml``)
 BUILTIN_CONFIGS = ("paper", "quick")
 
-_TOP_KEYS = {"name", "description", "grid", "methods", "metrics", "run"}
+_TOP_KEYS = {"name", "description", "grid", "methods", "metrics", "run", "report"}
 _GRID_KEYS = {"phantoms", "variants", "n", "extent", "seeds", "noise"}
 _NOISE_KEYS = {"kind", "snr"}
 _METHOD_KEYS = {"name", "label", "params", "sweep", "phantom_params"}
 _METRICS_KEYS = {"n_samples"}
 _RUN_KEYS = {"timeout", "imports"}
+_REPORT_KEYS = {"paper_columns", "uniform_label"}
+_COLUMN_KEYS = {"title", "label", "noise"}
 
 
 def _check_keys(table: Any, allowed: set[str], where: str) -> dict:
@@ -179,12 +187,13 @@ class RunConfig:
     n_samples: int = 100_000
     timeout: float | None = None
     imports: list[str] = field(default_factory=list)
+    report: dict = field(default_factory=dict)
     source: str = ""
 
     # ------------------------------------------------------------------ serialisation
     def to_dict(self) -> dict:
         """A TOML/JSON-able dict that :func:`config_from_dict` reads back to the same config."""
-        return {
+        d = {
             "name": self.name,
             "description": self.description,
             "grid": {
@@ -196,15 +205,19 @@ class RunConfig:
             "metrics": {"n_samples": self.n_samples},
             "run": {"timeout": self.timeout or 0, "imports": list(self.imports)},
         }
+        if self.report:
+            d["report"] = copy.deepcopy(self.report)
+        return d
 
     # ------------------------------------------------------------------ validation
     def import_plugins(self) -> None:
         """Import the ``run.imports`` modules (which may register methods); InputError if one fails."""
-        for mod in self.imports:
-            try:
-                importlib.import_module(mod)
-            except Exception as exc:  # any failure to import is the user's to fix
-                raise InputError(f"run.imports: cannot import module {mod!r}: {exc}") from None
+        from methods import import_plugins
+
+        try:
+            import_plugins(self.imports)
+        except InputError as exc:
+            raise InputError(f"run.imports: {exc}") from None
 
     def validate(self) -> None:
         """Check everything against the registries (phantoms, methods, parameters); InputError on failure."""
@@ -252,11 +265,14 @@ class RunConfig:
                 labels[label] = spec.name
                 for ph in self.phantoms:
                     get_method(spec.name, **spec.params_for(params, ph))  # raises InputError on bad params
-
-    def n_cells(self) -> int:
-        from .runner import expand_grid
-
-        return len(expand_grid(self))
+        for i, col in enumerate(self.report.get("paper_columns", [])):
+            if col["label"] not in labels:
+                raise InputError(f"report.paper_columns[{i}]: label {col['label']!r} is not a method label of "
+                                 f"this config; labels: {', '.join(labels)}")
+        uniform = self.report.get("uniform_label")
+        if uniform is not None and uniform not in labels:
+            raise InputError(f"report.uniform_label: {uniform!r} is not a method label of this config; "
+                             f"labels: {', '.join(labels)}")
 
 
 # ---------------------------------------------------------------------- parsing
@@ -310,7 +326,33 @@ def config_from_dict(data: dict, source: str = "") -> RunConfig:
         if not isinstance(imports, list) or not all(isinstance(s, str) for s in imports):
             raise InputError("run.imports: expected a list of module names")
         cfg.imports = list(imports)
+    cfg.report = _report_from(data.get("report", {}), f"{where}: [report]")
     return cfg
+
+
+def _report_from(table: Any, where: str) -> dict:
+    """The optional [report] table: paper_columns (title, label, noise kind) and uniform_label."""
+    table = _check_keys(table, _REPORT_KEYS, where)
+    out: dict = {}
+    if "paper_columns" in table:
+        cols = table["paper_columns"]
+        if not isinstance(cols, list):
+            raise InputError("report.paper_columns: expected a list of tables {title, label, noise}")
+        out["paper_columns"] = []
+        for i, col in enumerate(cols):
+            col = _check_keys(col, _COLUMN_KEYS, f"report.paper_columns[{i}]")
+            if not all(isinstance(col.get(k), str) for k in ("title", "label")):
+                raise InputError(f"report.paper_columns[{i}]: title and label must be strings")
+            noise = col.get("noise", "none")
+            if noise not in NOISE_KINDS:
+                raise InputError(f"report.paper_columns[{i}]: unknown noise kind {noise!r}; valid kinds: "
+                                 f"{', '.join(NOISE_KINDS)}")
+            out["paper_columns"].append({"title": col["title"], "label": col["label"], "noise": noise})
+    if "uniform_label" in table:
+        if not isinstance(table["uniform_label"], str):
+            raise InputError("report.uniform_label: expected a method label (a string)")
+        out["uniform_label"] = table["uniform_label"]
+    return out
 
 
 def _noise_from(kind: Any, snr: Any, where: str) -> list[NoiseSpec]:

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from .runner import CELLS_DIR, load_cells
+from .run.store import CELLS_DIR, load_cells
 
 __all__ = ["write_report", "render_mesh", "render_energy", "summary_tables", "cost_section", "BEST_DIRECTION"]
 

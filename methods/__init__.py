@@ -9,11 +9,12 @@ from .base import (
     available_methods,
     check_volume,
     get_method,
+    import_plugins,
     method_names,
     register_method,
 )
 
 __all__ = [
     "Method", "Param", "Reconstruction", "available_methods", "get_method", "method_names",
-    "register_method", "check_volume", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
+    "register_method", "import_plugins", "check_volume", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
 ]

@@ -169,6 +169,15 @@ def register_method(cls: type[Method]) -> type[Method]:
     return cls
 
 
+def import_plugins(modules) -> None:
+    """Import each module named in ``modules`` (modules that register methods); InputError if one fails."""
+    for mod in modules:
+        try:
+            importlib.import_module(mod)
+        except Exception as exc:  # any failure to import is the user's to fix
+            raise InputError(f"cannot import module {mod!r}: {exc}") from None
+
+
 def _load(target: str) -> type[Method]:
     module, _, attr = target.partition(":")
     return getattr(importlib.import_module(module), attr)

@@ -1,7 +1,7 @@
 """``--import dask_foreign_commit``: on a Dask worker, pretend the suite's checkout is at another git commit.
 
 Imported on the client too (where it does nothing): only inside a worker process does it replace
-``bench.runner._git_commit``, so the client's same-code check sees a worker running other code.
+``bench.run.provenance.git_commit``, so the client's same-code check sees a worker running other code.
 """
 
 from __future__ import annotations
@@ -15,6 +15,6 @@ try:
 except (ImportError, AttributeError):
     in_worker = False
 if in_worker:
-    import bench.runner
+    import bench.run.provenance
 
-    bench.runner._git_commit = lambda: {"commit": FOREIGN_COMMIT, "dirty": False}
+    bench.run.provenance.git_commit = lambda: {"commit": FOREIGN_COMMIT, "dirty": False}

@@ -17,7 +17,7 @@ pytest.importorskip("distributed")
 
 from bench.cli import main  # noqa: E402
 from bench.config import config_from_dict  # noqa: E402
-from bench.runner import expand_grid, run_grid  # noqa: E402
+from bench.run import expand_grid, run_grid  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 TESTS = Path(__file__).resolve().parent
@@ -127,14 +127,14 @@ def plugins_on_path():
 
 def test_a_worker_killed_mid_cell_still_gives_every_cell_exactly_once(tmp_path, plugins_on_path):
     """Also: a per-cell timeout on the Dask path, and --resume after cells were lost from the store."""
-    from bench.dask_executor import DaskExecutor
+    from bench.run.executors.dask import DaskExecutor
 
     cfg = _napping_config(timeout=6, sleepy=True)
     cells = expand_grid(cfg)
     out = tmp_path / "run"
     with DaskExecutor(workers=2, timeout=cfg.timeout, cache_dir=str(out / "cache"), imports=cfg.imports) as ex:
         killer = _KillAWorkerAfterTheFirstResult(ex)
-        summary = run_grid(cfg, out, executor=killer, progress=False, report=False)
+        summary = run_grid(cfg, out, executor=killer, progress=False)
     pid, keys = killer.victim
     assert keys, "the killed worker was running a cell"
     with pytest.raises(ProcessLookupError):
@@ -150,7 +150,7 @@ def test_a_worker_killed_mid_cell_still_gives_every_cell_exactly_once(tmp_path, 
     # --resume through the Dask path reruns only the cells missing from the store
     for c in cells[:2]:
         (out / "cells" / f"{c['cell_id']}.json").unlink()
-    again = run_grid(_napping_config(timeout=6), out, resume=True, progress=False, report=False,
+    again = run_grid(_napping_config(timeout=6), out, resume=True, progress=False,
                      executor=DaskExecutor(workers=1, timeout=6, imports=cfg.imports))
     assert again.skipped == 4 and again.ran == 2  # the sleepy cell is no longer in the grid
     assert [r["status"] for r in _rows(out / "results.csv")] == ["ok"] * 6
@@ -160,7 +160,7 @@ def test_a_cell_that_keeps_killing_its_workers_becomes_a_failed_row(tmp_path, pl
     """Dask retries a cell whose worker died (allowed-failures, here 1); then KilledWorker -> a failed row."""
     import dask
 
-    from bench.dask_executor import DaskExecutor
+    from bench.run.executors.dask import DaskExecutor
 
     cfg = config_from_dict({
         "grid": {"phantoms": ["sphere"], "n": [16], "noise": [{"kind": "none"}]},
@@ -171,7 +171,7 @@ def test_a_cell_that_keeps_killing_its_workers_becomes_a_failed_row(tmp_path, pl
     out = tmp_path / "run"
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
         with DaskExecutor(workers=2, imports=cfg.imports, cache_dir=str(out / "cache")) as ex:
-            summary = run_grid(cfg, out, executor=ex, progress=False, report=False)
+            summary = run_grid(cfg, out, executor=ex, progress=False)
     rows = {r["method"]: r for r in _rows(out / "results.csv")}
     assert len(_rows(out / "results.csv")) == 2 and set(rows) == {"worker_killer", "marching_cubes"}
     assert rows["worker_killer"]["status"] == "failed" and "KilledWorker" in rows["worker_killer"]["error"]
@@ -226,7 +226,7 @@ def test_without_dask_installed_the_message_names_the_extra(tmp_path, capsys, mo
 
 # ---------------------------------------------------------------------------------------------- same code
 def test_compare_fingerprints():
-    from bench.dask_executor import compare_fingerprints, suite_fingerprint
+    from bench.run.executors.dask import compare_fingerprints, suite_fingerprint
 
     here = suite_fingerprint()
     assert compare_fingerprints(here, {"w1": dict(here), "w2": dict(here)}) == (None, [])
@@ -240,7 +240,7 @@ def test_compare_fingerprints():
 
 
 def test_a_worker_on_another_commit_stops_the_run_before_any_cell(tmp_path):
-    from bench.dask_executor import suite_fingerprint
+    from bench.run.executors.dask import suite_fingerprint
 
     if suite_fingerprint()["commit"] is None:
         pytest.skip("not a git checkout: the commit is not compared")

@@ -17,7 +17,7 @@ import pytest
 
 from bench.cli import main
 from bench.config import CONFIG_DIR, builtin_config, config_from_dict, load_config, parse_method_spec, parse_noise_spec
-from bench.runner import expand_grid
+from bench.run import expand_grid
 
 pytest.importorskip("bench.metrics")
 from bench.metrics import METRIC_NAMES  # noqa: E402

@@ -7,7 +7,7 @@ import datetime as _dt
 import math
 import sys
 
-from . import perf
+from .. import perf
 
 PERF_HELP = """\
 Run the pytest-benchmark suites (tests/benchmarks) and print each benchmark's median time and its ratio to

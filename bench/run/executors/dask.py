@@ -1,7 +1,7 @@
 """Run the benchmark grid on Dask's distributed scheduler (``python -m bench run --executor dask``).
 
-:class:`DaskExecutor` replaces the runner's local process pool (:class:`bench.runner.LocalExecutor`) behind
-the same tiny interface, ``run(cells, on_start, on_result)``, so everything else of :func:`bench.runner.run_grid`
+:class:`DaskExecutor` replaces the runner's local process pool (:class:`bench.run.executors.local.LocalExecutor`) behind
+the same tiny interface, ``run(cells, on_start, on_result)``, so everything else of :func:`bench.run.run_grid`
 — the per-cell store ``DIR/cells/<cell_id>.json|.npz``, ``results.csv``, ``--resume``, ``run.json`` and the
 HTML report — is shared, not reimplemented.
 
@@ -11,7 +11,7 @@ HTML report — is shared, not reimplemented.
   cell to the store as soon as it arrives.  A cell id is recorded at most once (a guard on top of Dask's
   one-result-per-key), so a row is never duplicated.
 * **Timeouts and crashes: the same as the local executor.**  On the worker the task runs the cell in its own
-  child process through a one-job :class:`~bench.runner.LocalExecutor` (fork server preloaded once per
+  child process through a one-job :class:`~bench.run.executors.local.LocalExecutor` (fork server preloaded once per
   worker): after ``timeout`` seconds *of the cell's own run on the worker* (queueing time does not count) the
   child is killed and the cell becomes a ``timeout`` row; a method that kills its process (segfault, OOM
   kill) becomes a ``failed`` ``crash: ...`` row, and the worker lives on.
@@ -60,7 +60,7 @@ _SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
 _ADDRESS = re.compile(r"^(?:(?P<scheme>[A-Za-z0-9]+)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.\-]+)"
                       r"(?::(?P<port>\d{1,5}))?/?$")
 #: modules every cell process needs; preloaded by the fork server on each worker
-_PRELOAD = ["bench.runner", "bench.metrics", "bench.cost", "methods", "geometry"]
+_PRELOAD = ["bench.run.cell", "bench.metrics", "methods", "geometry"]
 
 
 class DaskRunIncomplete(RuntimeError):
@@ -112,17 +112,17 @@ def suite_fingerprint() -> dict:
     """What must match between the client and every worker for their results to be comparable: the git
     commit of the suite's checkout (None when it is not a git checkout), the Python version and the
     versions of the suite's dependencies."""
-    from bench.runner import _dependency_versions, _git_commit
+    from bench.run.provenance import dependency_versions, git_commit
 
-    git = _git_commit()
+    git = git_commit()
     return {"commit": git["commit"] if git else None, "python": sys.version.split()[0],
-            "dependencies": _dependency_versions()}
+            "dependencies": dependency_versions()}
 
 
 def _worker_check(imports: list[str]) -> dict:
     """Run on every worker before the grid: can it import the suite and the plug-in modules, and which
     code does it run (:func:`suite_fingerprint`)?"""
-    errors = _import_all(["bench.runner", "bench.metrics", "methods", *imports])
+    errors = _import_all(["bench.run.cell", "bench.metrics", "methods", *imports])
     fingerprint = None
     if not errors:
         try:
@@ -178,7 +178,8 @@ def _worker_cache_dir() -> str | None:
 def run_cell_task(cell: dict, cache_dir: str | None, timeout: float | None, preload: list[str]) -> dict:
     """The Dask task: one cell in its own child process on this worker (timeout and crash isolation exactly as
     with the local executor).  Returns the runner's result dict ``{"row", "artifacts", "traceback"}``."""
-    from bench.runner import LocalExecutor, failed_result
+    from bench.run.cell import failed_result
+    from bench.run.executors.local import LocalExecutor
 
     _allow_child_processes()
     if cache_dir is None:
@@ -213,7 +214,7 @@ def _plugin_class():
 class DaskExecutor:
     """Run cells as Dask tasks on a ``LocalCluster`` of ``workers`` processes (``scheduler=None``) or on the
     cluster at ``scheduler``.  Use as a context manager (or :meth:`connect` / :meth:`close`) to start the
-    cluster before :func:`bench.runner.run_grid`; :meth:`run` connects by itself otherwise."""
+    cluster before :func:`bench.run.run_grid`; :meth:`run` connects by itself otherwise."""
 
     def __init__(self, scheduler: str | None = None, workers: int | None = None, timeout: float | None = None,
                  cache_dir: str | None = None, imports: list[str] | None = None, retries: int = 2,
@@ -313,7 +314,7 @@ class DaskExecutor:
         if bad:
             worker, errs = next(iter(bad.items()))
             mod, err = next(iter(errs.items()))
-            hint = (f"install the suite on every worker machine: {INSTALL_HINT}" if mod in ("bench.runner",
+            hint = (f"install the suite on every worker machine: {INSTALL_HINT}" if mod in ("bench.run.cell",
                     "bench.metrics", "methods") else "the module must be importable on every worker "
                     "(installed, or on the workers' PYTHONPATH)")
             if mod == "fingerprint":
@@ -367,7 +368,8 @@ class DaskExecutor:
         from distributed import as_completed
         from distributed.scheduler import KilledWorker
 
-        from bench.runner import _error_text, failed_result
+        from bench.run.cell import failed_result
+        from bench.run.values import error_text
 
         if not cells:
             return
@@ -402,14 +404,14 @@ class DaskExecutor:
                     except CancelledError:  # lost between "finished" and the fetch: no row, --resume
                         result = None
                     except Exception as exc:  # noqa: BLE001 - e.g. a result that cannot be deserialised
-                        result = failed_result(cell, "failed", f"dask: cannot fetch the result: {_error_text(exc)}")
+                        result = failed_result(cell, "failed", f"dask: cannot fetch the result: {error_text(exc)}")
                 elif fut.status == "error":
                     exc = fut.exception()
                     if isinstance(exc, KilledWorker):
                         result = failed_result(cell, "failed", "crash: the Dask workers running this cell died "
                                                                "repeatedly (KilledWorker)")
                     else:
-                        result = failed_result(cell, "failed", f"dask: {_error_text(exc)}")
+                        result = failed_result(cell, "failed", f"dask: {error_text(exc)}")
                         try:
                             import traceback
 

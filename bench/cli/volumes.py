@@ -1,24 +1,11 @@
-"""The command line: ``python -m bench <command> ...``.
-
-Each subcommand lives in a small ``_cmd_*`` function registered in :func:`build_parser`.  Errors a user
-can fix (:class:`phantoms.InputError`) print one line on stderr and exit with code 2, never a traceback.
-"""
+"""``python -m bench phantoms`` / ``volume`` / ``info``: list phantoms, write a phantom volume, describe a file."""
 
 from __future__ import annotations
 
 import argparse
 import math
-import sys
-
-import numpy as np
 
 from phantoms import NOISE_KINDS, PHANTOMS, VARIANTS, InputError, add_noise, get_phantom, load_volume, save_volume
-
-EXIT_USAGE = 2
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse exits with code 2 on usage errors already; keep messages one line."""
 
 
 def _cmd_phantoms(args) -> int:
@@ -85,12 +72,7 @@ def _finite_float(text: str) -> float:
     return v
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="python -m bench",
-                     description="levelset-bench: benchmark surface reconstruction from level-set volumes.")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    sub.required = True
-
+def register(sub) -> None:
     p = sub.add_parser("phantoms", help="list the phantoms and their parameters",
                        description="List the built-in phantoms, their parameters and the paper's SNR.")
     p.set_defaults(func=_cmd_phantoms)
@@ -116,34 +98,3 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("file")
     p.add_argument("--mask", action="store_true", help="require the file to be a binary mask")
     p.set_defaults(func=_cmd_info)
-
-    for register in _EXTRA_COMMANDS:
-        register(sub)
-    return parser
-
-
-#: functions ``register(subparsers)`` adding further subcommands (methods, reconstruct, run, ...)
-_EXTRA_COMMANDS: list = []
-from .cli_run import register as _register_run  # noqa: E402  (python -m bench run / report)
-_EXTRA_COMMANDS.append(_register_run)
-from .cli_methods import register as _register_methods  # noqa: E402  (python -m bench methods / reconstruct)
-_EXTRA_COMMANDS.append(_register_methods)
-from .cli_perf import register as _register_perf  # noqa: E402  (python -m bench perf)
-_EXTRA_COMMANDS.append(_register_perf)
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

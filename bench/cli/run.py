@@ -11,7 +11,7 @@ from pathlib import Path
 
 from phantoms import InputError
 
-from .config import (RunConfig, builtin_config, config_from_dict, load_config, parse_method_spec,
+from ..config import (RunConfig, builtin_config, config_from_dict, load_config, parse_method_spec,
                      parse_noise_spec)
 
 RUN_HELP = """\
@@ -147,7 +147,7 @@ def _check_executor_args(args) -> None:
             if getattr(args, opt) is not None:
                 raise InputError(f"--{opt} needs --executor dask")
         return
-    from .dask_executor import parse_scheduler_address, require_dask
+    from ..run.executors.dask import parse_scheduler_address, require_dask
 
     require_dask()
     if args.jobs is not None:
@@ -161,7 +161,8 @@ def _check_executor_args(args) -> None:
 
 
 def _cmd_run(args) -> int:
-    from .runner import CACHE_DIR, check_output_dir, expand_grid, run_grid
+    from ..run import expand_grid, run_grid
+    from ..run.store import CACHE_DIR, check_output_dir
 
     _check_executor_args(args)
     if args.retry_failed and not args.resume:
@@ -179,7 +180,7 @@ def _cmd_run(args) -> int:
     check_output_dir(out, args.resume)
     executor = None
     if args.executor == "dask":
-        from .dask_executor import DaskExecutor
+        from ..run.executors.dask import DaskExecutor
 
         timeout = cfg.timeout if args.timeout is None else (args.timeout or None)  # as run_grid resolves it
         executor = DaskExecutor(scheduler=args.scheduler, workers=args.workers, timeout=timeout,
@@ -190,8 +191,8 @@ def _cmd_run(args) -> int:
             executor.connect()
             print(f"dask: {executor.describe()}", file=sys.stderr)
         summary = run_grid(cfg, out, jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
-                           timeout=args.timeout, save_meshes=args.save_meshes, report=not args.no_report,
-                           argv=sys.argv[1:], executor=executor)
+                           timeout=args.timeout, save_meshes=args.save_meshes, argv=sys.argv[1:],
+                           executor=executor)
     except KeyboardInterrupt:
         print(f"interrupted: the finished cells are in {out}; complete the run with "
               f"`python -m bench run --resume --out {out}`", file=sys.stderr)
@@ -205,6 +206,8 @@ def _cmd_run(args) -> int:
     finally:
         if executor is not None:
             executor.close()
+    if not args.no_report:
+        _report_after_run(out, summary)
     print(summary.line())
     if summary.report_error:
         print(f"warning: the report could not be written ({summary.report_error}); results are in "
@@ -213,8 +216,22 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _report_after_run(out: Path, summary) -> None:
+    """Render the report into the summary; a broken report must not hide the results already on disk."""
+    import traceback
+
+    from ..report import write_report
+    from ..run.values import error_text
+
+    try:
+        summary.report = write_report(out)
+    except Exception as exc:
+        summary.report_error = error_text(exc)
+        (out / "report_error.txt").write_text(traceback.format_exc())
+
+
 def _cmd_report(args) -> int:
-    from .report import write_report
+    from ..report import write_report
 
     out = Path(args.dir)
     if not (out / "results.csv").exists():

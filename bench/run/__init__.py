@@ -1,0 +1,23 @@
+"""Running the benchmark grid: config → cells → executor → run folder.
+
+* :mod:`~bench.run.grid` — a config's cells (plain dicts) and their ids;
+* :mod:`~bench.run.cell` — one cell from its parameters alone (volume, method, cost, metrics);
+* :mod:`~bench.run.executors` — where cells run (local processes, Dask);
+* :mod:`~bench.run.store` — the run folder's files, written atomically;
+* :mod:`~bench.run.provenance` — versions, git commit, machine;
+* :mod:`~bench.run.runner` — :func:`run_grid`, which ties them together.
+
+>>> from bench.config import builtin_config
+>>> from bench.run import expand_grid, run_cell, run_grid
+>>> cells = expand_grid(builtin_config("quick"))          # doctest: +SKIP
+>>> result = run_cell(cells[0])                            # doctest: +SKIP
+"""
+
+from .cell import failed_result, run_cell
+from .executors import LocalExecutor
+from .grid import cell_id, expand_grid
+from .runner import RunSummary, run_grid
+from .store import load_cells, write_results_csv
+
+__all__ = ["expand_grid", "cell_id", "run_cell", "failed_result", "run_grid", "RunSummary", "LocalExecutor",
+           "load_cells", "write_results_csv"]

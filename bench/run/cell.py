@@ -1,0 +1,204 @@
+"""One cell from its parameters alone: build the volume, run the method, measure it, score it.
+
+:func:`run_cell` never raises for a failing method and never touches the run folder (only the shared volume
+cache, when given), so any executor can run it anywhere.  It returns a plain dict::
+
+    {"row": {...}, "artifacts": {...}, "traceback": str | None}
+
+``row`` is the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop
+reason, cost, ``status`` ``ok`` / ``failed`` and ``error``); ``artifacts`` holds the arrays the report draws:
+the final mesh with its per-vertex mean curvature, the energy history and the snapshots.  Which
+``Reconstruction.info`` keys are read is documented in :mod:`methods.base`.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from methods import get_method, import_plugins
+from phantoms import Volume, add_noise, get_phantom
+
+from .cost import measure
+from .grid import canonical_json, slug
+from .store import save_npz
+from .values import error_text, plain
+
+__all__ = ["run_cell", "failed_result", "build_volume", "vertex_mean_curvature"]
+
+
+def _volume_cache_path(cache_dir: str, cell: dict) -> Path:
+    key = f"{cell['phantom']}_{cell['variant']}_n{cell['n']}_e{cell['extent']:g}"
+    return Path(cache_dir) / f"{slug(key)}.npz"
+
+
+def build_volume(cell: dict, cache_dir: str | None = None):
+    """``(phantom, clean volume)`` of a cell, optionally cached on disk: the exact SDF of a phantom can cost
+    seconds at N = 96 and is the same for every method and noise setting."""
+    ph = get_phantom(cell["phantom"])
+    path = _volume_cache_path(cache_dir, cell) if cache_dir else None
+    if path is not None and path.exists():
+        try:
+            with np.load(path) as z:
+                return ph, Volume(z["values"], z["origin"], z["spacing"])
+        except Exception:  # a broken cache file is rebuilt
+            pass
+    vol = ph.volume(n=cell["n"], extent=cell["extent"], variant=cell["variant"])
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            save_npz(path, {"values": vol.values, "origin": vol.origin, "spacing": vol.spacing},
+                     compressed=False)
+        except OSError:  # the cache is an optimisation; a full disk must not fail the cell
+            pass
+    return ph, vol
+
+
+def vertex_mean_curvature(vertices, faces, h: float) -> np.ndarray:
+    """Per-vertex mean curvature for pictures: paraboloid fit over every vertex within 2h (at least the
+    1-ring), outward normals — the neighbourhood METRICS.md prescribes, so marching-cubes slivers do not
+    blow it up."""
+    from geometry import paraboloid_curvature, radius_neighbors, vertex_normals
+
+    v = np.asarray(vertices, float)
+    f = np.asarray(faces, np.int64)
+    if len(v) == 0 or len(f) == 0:
+        return np.zeros(len(v))
+    nb = radius_neighbors(v, f, 2.0 * h)
+    H, _ = paraboloid_curvature(v, vertex_normals(v, f), nb)
+    return np.asarray(H, float)
+
+
+def _snapshot(s, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """One snapshot as ``(vertices, faces)``: a vertices array (the final mesh's faces) or a pair."""
+    if isinstance(s, (tuple, list)) and len(s) == 2:
+        v, f = np.asarray(s[0], float), np.asarray(s[1], np.int64)
+    else:
+        v, f = np.asarray(s, float), faces
+    if v.ndim == 2 and v.shape[1] == 3 and f.ndim == 2 and f.shape[1] == 3 and len(f) and f.max() < len(v):
+        return v, f
+    return None
+
+
+def _snapshots(info: dict, faces: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """``{iteration: (vertices, faces)}`` from a method's ``info["snapshots"]`` (and its initial vertices)."""
+    out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    snaps = info.get("snapshots") or {}
+    if isinstance(snaps, dict):
+        for it, s in snaps.items():
+            try:
+                it = int(it)
+            except (TypeError, ValueError):
+                continue
+            snap = _snapshot(s, faces)
+            if snap is not None:
+                out[it] = snap
+    if 0 not in out:
+        for key in ("initial_vertices", "init_vertices"):
+            if key in info:
+                v = np.asarray(info[key], float)
+                if v.ndim == 2 and v.shape[1] == 3 and len(faces) and faces.max() < len(v):
+                    out[0] = (v, faces)
+                break
+    return out
+
+
+def _artifacts(rec, h: float) -> dict:
+    """Arrays the report draws: the final mesh with its per-vertex H, the energy history and snapshots."""
+    v = np.asarray(rec.mesh.vertices, float)
+    f = np.asarray(rec.mesh.faces, np.int64)
+    art: dict[str, np.ndarray] = {
+        "vertices": v.astype(np.float32), "faces": f.astype(np.int32),
+        "H": vertex_mean_curvature(v, f, h).astype(np.float32),
+    }
+    energy = rec.info.get("energy_history")
+    if energy is not None and len(energy):
+        art["energy_history"] = np.asarray(energy, float)
+    snaps = _snapshots(rec.info, f)
+    if snaps:
+        its = sorted(snaps)
+        art["snapshot_iterations"] = np.asarray(its, np.int64)
+        for it in its:
+            sv, sf = snaps[it]
+            art[f"snap{it}_vertices"] = sv.astype(np.float32)
+            if sf is not f:
+                art[f"snap{it}_faces"] = sf.astype(np.int32)
+            art[f"snap{it}_H"] = vertex_mean_curvature(sv, sf, h).astype(np.float32)
+    return art
+
+
+def _id_row(cell: dict) -> dict[str, Any]:
+    """The identifying columns of a cell's row."""
+    return {
+        "cell_id": cell["cell_id"], "phantom": cell["phantom"], "variant": cell["variant"], "N": cell["n"],
+        "noise": cell["noise"], "snr_requested": cell["snr_requested"], "snr_achieved": None,
+        "seed": cell["seed"], "method": cell["method"], "label": cell["label"],
+        "parameters": canonical_json(plain(cell["params"])),
+    }
+
+
+def _runner_values(rec, cost: dict) -> dict[str, Any]:
+    """The columns taken from the method's own info (see ``methods.base.INFO_KEYS``) and the cost."""
+    info = rec.info or {}
+    energy = info.get("energy_history")
+    return {
+        "iterations": info.get("iterations"),
+        "energy_final": (float(energy[-1]) if energy is not None and len(energy) else info.get("energy_final")),
+        "stop_reason": info.get("stop_reason"),
+        "wall_s": cost.get("wall_s"), "peak_mem_mb": cost.get("peak_mem_mb"),
+    }
+
+
+def run_cell(cell: dict, cache_dir: str | None = None) -> dict:
+    """Compute one cell from its parameters; never raises for a failing method (see the module docstring)."""
+    from bench.metrics import evaluate
+
+    t0 = time.perf_counter()
+    row = _id_row(cell)
+    artifacts: dict = {}
+    tb = None
+    stage = "setup"
+    try:
+        import_plugins(cell.get("imports") or ())
+        stage = "volume"
+        ph, vol = build_volume(cell, cache_dir)
+        if cell["noise"] != "none":
+            vol, achieved = add_noise(vol, cell["noise"], cell["snr_requested"], seed=cell["seed"])
+            row["snr_achieved"] = float(achieved)
+        stage = "method setup"
+        method = get_method(cell["method"], **cell["params"])
+        row["parameters"] = canonical_json(plain(getattr(method, "config", cell["params"])))
+        stage = "reconstruction"
+        rec, cost = measure(method.reconstruct, vol)
+        runner_values = _runner_values(rec, cost)
+        stage = "pictures"
+        try:
+            artifacts = _artifacts(rec, vol.h)
+        except Exception as exc:  # pictures are optional; the metrics are not
+            artifacts = {}
+            runner_values["artifact_error"] = error_text(exc)
+        stage = "metrics"
+        metrics = evaluate(rec.mesh, ph, vol.h, n_samples=cell["n_samples"], seed=cell["seed"])
+        row.update(plain(dict(metrics)))
+        for k, v in runner_values.items():
+            if v is not None or k not in row:
+                row[k] = plain(v)
+        row["status"] = "ok"
+        row["error"] = ""
+    except Exception as exc:
+        row["status"] = "failed"
+        row["error"] = f"{stage}: {error_text(exc)}"
+        tb = traceback.format_exc()
+    row["cell_s"] = time.perf_counter() - t0
+    return {"row": row, "artifacts": artifacts, "traceback": tb}
+
+
+def failed_result(cell: dict, status: str, error: str) -> dict:
+    """The result of a cell that produced nothing (crash, timeout)."""
+    row = _id_row(cell)
+    row.update(status=status, error=error)
+    return {"row": row, "artifacts": {}, "traceback": None}

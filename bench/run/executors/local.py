@@ -1,0 +1,173 @@
+"""The local executor: every cell in its own worker process, at most ``jobs`` at a time.
+
+Processes come from a fork server that preloaded the suite, so starting one costs milliseconds, and a cell
+that crashes, hangs (``timeout``) or leaks cannot take the others down: a crash or a timeout becomes a
+``failed`` / ``timeout`` row and the run goes on.  An executor is any object with
+``run(cells, on_start, on_result)``; :class:`bench.run.executors.dask.DaskExecutor` is the other one.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from ..cell import failed_result, run_cell
+from ..values import error_text
+
+__all__ = ["LocalExecutor"]
+
+
+def _cell_process(cell: dict, cache_dir: str | None, result_conn, lifeline_conn) -> None:
+    """Body of a worker process: run one cell, send the result, exit.  Exits at once if the runner dies."""
+
+    def watch() -> None:
+        try:
+            lifeline_conn.recv()
+        except (EOFError, OSError):
+            pass
+        os._exit(3)
+
+    threading.Thread(target=watch, daemon=True).start()
+    try:
+        result = run_cell(cell, cache_dir)
+    except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the runner handles it, not a row
+        os._exit(130)
+    except BaseException as exc:  # run_cell catches Exception; this is SystemExit etc.
+        result = failed_result(cell, "failed", f"worker: {error_text(exc)}")
+    try:
+        result_conn.send(result)
+    except Exception as exc:  # e.g. an unpicklable artifact: send the row alone
+        result["artifacts"] = {}
+        result["row"]["artifact_error"] = f"could not send artifacts: {error_text(exc)}"
+        result_conn.send(result)
+    result_conn.close()
+
+
+@dataclass
+class _Running:
+    proc: Any
+    conn: Any
+    lifeline: Any
+    cell: dict
+    started: float
+    deadline: float | None
+
+
+_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
+
+
+class LocalExecutor:
+    """Run cells in at most ``jobs`` worker processes at a time, each cell in its own process.
+
+    Processes come from a fork server that preloaded the suite, so starting one costs milliseconds, and
+    killing one (timeout) cannot take the others down.  The interface is kept tiny so another executor can
+    replace it: ``run(cells, on_start, on_result)``.
+    """
+
+    def __init__(self, jobs: int, timeout: float | None, cache_dir: str | None = None,
+                 preload: list[str] | None = None) -> None:
+        self.jobs = max(1, int(jobs))
+        self.timeout = timeout if timeout and timeout > 0 else None
+        self.cache_dir = cache_dir
+        self.preload = preload or []
+
+    def _context(self):
+        import multiprocessing as mp
+
+        ctx = mp.get_context("forkserver")
+        mods = ["bench.run.cell", "bench.metrics", "methods", "geometry", "trimesh",
+                "scipy.spatial", "skimage.measure"] + [f"methods.{m}" for m in
+                                                       ("marching_cubes", "mc_taubin", "distmesh", "poisson",
+                                                        "shape_gradient")] + list(self.preload)
+        ctx.set_forkserver_preload(mods)
+        # one BLAS/OpenMP thread per worker when several run at once (the fork server inherits this env)
+        if self.jobs > 1:
+            for var in _THREAD_VARS:
+                os.environ.setdefault(var, "1")
+        return ctx
+
+    def _start(self, ctx, cell: dict) -> _Running:
+        recv_end, send_end = ctx.Pipe(duplex=False)
+        life_recv, life_send = ctx.Pipe(duplex=False)
+        proc = ctx.Process(target=_cell_process, args=(cell, self.cache_dir, send_end, life_recv),
+                           name=f"cell-{cell['cell_id']}", daemon=True)
+        proc.start()
+        send_end.close()
+        life_recv.close()
+        now = time.monotonic()
+        return _Running(proc, recv_end, life_send, cell, now, now + self.timeout if self.timeout else None)
+
+    @staticmethod
+    def _finish(r: _Running) -> None:
+        for c in (r.conn, r.lifeline):
+            try:
+                c.close()
+            except OSError:
+                pass
+        r.proc.join(timeout=5)
+        if r.proc.is_alive():  # pragma: no cover
+            r.proc.kill()
+            r.proc.join(timeout=5)
+
+    def run(self, cells: list[dict], on_start: Callable[[dict], None],
+            on_result: Callable[[dict, dict], None]) -> None:
+        from multiprocessing.connection import wait
+
+        ctx = self._context()
+        pending = deque(cells)
+        running: list[_Running] = []
+        try:
+            while pending or running:
+                while pending and len(running) < self.jobs:
+                    cell = pending.popleft()
+                    on_start(cell)
+                    running.append(self._start(ctx, cell))
+                deadlines = [r.deadline for r in running if r.deadline is not None]
+                wait_s = max(0.0, min(deadlines) - time.monotonic()) if deadlines else None
+                wait([r.conn for r in running] + [r.proc.sentinel for r in running], timeout=wait_s)
+                still = []
+                for r in running:
+                    result = None
+                    if r.conn.poll():
+                        try:
+                            result = r.conn.recv()
+                        except (EOFError, OSError):
+                            result = self._crash(r)
+                    elif not r.proc.is_alive():
+                        result = self._crash(r)
+                    elif r.deadline is not None and time.monotonic() >= r.deadline:
+                        r.proc.kill()
+                        result = failed_result(r.cell, "timeout",
+                                               f"timeout: no result after {self.timeout:g} s (cell killed)")
+                    if result is None:
+                        still.append(r)
+                        continue
+                    self._finish(r)
+                    result["row"].setdefault("cell_s", time.monotonic() - r.started)
+                    on_result(r.cell, result)
+                running = still
+        finally:
+            for r in running:  # interrupted: stop what is still running
+                r.proc.kill()
+                self._finish(r)
+
+    def _crash(self, r: _Running) -> dict:
+        r.proc.join(timeout=5)
+        code = r.proc.exitcode
+        if code is not None and code < 0:
+            import signal
+
+            try:
+                name = signal.Signals(-code).name
+            except ValueError:
+                name = str(-code)
+            why = f"worker process killed by {name}" + (" (out of memory?)" if name == "SIGKILL" else "")
+        else:
+            why = f"worker process exited with code {code} without a result"
+        return failed_result(r.cell, "failed", f"crash: {why}")
+
+

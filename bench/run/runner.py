@@ -1,0 +1,174 @@
+"""Run a grid into a run folder: the cells not done yet, through an executor, each result stored at once.
+
+:func:`run_grid` expands the config, skips the cells already in the folder (``resume``), hands the rest to an
+executor (the local process pool by default), writes every finished cell, ``results.csv`` and ``run.json``
+through :mod:`bench.run.store`, shows progress, and returns a :class:`RunSummary`.  It does not render the
+report: the command line does that after the run.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import shutil
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .executors.local import LocalExecutor
+from .grid import expand_grid
+from .provenance import environment
+from .store import CACHE_DIR, check_output_dir, load_cells, read_json, save_cell, write_json, write_results_csv
+
+__all__ = ["run_grid", "RunSummary"]
+
+STATUSES = ("ok", "failed", "timeout")
+
+
+def _now() -> str:
+    return _dt.datetime.now().astimezone().isoformat(timespec="seconds")
+
+
+@dataclass
+class RunSummary:
+    """What a run did: cell counts by status, how many ran now and how many were already done."""
+
+    out: Path
+    total: int
+    ok: int = 0
+    failed: int = 0
+    timeout: int = 0
+    skipped: int = 0
+    ran: int = 0
+    seconds: float = 0.0
+    report: Path | None = None
+    report_error: str | None = None
+    statuses: dict = field(default_factory=dict)
+
+    def line(self) -> str:
+        parts = [f"{self.ok} ok", f"{self.failed} failed", f"{self.timeout} timeout"]
+        resumed = f", {self.skipped} already done" if self.skipped else ""
+        where = f" → {self.report}" if self.report else f" → {self.out}"
+        return (f"{self.total} cells: {', '.join(parts)} ({self.ran} run{resumed}) in "
+                f"{self.seconds:.1f} s{where}")
+
+
+class RunLog:
+    """``run.json``: the config, provenance, cell counts, timings and one entry per session (a resumed run
+    appends its session to the earlier ones)."""
+
+    def __init__(self, out: Path, cfg, n_cells: int, session: dict, resume: bool) -> None:
+        self.path = Path(out) / "run.json"
+        self.cfg = cfg
+        self.n_cells = n_cells
+        self.session = session
+        self.previous = (read_json(self.path, {}) if resume and self.path.exists() else {}) or {}
+        self.started = time.time()
+
+    def write(self, records: dict[str, dict], end: bool, cells_run: int = 0) -> None:
+        sessions = list(self.previous.get("sessions", []))
+        s = dict(self.session)
+        if end:
+            s["end"] = _now()
+            s["total_s"] = round(time.time() - self.started, 3)
+            s["cells_run"] = cells_run
+        sessions.append(s)
+        rows = [r["row"] for r in records.values()]
+        by_method: dict[str, list[float]] = {}
+        for r in rows:
+            if r.get("wall_s") is not None:
+                by_method.setdefault(r.get("label", "?"), []).append(float(r["wall_s"]))
+        meta = {
+            "suite": "levelset-bench",
+            "config": self.cfg.to_dict(),
+            "config_source": self.cfg.source,
+            "cells": {"total": self.n_cells, "finished": len(records),
+                      "status": {k: sum(1 for r in rows if r.get("status") == k) for k in STATUSES}},
+            "start": self.previous.get("start", self.session["start"]),
+            "end": s.get("end"),
+            "total_s": round(sum(x.get("total_s", 0.0) for x in sessions), 3),
+            "timings": {"cells_s_sum": round(sum(float(r.get("cell_s") or 0.0) for r in rows), 3),
+                        "method_wall_s_mean": {k: round(float(np.mean(v)), 4) for k, v in by_method.items()}},
+            "sessions": sessions,
+            **environment(),
+        }
+        write_json(self.path, meta)
+
+
+class _Progress:
+    """A tqdm bar over the cells (on a terminal), naming the cell running and reporting failures."""
+
+    def __init__(self, total: int, done: int, show: bool) -> None:
+        from tqdm import tqdm
+
+        self.show = show
+        self.bar = tqdm(total=total, initial=done, unit="cell", disable=not show, dynamic_ncols=True,
+                        desc="cells", file=sys.stderr)
+
+    def start(self, cell: dict) -> None:
+        self.bar.set_postfix_str(f"{cell['phantom']}/{cell['noise']}/{cell['label']}", refresh=True)
+
+    def finish(self, cell: dict, row: dict) -> None:
+        if row.get("status") != "ok" and self.show:
+            self.bar.write(f"{row.get('status')}: {cell['cell_id']}: {row.get('error', '')}")
+        self.bar.update(1)
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = False, retry_failed: bool = False,
+             timeout: float | None = None, save_meshes: bool = False, progress: bool | None = None,
+             argv: list[str] | None = None, executor=None) -> RunSummary:
+    """Run every cell of the validated config ``cfg`` into the folder ``out``.
+
+    ``resume`` skips the cells already finished there (``retry_failed``: except failed / timed-out ones);
+    ``timeout`` is per cell in seconds (None: the config's, 0: none); ``executor`` is any object with
+    ``run(cells, on_start, on_result)`` (default: a :class:`LocalExecutor` of ``jobs`` processes).
+    """
+    out = Path(out)
+    check_output_dir(out, resume)
+    cells = expand_grid(cfg)
+    timeout = cfg.timeout if timeout is None else (timeout or None)
+    jobs = jobs or os.cpu_count() or 1
+    write_json(out / "config.json", cfg.to_dict())
+
+    ids = {c["cell_id"] for c in cells}
+    records = {k: v for k, v in (load_cells(out) if resume else {}).items() if k in ids}
+    if retry_failed:
+        records = {k: v for k, v in records.items() if v["row"].get("status") == "ok"}
+    todo = [c for c in cells if c["cell_id"] not in records]
+    summary = RunSummary(out=out, total=len(cells), skipped=len(cells) - len(todo))
+    session = {"start": _now(), "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
+               "timeout_s": timeout, "cells_to_run": len(todo), "resumed_from": len(cells) - len(todo),
+               "executor": (executor.describe() if hasattr(executor, "describe") else {"executor": "local"})}
+    log = RunLog(out, cfg, len(cells), session, resume)
+    log.write(records, end=False)
+    bar = _Progress(len(cells), summary.skipped, sys.stderr.isatty() if progress is None else progress)
+
+    def on_result(cell: dict, result: dict) -> None:
+        save_cell(out, cell, result, save_meshes)
+        records[cell["cell_id"]] = {"row": result["row"], "cell": cell}
+        write_results_csv(out, cells, records)
+        summary.ran += 1
+        bar.finish(cell, result["row"])
+
+    if executor is None:
+        executor = LocalExecutor(jobs, timeout, cache_dir=str(out / CACHE_DIR), preload=list(cfg.imports))
+    try:
+        executor.run(todo, bar.start, on_result)
+    finally:
+        bar.close()
+        write_results_csv(out, cells, records)
+        for r in records.values():
+            st = r["row"].get("status")
+            if st in STATUSES:
+                setattr(summary, st, getattr(summary, st) + 1)
+        summary.seconds = time.time() - log.started
+        log.write(records, end=True, cells_run=summary.ran)
+    if len(records) == len(cells):  # complete: the volume cache is only needed to resume
+        shutil.rmtree(out / CACHE_DIR, ignore_errors=True)
+    return summary

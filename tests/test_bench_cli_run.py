@@ -16,11 +16,10 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
-from bench.config import CONFIG_DIR, builtin_config, config_from_dict, load_config, parse_method_spec, parse_noise_spec
+from bench.config import builtin_config, parse_method_spec
 from bench.run import expand_grid
 
-pytest.importorskip("bench.metrics")
-from bench.metrics import METRIC_NAMES  # noqa: E402
+from bench.metrics import METRIC_NAMES
 
 REPO = Path(__file__).resolve().parent.parent
 TESTS = Path(__file__).resolve().parent
@@ -45,16 +44,6 @@ def _bench(*args, **kw) -> subprocess.CompletedProcess:
 def _rows(path: Path) -> list[dict]:
     with open(path, newline="") as fh:
         return list(csv.DictReader(fh))
-
-
-def _quick_methods_available() -> bool:
-    from methods import available_methods
-
-    have = available_methods()
-    return all(m.name in have for m in builtin_config("quick").methods)
-
-
-pytestmark = pytest.mark.skipif(not _quick_methods_available(), reason="a method of quick.toml is not available yet")
 
 
 @pytest.fixture(scope="module")
@@ -269,53 +258,3 @@ def test_unwritable_or_occupied_output_folder_exits_2(tmp_path, capsys, quick_ru
     assert "cannot read config" in capsys.readouterr().err
     assert main(["report", str(tmp_path)]) == 2
     assert "not a run folder" in capsys.readouterr().err
-
-
-# ---------------------------------------------------------------------------------------------- grid expansion
-def test_grid_expansion_sweeps_overrides_and_stable_ids():
-    cfg = config_from_dict({
-        "grid": {"phantoms": ["sphere", "fused_spheres"], "n": [32, 48], "seeds": [0, 1],
-                 "noise": [{"kind": "none"}, {"kind": "gaussian", "snr": [30, "paper"]}]},
-        "methods": [{"name": "marching_cubes", "sweep": {"step_size": [1, 2]}},
-                    {"name": "mc_taubin", "label": "taubin", "phantom_params": {"fused_spheres": {"iterations": 3}}}],
-    })
-    cfg.validate()
-    cells = expand_grid(cfg)
-    # 2 phantoms x 2 N x (1 clean seed + 2 SNRs x 2 seeds) x (2 sweep values + 1) = 60
-    assert len(cells) == 60
-    assert len({c["cell_id"] for c in cells}) == 60
-    assert {c["label"] for c in cells} == {"marching_cubes[step_size=1]", "marching_cubes[step_size=2]", "taubin"}
-    fs = [c for c in cells if c["phantom"] == "fused_spheres" and c["label"] == "taubin"]
-    assert all(c["params"] == {"iterations": 3} for c in fs)
-    snrs = {c["snr_requested"] for c in cells if c["phantom"] == "fused_spheres"}
-    assert snrs == {None, 30.0, 43.2}
-    assert [c["cell_id"] for c in expand_grid(cfg)] == [c["cell_id"] for c in cells]  # stable
-    again = config_from_dict(json.loads(json.dumps(cfg.to_dict())))  # what run folders keep (config.json)
-    assert [c["cell_id"] for c in expand_grid(again)] == [c["cell_id"] for c in cells]
-
-
-def test_paper_config_is_the_paper_grid():
-    cfg = builtin_config("paper")
-    assert cfg.phantoms == ["sphere", "ellipsoid", "fused_spheres", "cylinder"]
-    assert cfg.n == [96] and cfg.seeds == [0] and cfg.variants == ["sdf"]
-    assert [n.kind for n in cfg.noise] == ["none", "gaussian", "uniform"]
-    labels = [lab for m in cfg.methods for lab, _ in m.instances()]
-    assert labels == ["shape_gradient", "shape_gradient_beta0", "marching_cubes", "mc_taubin", "distmesh", "poisson"]
-    sg = cfg.methods[0]
-    assert sg.params["alpha"] == 5 and sg.params["beta"] == 1 and cfg.methods[1].params["beta"] == 0
-    assert len(expand_grid(cfg)) == 4 * 3 * 6
-
-
-def test_scale_config_is_48_cells_of_the_baselines():
-    cfg = load_config(CONFIG_DIR / "scale48.toml")
-    cells = expand_grid(cfg)
-    assert len(cells) == 48 and {c["method"] for c in cells} == {"marching_cubes", "mc_taubin", "distmesh", "poisson"}
-    assert {c["n"] for c in cells} == {48}
-
-
-def test_method_and_noise_specs():
-    m = parse_method_spec("sg0=shape_gradient:beta=0,snapshots=[1,50],preset=paper")
-    assert (m.label, m.name, m.params) == ("sg0", "shape_gradient", {"beta": 0, "snapshots": [1, 50], "preset": "paper"})
-    assert parse_method_spec("marching_cubes:step_size=2").label == "marching_cubes[step_size=2]"
-    specs = parse_noise_spec("none,gaussian,uniform@40")
-    assert [(s.kind, s.snr) for s in specs] == [("none", None), ("gaussian", "paper"), ("uniform", 40.0)]

@@ -1,0 +1,157 @@
+"""The layout contract, read from the source with ``ast`` (nothing is imported):
+
+* packages stack strictly — ``geometry`` < ``phantoms`` < ``methods`` < ``bench``: no module imports a module of
+  a higher package;
+* no import cycle between modules (imports inside functions count: a lazy import hides a cycle, it does not
+  remove it);
+* no source file over 500 lines and no function over 100 lines, outside ``methods/shape_gradient*`` (which the
+  shape-gradient rewrite splits).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+LAYERS = ("geometry", "phantoms", "methods", "bench")
+MAX_FILE_LINES = 500
+MAX_FUNCTION_LINES = 100
+EXEMPT = ("methods/shape_gradient",)
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(REPO).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _sources() -> dict[str, Path]:
+    return {_module_name(p): p for layer in LAYERS for p in sorted((REPO / layer).rglob("*.py"))}
+
+
+def _resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str:
+    if not node.level:
+        return node.module or ""
+    base = module.split(".") if is_package else module.split(".")[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def import_graph(sources: dict[str, Path] | None = None) -> dict[str, set[str]]:
+    """``{module: {suite modules it imports}}`` for every module of the four packages."""
+    sources = sources or _sources()
+    graph: dict[str, set[str]] = {}
+    for module, path in sources.items():
+        is_package = path.name == "__init__.py"
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = _resolve(module, is_package, node)
+                names = [f"{base}.{a.name}" if f"{base}.{a.name}" in sources else base for a in node.names]
+            else:
+                continue
+            for name in names:
+                while name and name not in sources:  # `import a.b.c` of a non-module name: its module
+                    name = name.rpartition(".")[0]
+                if name and name != module:
+                    targets.add(name)
+        graph[module] = targets
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One import cycle as a list of modules (first = last), or None."""
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(m: str) -> list[str] | None:
+        state[m] = 1
+        stack.append(m)
+        for t in sorted(graph.get(m, ())):
+            if state.get(t) == 1:
+                return stack[stack.index(t):] + [t]
+            if t not in state:
+                found = visit(t)
+                if found:
+                    return found
+        stack.pop()
+        state[m] = 2
+        return None
+
+    for m in sorted(graph):
+        if m not in state:
+            found = visit(m)
+            if found:
+                return found
+    return None
+
+
+def layer_violations(graph: dict[str, set[str]]) -> list[str]:
+    rank = {name: i for i, name in enumerate(LAYERS)}
+    return [f"{m} imports {t}" for m, targets in sorted(graph.items()) for t in sorted(targets)
+            if rank[t.split(".")[0]] > rank[m.split(".")[0]]]
+
+
+def test_lower_packages_never_import_higher_ones():
+    assert layer_violations(import_graph()) == []
+
+
+def test_no_import_cycle_between_modules():
+    assert find_cycle(import_graph()) is None
+
+
+def test_the_checks_catch_a_cycle_and_an_upward_import(tmp_path):
+    """The two checks above on a made-up graph that breaks both rules (so they can fail)."""
+    graph = {"phantoms.a": {"phantoms.b"}, "phantoms.b": {"phantoms.a"}, "geometry.x": {"bench.y"},
+             "bench.y": set()}
+    assert find_cycle(graph) in (["phantoms.a", "phantoms.b", "phantoms.a"], ["phantoms.b", "phantoms.a", "phantoms.b"])
+    assert layer_violations(graph) == ["geometry.x imports bench.y"]
+
+
+def test_relative_and_lazy_imports_are_resolved(tmp_path):
+    """A lazy relative import inside a function is an edge of the graph."""
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("def f():\n    from .b import g\n    return g\n")
+    (pkg / "b.py").write_text("from . import a\n")
+    sources = {"pkg": pkg / "__init__.py", "pkg.a": pkg / "a.py", "pkg.b": pkg / "b.py"}
+    global REPO
+    saved, REPO = REPO, tmp_path
+    try:
+        graph = import_graph(sources)
+    finally:
+        REPO = saved
+    assert graph["pkg.a"] == {"pkg.b"} and graph["pkg.b"] == {"pkg.a"}
+    assert find_cycle(graph) is not None
+
+
+def _exempt(path: Path) -> bool:
+    return str(path.relative_to(REPO)).startswith(EXEMPT)
+
+
+@pytest.mark.parametrize("layer", LAYERS)
+def test_no_source_file_over_500_lines(layer):
+    long = {str(p.relative_to(REPO)): n for p in (REPO / layer).rglob("*.py") if not _exempt(p)
+            for n in [len(p.read_text().splitlines())] if n > MAX_FILE_LINES}
+    assert long == {}
+
+
+@pytest.mark.parametrize("layer", LAYERS)
+def test_no_function_over_100_lines(layer):
+    long = {}
+    for p in (REPO / layer).rglob("*.py"):
+        if _exempt(p):
+            continue
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    long[f"{p.relative_to(REPO)}:{node.lineno} {node.name}"] = n
+    assert long == {}

@@ -1,0 +1,49 @@
+"""bench.config: the TOML schema, validated before any work; command-line method and noise specs."""
+
+from __future__ import annotations
+
+import pytest
+
+from bench.config import builtin_config, config_from_dict, parse_method_spec, parse_noise_spec
+from phantoms import InputError
+
+
+def test_method_and_noise_specs():
+    m = parse_method_spec("sg0=shape_gradient:beta=0,snapshots=[1,50],preset=paper")
+    assert (m.label, m.name, m.params) == ("sg0", "shape_gradient", {"beta": 0, "snapshots": [1, 50], "preset": "paper"})
+    assert parse_method_spec("marching_cubes:step_size=2").label == "marching_cubes[step_size=2]"
+    specs = parse_noise_spec("none,gaussian,uniform@40")
+    assert [(s.kind, s.snr) for s in specs] == [("none", None), ("gaussian", "paper"), ("uniform", 40.0)]
+
+
+def test_report_section_round_trips_and_is_checked_against_the_labels():
+    cfg = builtin_config("paper")
+    cols = cfg.report["paper_columns"]
+    assert [c["label"] for c in cols] == ["shape_gradient_beta0", "shape_gradient", "shape_gradient"]
+    assert [c["noise"] for c in cols] == ["none", "none", "gaussian"]
+    assert config_from_dict(cfg.to_dict()).report == cfg.report
+    cfg.validate()
+    data = cfg.to_dict()
+    data["report"]["paper_columns"][0]["label"] = "no_such_label"
+    with pytest.raises(InputError, match=r"report.paper_columns\[0\]: label 'no_such_label'"):
+        config_from_dict(data).validate()
+    data = cfg.to_dict()
+    data["report"]["paper_columns"][0]["noise"] = "pink"
+    with pytest.raises(InputError, match="unknown noise kind 'pink'"):
+        config_from_dict(data)
+    data = cfg.to_dict()
+    data["report"]["colour"] = "red"
+    with pytest.raises(InputError, match="unknown key 'colour'"):
+        config_from_dict(data)
+
+
+def test_a_config_without_report_section_has_none():
+    cfg = builtin_config("quick")
+    assert cfg.report == {} and "report" not in cfg.to_dict()
+
+
+def test_a_plugin_module_that_fails_to_import_is_one_input_error():
+    cfg = builtin_config("quick")
+    cfg.imports = ["no_such_module_for_levelset_bench"]
+    with pytest.raises(InputError, match="run.imports: cannot import module 'no_such_module_for_levelset_bench'"):
+        cfg.validate()

@@ -1,0 +1,58 @@
+"""bench.run.grid: a config's cells, sweeps and per-phantom parameters, stable ids; the shipped configs' grids."""
+
+from __future__ import annotations
+
+import json
+
+from bench.config import CONFIG_DIR, builtin_config, config_from_dict, load_config
+from bench.run.grid import cell_id, expand_grid
+
+
+def test_grid_expansion_sweeps_overrides_and_stable_ids():
+    cfg = config_from_dict({
+        "grid": {"phantoms": ["sphere", "fused_spheres"], "n": [32, 48], "seeds": [0, 1],
+                 "noise": [{"kind": "none"}, {"kind": "gaussian", "snr": [30, "paper"]}]},
+        "methods": [{"name": "marching_cubes", "sweep": {"step_size": [1, 2]}},
+                    {"name": "mc_taubin", "label": "taubin", "phantom_params": {"fused_spheres": {"iterations": 3}}}],
+    })
+    cfg.validate()
+    cells = expand_grid(cfg)
+    # 2 phantoms x 2 N x (1 clean seed + 2 SNRs x 2 seeds) x (2 sweep values + 1) = 60
+    assert len(cells) == 60
+    assert len({c["cell_id"] for c in cells}) == 60
+    assert {c["label"] for c in cells} == {"marching_cubes[step_size=1]", "marching_cubes[step_size=2]", "taubin"}
+    fs = [c for c in cells if c["phantom"] == "fused_spheres" and c["label"] == "taubin"]
+    assert all(c["params"] == {"iterations": 3} for c in fs)
+    snrs = {c["snr_requested"] for c in cells if c["phantom"] == "fused_spheres"}
+    assert snrs == {None, 30.0, 43.2}
+    assert [c["cell_id"] for c in expand_grid(cfg)] == [c["cell_id"] for c in cells]  # stable
+    again = config_from_dict(json.loads(json.dumps(cfg.to_dict())))  # what run folders keep (config.json)
+    assert [c["cell_id"] for c in expand_grid(again)] == [c["cell_id"] for c in cells]
+
+
+def test_paper_config_is_the_paper_grid():
+    cfg = builtin_config("paper")
+    assert cfg.phantoms == ["sphere", "ellipsoid", "fused_spheres", "cylinder"]
+    assert cfg.n == [96] and cfg.seeds == [0] and cfg.variants == ["sdf"]
+    assert [n.kind for n in cfg.noise] == ["none", "gaussian", "uniform"]
+    labels = [lab for m in cfg.methods for lab, _ in m.instances()]
+    assert labels == ["shape_gradient", "shape_gradient_beta0", "marching_cubes", "mc_taubin", "distmesh", "poisson"]
+    sg = cfg.methods[0]
+    assert sg.params["alpha"] == 5 and sg.params["beta"] == 1 and cfg.methods[1].params["beta"] == 0
+    assert len(expand_grid(cfg)) == 4 * 3 * 6
+
+
+def test_scale_config_is_48_cells_of_the_baselines():
+    cfg = load_config(CONFIG_DIR / "scale48.toml")
+    cells = expand_grid(cfg)
+    assert len(cells) == 48 and {c["method"] for c in cells} == {"marching_cubes", "mc_taubin", "distmesh", "poisson"}
+    assert {c["n"] for c in cells} == {48}
+
+
+def test_cell_id_names_the_cell_and_hashes_every_parameter():
+    cfg = builtin_config("quick")
+    cell = expand_grid(cfg)[0]
+    cid = cell_id(cell)
+    assert cid.startswith("sphere_sdf_n48_none_s0_shape_gradient_")
+    other = dict(cell, params={**cell["params"], "alpha": 4.0})
+    assert cell_id(other) != cid and cell_id(other).rsplit("_", 1)[0] == cid.rsplit("_", 1)[0]

@@ -16,12 +16,12 @@ phantom's exact ground truth:
 The mesh is evaluated as given except that faces with a repeated vertex index (no area, no real edges)
 and unreferenced vertices are dropped first (``n_vertices`` / ``n_faces`` report the mesh as given).
 ``iterations``, ``energy_final``, ``wall_s``, ``peak_mem_mb`` are in :data:`METRIC_NAMES` for the
-runner's columns but are filled by the runner (``bench.cost.measure``), not here.
+runner's columns but are filled by the cell runner (:mod:`bench.run.cell`, :func:`bench.run.cost.measure`),
+not here.
 
-Speed: the pymeshlab query runs in one worker thread while numpy computes the rest
-(:data:`PARALLEL_DISTANCE`); full ``evaluate`` on a 101,564-face marching-cubes ellipsoid with 100k samples
-per side takes about 2.5–3 s on the 2-core reference machine when it is otherwise idle
-(``tests/benchmarks/test_bench_metrics.py``).
+The pymeshlab distance query runs in one worker thread while numpy computes the rest
+(:data:`PARALLEL_DISTANCE`): the two phases cost about the same, so this nearly halves the wall time
+(``tests/benchmarks/test_bench_metrics.py`` times it).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Speed of the full ``evaluate`` on a ~100k-face mesh against the ellipsoid (issue 5: target ≤ 5 s).
+"""Speed of the full ``evaluate`` on a ~100k-face mesh against the ellipsoid (target: ≤ 5 s on 2 cores).
 
 Deselected by default; run with
 ``python -m pytest tests/benchmarks -m benchmark --benchmark-enable``.

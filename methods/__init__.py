@@ -3,6 +3,7 @@
 from .base import (
     BUILTIN_METHODS,
     ENTRY_POINT_GROUP,
+    INFO_KEYS,
     Method,
     Param,
     Reconstruction,
@@ -16,5 +17,5 @@ from .base import (
 
 __all__ = [
     "Method", "Param", "Reconstruction", "available_methods", "get_method", "method_names",
-    "register_method", "import_plugins", "check_volume", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
+    "register_method", "import_plugins", "check_volume", "ENTRY_POINT_GROUP", "BUILTIN_METHODS", "INFO_KEYS",
 ]

@@ -25,7 +25,7 @@ import trimesh
 from phantoms import InputError, Volume
 
 __all__ = [
-    "Param", "Method", "Reconstruction", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
+    "Param", "Method", "Reconstruction", "INFO_KEYS", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
     "available_methods", "get_method", "register_method", "method_names", "check_volume",
 ]
 
@@ -104,13 +104,27 @@ class Param:
         return value
 
 
+#: The ``Reconstruction.info`` keys the suite reads, and what it does with them.  Every other key is the
+#: method's own fact: ``reconstruct`` prints it, a grid run keeps it in the cell's json.
+INFO_KEYS: dict[str, str] = {
+    "iterations": "int: iterations the method ran (results.csv column `iterations`)",
+    "stop_reason": "str: why it stopped, e.g. converged | max_iter | line_search_floor | diverged "
+                   "(results.csv column `stop_reason`)",
+    "stop_message": "str: one line of detail on the stop (printed by `reconstruct`)",
+    "energy_history": "1-D floats: the energy per iteration, entry 0 = the initial surface (the report's energy "
+                      "curve; its last entry is the results.csv column `energy_final`)",
+    "energy_final": "float: the final energy, when there is no energy_history",
+    "snapshots": "{iteration: vertices (V, 3) of the final mesh's faces, or (vertices, faces)}: the report's "
+                 "rows of an iterative method; iteration 0 is the initial surface",
+}
+
+
 @dataclass
 class Reconstruction:
     """What a method returns: the mesh and facts about how it was made.
 
-    ``mesh`` is a closed, outward-oriented ``trimesh.Trimesh`` in world coordinates.  ``info`` holds
-    method facts: e.g. ``iterations``, ``energy_history`` (list of floats), ``stop_reason``, ``snapshots``
-    ({iteration: (vertices, faces)}), per-vertex arrays.  Plain Python/numpy values only.
+    ``mesh`` is a closed, outward-oriented ``trimesh.Trimesh`` in world coordinates.  ``info`` holds the
+    method's facts as plain Python/numpy values; the keys the suite reads are documented in :data:`INFO_KEYS`.
     """
 
     mesh: trimesh.Trimesh

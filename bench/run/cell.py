@@ -8,7 +8,7 @@ cache, when given), so any executor can run it anywhere.  It returns a plain dic
 ``row`` is the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop
 reason, cost, ``status`` ``ok`` / ``failed`` and ``error``); ``artifacts`` holds the arrays the report draws:
 the final mesh with its per-vertex mean curvature, the energy history and the snapshots.  Which
-``Reconstruction.info`` keys are read is documented in :mod:`methods.base`.
+``Reconstruction.info`` keys are read is documented in :data:`methods.INFO_KEYS`.
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def _snapshot(s, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def _snapshots(info: dict, faces: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """``{iteration: (vertices, faces)}`` from a method's ``info["snapshots"]`` (and its initial vertices)."""
+    """``{iteration: (vertices, faces)}`` from a method's ``info["snapshots"]``."""
     out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     snaps = info.get("snapshots") or {}
     if isinstance(snaps, dict):
@@ -97,13 +97,6 @@ def _snapshots(info: dict, faces: np.ndarray) -> dict[int, tuple[np.ndarray, np.
             snap = _snapshot(s, faces)
             if snap is not None:
                 out[it] = snap
-    if 0 not in out:
-        for key in ("initial_vertices", "init_vertices"):
-            if key in info:
-                v = np.asarray(info[key], float)
-                if v.ndim == 2 and v.shape[1] == 3 and len(faces) and faces.max() < len(v):
-                    out[0] = (v, faces)
-                break
     return out
 
 
@@ -142,7 +135,7 @@ def _id_row(cell: dict) -> dict[str, Any]:
 
 
 def _runner_values(rec, cost: dict) -> dict[str, Any]:
-    """The columns taken from the method's own info (see ``methods.base.INFO_KEYS``) and the cost."""
+    """The columns taken from the method's own info (see :data:`methods.INFO_KEYS`) and the cost."""
     info = rec.info or {}
     energy = info.get("energy_history")
     return {

@@ -4,6 +4,7 @@ Shared by the methods (``methods/``) and the metrics (``bench/``); nothing here 
 """
 
 from .curvature import paraboloid_curvature
+from .errors import InputError
 from .mesh import (
     edges_unique,
     face_areas,
@@ -26,6 +27,7 @@ from .operators import (
 from .sphere import fibonacci_sphere
 
 __all__ = [
+    "InputError",
     "face_normals", "face_areas", "vertex_normals", "lumped_vertex_areas", "edges_unique",
     "one_ring", "radius_neighbors", "padded_from_pairs", "paraboloid_curvature",
     "MeshOperators", "cotangent_stiffness", "lumped_mass", "face_gradient", "gradient_operator", "divergence",

@@ -7,7 +7,7 @@
 >>> truth = ph.truth(noisy.grid_points().reshape(-1, 3)[:10])
 """
 
-from .errors import InputError
+from geometry.errors import InputError
 from .io import load_volume, mask_to_sdf, save_volume
 from .noise import NOISE_KINDS, add_noise, snr_db
 from .shapes import (PHANTOMS, REAL_PHANTOMS, VARIANTS, Phantom, Truth, get_phantom, grid_volume, is_phantom_name,

@@ -71,7 +71,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from .errors import InputError
+from geometry.errors import InputError
 from .shapes import DEFAULT_EXTENT, DEFAULT_N, Phantom, Truth, _as_points, _check_n
 from .volume import Volume
 

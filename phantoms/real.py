@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from geometry.errors import InputError
 from .mesh_phantom import MeshPhantom
 from .shapes import DEFAULT_EXTENT, DEFAULT_N, _as_points, _check_n, grid_volume
 from .volume import Volume

@@ -21,7 +21,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .errors import InputError
+from geometry.errors import InputError
 from .volume import Volume
 
 __all__ = [

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError
+from geometry.errors import InputError
 
 __all__ = ["Volume", "Sample", "trilinear_channels"]
 

@@ -6,7 +6,6 @@ Shared by the methods (``methods/``) and the metrics (``bench/``); nothing here 
 from .curvature import paraboloid_curvature
 from .errors import InputError
 from .mesh import (
-    edges_unique,
     face_areas,
     face_normals,
     lumped_vertex_areas,
@@ -25,6 +24,20 @@ from .operators import (
     lumped_mass,
 )
 from .sphere import fibonacci_sphere
+from .topology import (
+    connected_components,
+    directed_edge_repeats,
+    edge_face_counts,
+    edges_unique,
+    euler_characteristic,
+    face_edge_keys,
+    face_edges,
+    genus,
+    is_closed,
+    is_manifold,
+    is_oriented,
+    sample_surface,
+)
 
 __all__ = [
     "InputError",
@@ -32,4 +45,6 @@ __all__ = [
     "one_ring", "radius_neighbors", "padded_from_pairs", "paraboloid_curvature",
     "MeshOperators", "cotangent_stiffness", "lumped_mass", "face_gradient", "gradient_operator", "divergence",
     "jacobi_cg", "fibonacci_sphere",
+    "face_edge_keys", "face_edges", "edge_face_counts", "directed_edge_repeats", "is_closed", "is_manifold",
+    "is_oriented", "euler_characteristic", "genus", "connected_components", "sample_surface",
 ]

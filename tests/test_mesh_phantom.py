@@ -1,4 +1,4 @@
-"""Mesh-backed phantoms (phantoms/mesh_phantom.py) and the named real shapes (phantoms/real.py)."""
+"""Mesh-backed phantoms (phantoms/mesh/) and the named real shapes (phantoms/real.py)."""
 
 import importlib.util
 import time
@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from phantoms import PHANTOMS, InputError, MeshPhantom, get_phantom, is_phantom_name, phantom_names
-from phantoms.mesh_phantom import closest_point_on_triangles, winding_number
+from phantoms.mesh import closest_point_on_triangles, winding_number
 
 HAS_NILEARN = importlib.util.find_spec("nilearn") is not None
 

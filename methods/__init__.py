@@ -9,6 +9,7 @@ from .base import (
     available_methods,
     check_volume,
     get_method,
+    import_plugins,
     method_names,
     register_method,
 )
@@ -16,4 +17,5 @@ from .base import (
 __all__ = [
     "Method", "Param", "Reconstruction", "available_methods", "get_method", "method_names",
     "register_method", "check_volume", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
+    "import_plugins",
 ]

@@ -26,7 +26,7 @@ from phantoms import InputError, Volume
 
 __all__ = [
     "Param", "Method", "Reconstruction", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
-    "available_methods", "get_method", "register_method", "method_names", "check_volume",
+    "available_methods", "get_method", "register_method", "method_names", "check_volume", "import_plugins",
 ]
 
 ENTRY_POINT_GROUP = "levelset_bench.methods"
@@ -167,6 +167,19 @@ def register_method(cls: type[Method]) -> type[Method]:
         raise InputError(f"{cls!r} is not a Method subclass with a name")
     _REGISTERED[cls.name] = cls
     return cls
+
+
+def import_plugins(modules) -> None:
+    """Import each module named in ``modules`` (in order), e.g. ones that call :func:`register_method`.
+
+    Any failure to import (missing module, an exception the module raises) is the user's to fix: it is
+    raised as :class:`phantoms.InputError` ``cannot import module 'name': <the error>``.
+    """
+    for mod in modules:
+        try:
+            importlib.import_module(mod)
+        except Exception as exc:  # noqa: BLE001 - whatever the module raised, the user names the module
+            raise InputError(f"cannot import module {mod!r}: {exc}") from None
 
 
 def _load(target: str) -> type[Method]:

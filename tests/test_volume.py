@@ -50,9 +50,9 @@ def test_gradient_and_hessian_of_quadratic():
 def test_derivative_grids_are_cached():
     vol = get_phantom("sphere").volume(n=16)
     vol.sample(np.zeros((1, 3)), derivatives=2)
-    cached = vol._channel_array(2)
+    cached = vol.channels(2)
     vol.sample(np.ones((1, 3)), derivatives=2)
-    assert vol._channel_array(2) is cached
+    assert vol.channels(2) is cached
 
 
 def test_sdf_interpolation_near_surface():
@@ -119,7 +119,7 @@ def test_interpolation_matches_scipy_and_the_flow_sampler():
     p = rng.uniform(vol.lower, vol.upper, (400, 3))
     p[:3] = [vol.lower, vol.upper, [vol.upper[0], vol.lower[1], vol.upper[2]]]      # box corners
     s = vol.sample(p, derivatives=2)
-    chans = vol._channel_array(2)
+    chans = vol.channels(2)
     expected = np.stack([RegularGridInterpolator(axes, chans[..., c])(p) for c in range(chans.shape[-1])], 1)
     np.testing.assert_allclose(s.phi, expected[:, 0], atol=1e-12)
     np.testing.assert_allclose(s.grad, expected[:, 1:4], atol=1e-12)

@@ -1,6 +1,7 @@
 """Geometry kernels: small pure functions of arrays (vertices (V, 3), faces (F, 3) int).
 
-Shared by the methods (``methods/``) and the metrics (``bench/``); nothing here imports either.
+The bottom of the stack: shared by the phantoms (`phantoms/`), the methods (`methods/`) and the metrics (`bench/`);
+nothing here imports any of them.
 """
 
 from .curvature import paraboloid_curvature

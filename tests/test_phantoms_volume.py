@@ -130,3 +130,13 @@ def test_interpolation_matches_scipy_and_the_flow_sampler():
     np.testing.assert_allclose(g.phi, s.phi, atol=1e-12)          # index maps differ by rounding only
     np.testing.assert_allclose(g.grad, s.grad, atol=1e-12)
     np.testing.assert_allclose(g.hess, s.hess, atol=1e-12)
+
+
+def test_sampler_is_sample_with_clamp_without_the_checks():
+    vol = get_phantom("ellipsoid").volume(n=20)
+    p = np.random.default_rng(4).uniform(-3.0, 3.0, (400, 3))          # some outside the box: clamped
+    s = vol.sampler(1)(p)
+    ref = vol.sample(p, derivatives=1, clamp=True)
+    assert np.allclose(s.phi, ref.phi, rtol=0, atol=1e-12) and np.allclose(s.grad, ref.grad, rtol=0, atol=1e-12)
+    assert s.grad.flags.c_contiguous and vol.sampler(0)(p).grad is None
+    assert vol.channels(1).shape == (20, 20, 20, 4) and vol.channels(1) is vol.channels(1)

@@ -6,6 +6,7 @@ nothing here imports any of them.
 
 from .curvature import paraboloid_curvature
 from .errors import InputError
+from .levelset import newton_project
 from .mesh import (
     face_areas,
     face_normals,
@@ -47,5 +48,5 @@ __all__ = [
     "MeshOperators", "cotangent_stiffness", "lumped_mass", "face_gradient", "gradient_operator", "divergence",
     "jacobi_cg", "fibonacci_sphere",
     "face_edge_keys", "face_edges", "edge_face_counts", "directed_edge_repeats", "is_closed", "is_manifold",
-    "is_oriented", "euler_characteristic", "genus", "connected_components", "sample_surface",
+    "is_oriented", "euler_characteristic", "genus", "connected_components", "sample_surface", "newton_project",
 ]

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .topology import edges_unique  # noqa: F401  (geometry.mesh.edges_unique: its old home)
+
 
 def _face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     v0, v1, v2 = (vertices[faces[:, k]] for k in range(3))
@@ -43,20 +45,6 @@ def lumped_vertex_areas(vertices, faces) -> np.ndarray:
     a = face_areas(vertices, faces) / 3.0
     faces = np.asarray(faces)
     return np.bincount(faces.ravel(), weights=np.repeat(a, 3), minlength=len(vertices))
-
-
-def edges_unique(faces) -> np.ndarray:
-    """Unique undirected edges (E, 2) with ``e[:, 0] < e[:, 1]``."""
-    faces = np.asarray(faces)
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    if len(e) == 0:
-        return e.reshape(0, 2)
-    e.sort(axis=1)
-    # one int64 key per edge: a 1-D unique is ~4x faster than np.unique(axis=0), same (lexicographic) order
-    e64 = e.astype(np.int64, copy=False)
-    n = np.int64(e64.max()) + 1
-    u = np.unique(e64[:, 0] * n + e64[:, 1])
-    return np.column_stack([u // n, u % n]).astype(e.dtype, copy=False)
 
 
 def padded_from_pairs(i: np.ndarray, j: np.ndarray, n: int, max_width: int | None = None) -> np.ndarray:

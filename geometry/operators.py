@@ -21,7 +21,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from .curvature import fit_ring, tangent_frames_t
-from .mesh import edges_unique, lumped_vertex_areas, one_ring
+from .mesh import lumped_vertex_areas, one_ring
+from .topology import edges_unique
 
 __all__ = [
     "face_gradient_basis", "face_gradient", "gradient_operator", "divergence", "cotangent_stiffness",

@@ -184,11 +184,15 @@ def register_method(cls: type[Method]) -> type[Method]:
 
 
 def import_plugins(modules) -> None:
-    """Import each module named in ``modules`` (modules that register methods); InputError if one fails."""
+    """Import each module named in ``modules`` (in order), e.g. ones that call :func:`register_method`.
+
+    Any failure to import (missing module, an exception the module raises) is the user's to fix: it is
+    raised as :class:`phantoms.InputError` ``cannot import module 'name': <the error>``.
+    """
     for mod in modules:
         try:
             importlib.import_module(mod)
-        except Exception as exc:  # any failure to import is the user's to fix
+        except Exception as exc:  # noqa: BLE001 - whatever the module raised, the user names the module
             raise InputError(f"cannot import module {mod!r}: {exc}") from None
 
 

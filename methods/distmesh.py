@@ -39,8 +39,10 @@ import numpy as np
 import trimesh
 from scipy import sparse
 
+from geometry.levelset import newton_project
+from geometry.topology import edges_unique
+
 from phantoms import InputError, Volume
-from phantoms.volume import trilinear_channels
 
 from .base import Method, Param, Reconstruction, check_volume
 from .marching_cubes import marching_cubes_mesh, mesh_facts, orient_outward
@@ -136,29 +138,19 @@ def flip_edges(p: np.ndarray, t: np.ndarray, *, qmax: float = 0.9, gain: float =
     return t, total, rounds
 
 
-def _unique_edges(t: np.ndarray, n: int) -> np.ndarray:
-    """Unique undirected edges (E, 2), smaller index first (1-D key sort: faster than unique(axis=0))."""
-    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
-    key = np.unique(np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1]))
-    return np.column_stack([key // n, key % n])
-
-
-class _TrilinearSampler:
-    """φ and ∇φ at points (P, 3), clamped onto the grid box: :meth:`phantoms.Volume.sample` with
-    ``derivatives=1, clamp=True`` without its per-call checks (the projection calls it every iteration);
-    the volume's cached channel grids and the shared kernel :func:`phantoms.volume.trilinear_channels`."""
-
-    def __init__(self, volume: Volume):
-        ch = volume._channel_array(1)
-        self.flat = ch.reshape(-1, ch.shape[-1])
-        self.shape = volume.shape
-        self.origin, self.spacing = volume.origin, volume.spacing
-        self.nmax = np.asarray(volume.shape, float) - 1.0
-
-    def __call__(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        idx = np.clip((p - self.origin) / self.spacing, 0.0, self.nmax)
-        out = trilinear_channels(self.flat, self.shape, np.ascontiguousarray(idx.T))
-        return out[0], np.ascontiguousarray(out[1:].T)
+def _bar_system(t: np.ndarray, n: int, rng: np.random.Generator):
+    """The bars (unique edges) of faces ``t``, the signed node-bar incidence (n, bars) — the force sum is
+    then one sparse product per iteration — and a fixed random unit direction per bar (for zero-length
+    bars)."""
+    bars = edges_unique(t)
+    nb = len(bars)
+    rows = np.r_[bars[:, 0], bars[:, 1]]
+    cols = np.r_[np.arange(nb), np.arange(nb)]
+    signs = np.r_[np.ones(nb), -np.ones(nb)]
+    incidence = sparse.csr_matrix((signs, (rows, cols)), shape=(n, nb))
+    fallback = rng.standard_normal((nb, 3))
+    fallback /= np.linalg.norm(fallback, axis=1, keepdims=True)
+    return bars, incidence, fallback
 
 
 class DistMesh(Method):
@@ -227,10 +219,15 @@ class DistMesh(Method):
         t = np.array(mesh0.faces, dtype=np.int64)
         n = len(p)
         lo, hi = volume.lower, volume.upper
-        sampler = _TrilinearSampler(volume)
+        sampler = volume.sampler(1)
         newton_steps = cfg["newton_steps"]
         # |∇φ|² below this counts as "no gradient": such nodes are not projected (guard against ∇φ ≈ 0)
         g2_floor = 1e-12 * max(float(np.median((sampler.flat[:, 1:] ** 2).sum(1))), 1e-300)
+
+        def phi_grad(points):
+            s = sampler(points)
+            return s.phi, s.grad
+
         # deterministic fallback directions for zero-length bars
         rng = np.random.default_rng(12345)
         tiny = 1e-9 * h0
@@ -252,15 +249,7 @@ class DistMesh(Method):
                 t, flips, _ = flip_edges(p, t)
                 n_flips += flips
                 n_retri += 1
-                bars = _unique_edges(t, n)
-                nb = len(bars)
-                # signed node-bar incidence: the force sum is one sparse product per iteration
-                rows = np.r_[bars[:, 0], bars[:, 1]]
-                cols = np.r_[np.arange(nb), np.arange(nb)]
-                signs = np.r_[np.ones(nb), -np.ones(nb)]
-                incidence = sparse.csr_matrix((signs, (rows, cols)), shape=(n, nb))
-                fallback = rng.standard_normal((nb, 3))
-                fallback /= np.linalg.norm(fallback, axis=1, keepdims=True)
+                bars, incidence, fallback = _bar_system(t, n, rng)
             # 6. repulsive bar forces
             barvec = p[bars[:, 0]] - p[bars[:, 1]]
             L2 = np.einsum("ij,ij->i", barvec, barvec)
@@ -282,21 +271,10 @@ class DistMesh(Method):
                 fvec = (F / L)[:, None] * barvec
             p = p + deltat * (incidence @ fvec)
             np.clip(p, lo, hi, out=p)
-            # 7. one Newton projection back onto φ = 0
-            for _ in range(newton_steps):
-                phi, grad = sampler(p)
-                g2 = np.einsum("ij,ij->i", grad, grad)
-                flat = g2 < g2_floor
-                n_flat += int(flat.sum())
-                step = (phi / np.where(flat, 1.0, g2))[:, None] * grad
-                step[flat] = 0.0
-                slen2 = np.einsum("ij,ij->i", step, step)
-                big = slen2 > h0 * h0
-                if big.any():
-                    n_capped += int(big.sum())
-                    step[big] *= (h0 / np.sqrt(slen2[big]))[:, None]
-                p = p - step
-                np.clip(p, lo, hi, out=p)
+            # 7. Newton projection back onto φ = 0 (flat-gradient nodes stay, steps capped at h0, kept in the box)
+            p, counts = newton_project(phi_grad, p, newton_steps, max_step=h0, flat_g2=g2_floor, box=(lo, hi))
+            n_flat += counts["flat"]
+            n_capped += counts["capped"]
             # 8. termination: every node moved less than dptol·h0
             dp = p - p0
             max_move = float(np.sqrt(np.einsum("ij,ij->i", dp, dp).max())) / h0
@@ -308,6 +286,17 @@ class DistMesh(Method):
                 converged = True
                 break
 
+        run = dict(it=it, converged=converged, diverged=diverged, max_move=max_move, lrms=lrms, lrms_min=lrms_min,
+                   history=history, retriangulations=n_retri, flips=n_flips, flat=n_flat, capped=n_capped)
+        return self._finish(volume, mesh0, p, t, sampler, h0, t_start, run)
+
+    def _finish(self, volume: Volume, mesh0, p: np.ndarray, t: np.ndarray, sampler, h0: float, t_start: float,
+                run: dict) -> Reconstruction:
+        """A last flip sweep, the outward mesh and the info dict (how the run ``run`` stopped, quality)."""
+        cfg = self.config
+        dptol, max_iter = cfg["dptol"], cfg["max_iter"]
+        it, converged, diverged, max_move = run["it"], run["converged"], run["diverged"], run["max_move"]
+        lrms, lrms_min, n_flips = run["lrms"], run["lrms_min"], run["flips"]
         # a last sweep so the output has the quality the final positions allow
         t, flips, _ = flip_edges(p, t)
         n_flips += flips
@@ -318,7 +307,7 @@ class DistMesh(Method):
         pv, fv = np.asarray(mesh.vertices), np.asarray(mesh.faces)
         q, nrm = triangle_quality(pv, fv[:, 0], fv[:, 1], fv[:, 2])
         # faces whose normal opposes ∇φ at their centroid: folds of a tangled mesh (0 when healthy)
-        _, gc = sampler(pv[fv].mean(axis=1))
+        gc = sampler(pv[fv].mean(axis=1)).grad
         folded = int((np.einsum("ij,ij->i", nrm, gc) < 0).sum())
         if converged:
             status = f"converged after {it} iterations (max move {max_move:.3g}·h0 < dptol = {dptol:g})"
@@ -329,7 +318,7 @@ class DistMesh(Method):
         else:
             status = (f"stopped without converging at the iteration cap max_iter = {max_iter} "
                       f"(last max move {max_move:.3g}·h0, dptol = {dptol:g})")
-        phi_end, _ = sampler(pv)
+        phi_end = sampler(pv).phi
         info = {
             "iterations": it,
             "converged": converged,
@@ -338,11 +327,11 @@ class DistMesh(Method):
             "status": status,
             "h0": h0,
             "final_max_move_h0": max_move,
-            "max_move_history": history,
-            "retriangulations": n_retri,
+            "max_move_history": run["history"],
+            "retriangulations": run["retriangulations"],
             "flips": n_flips,
-            "flat_gradient_nodes": n_flat,
-            "capped_newton_steps": n_capped,
+            "flat_gradient_nodes": run["flat"],
+            "capped_newton_steps": run["capped"],
             "initial_vertices": int(len(mesh0.vertices)),
             "min_quality": float(q.min()) if len(q) else 0.0,
             "mean_quality": float(q.mean()) if len(q) else 0.0,

@@ -59,14 +59,16 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from geometry import levelset
 from geometry.operators import MeshGeometry, MeshOperators, jacobi_cg
 from geometry.sphere import PAPER_SPHERE_RADIUS, PAPER_SPHERE_VERTICES, fibonacci_sphere
+from geometry.topology import connected_components, edge_face_counts, euler_characteristic, genus, is_oriented
 from phantoms import InputError, Sample, Volume
 from phantoms.volume import trilinear_channels
 
 from .base import Method, Param, Reconstruction, check_volume
 
-__all__ = ["ShapeGradient", "ShapeGradientFlow", "discrete_energy", "shape_gradient", "mesh_curvature", "PRESETS",
+__all__ = ["ShapeGradient", "ShapeGradientFlow", "discrete_energy", "shape_gradient", "PRESETS",
            "STOP_REASONS", "prepare_init_mesh"]
 
 STOP_REASONS = ("converged", "max_iter", "line_search_floor", "diverged")
@@ -147,7 +149,7 @@ class GridSampler:
         """The stacked grids as an (N, C) array: given ones, else the volume's own (cached by the volume)."""
         if order in self._given:
             return self._given[order]
-        ch = self.volume._channel_array(order)
+        ch = self.volume.channels(order)
         return ch.reshape(-1, ch.shape[-1])
 
     def contains(self, points: np.ndarray) -> np.ndarray:
@@ -269,11 +271,6 @@ def evaluate_state(field, ops: MeshOperators, x: np.ndarray, alpha: float, beta:
     return FlowState(x, geo, E, X)
 
 
-def mesh_curvature(geo: MeshGeometry, ops: MeshOperators, *, linear: bool = True):
-    """Per-vertex (H, K) of the mesh by the batched paraboloid fit over the 1-ring (MATH.md)."""
-    return ops.curvature(geo, linear=linear)
-
-
 def gradient_from_state(field, state: FlowState, ops: MeshOperators, alpha: float, beta: float, *,
                         kind: str = "full", linear: bool = True, timings: dict | None = None):
     """(G, H): the shape gradient (V,) at every vertex of ``state`` and the mean curvature used for it.
@@ -347,19 +344,19 @@ _POLISH_MAX_ROUNDS = 50       # rounds of the vectorised greedy choice of the ve
 
 def newton_project(field, x: np.ndarray, steps: int = _POLISH_NEWTON_STEPS, max_step: float = np.inf,
                    ) -> tuple[np.ndarray, np.ndarray]:
-    """``steps`` Newton projections onto φ = 0 along ∇φ (DistMesh's p ← p − φ∇φ/|∇φ|²), each capped at
-    ``max_step``; returns the projected points (P, 3) and the unit ∇φ there (P, 3)."""
-    xt = np.ascontiguousarray(np.asarray(x, float).T).copy()
-    for k in range(steps + 1):
+    """``steps`` Newton projections onto φ = 0 along ∇φ (:func:`geometry.levelset.newton_project`: points
+    with |∇φ|² ≤ 1e-12 stay), each capped at ``max_step``; returns the projected points (P, 3) and the unit
+    ∇φ there (P, 3)."""
+    def phi_grad(xt):
         ch = field.sample_t(xt, 1)
-        g = ch[1:4]
-        g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
-        if k == steps:
-            break
-        ok = g2 > 1e-12
-        d = np.where(ok, ch[0] / np.where(ok, g2, 1.0), 0.0) * g                   # (3, P)
-        dn = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        xt -= d * np.minimum(1.0, max_step / np.maximum(dn, 1e-300))
+        return ch[0], ch[1:4]
+
+    xt = np.ascontiguousarray(np.asarray(x, float).T)
+    # flat below the next double above 1e-12: exactly the points with |∇φ|² <= 1e-12
+    xt, _ = levelset.newton_project(phi_grad, xt, steps, max_step=max_step,
+                                    flat_g2=float(np.nextafter(1e-12, np.inf)), coords_first=True)
+    _, g = phi_grad(xt)
+    g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
     nu = g / np.maximum(np.sqrt(g2), 1e-300)
     return xt.T.copy(), nu.T.copy()
 
@@ -521,25 +518,19 @@ def prepare_init_mesh(mesh) -> tuple[np.ndarray, np.ndarray, bool]:
     if np.any((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])):
         raise InputError(f"{where}: some faces repeat a vertex")
     # every undirected edge in exactly two faces, once in each direction (closed and consistently oriented)
-    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    und = np.sort(directed, axis=1)
-    _, counts = np.unique(und, axis=0, return_counts=True)
+    _, counts = edge_face_counts(f, len(v))
     if np.any(counts != 2):
         bad = int((counts != 2).sum())
         raise InputError(f"{where}: the mesh is not closed — {bad} edges are not shared by exactly two faces "
                          "(the method needs a closed surface)")
-    _, dcounts = np.unique(directed, axis=0, return_counts=True)
-    if np.any(dcounts != 1):
+    if not is_oriented(f, len(v)):
         raise InputError(f"{where}: the faces are not consistently oriented")
-    n_edges = len(counts)
-    euler = len(v) - n_edges + len(f)
-    tm = trimesh.Trimesh(v, f, process=False)
-    n_comp = int(trimesh.graph.connected_components(tm.face_adjacency, nodes=np.arange(len(f))).__len__())
+    euler = euler_characteristic(f, len(v))
+    n_comp, _ = connected_components(f, len(v), by="face")
     if n_comp != 1:
         raise InputError(f"{where}: the mesh has {n_comp} connected components; the method needs one surface")
     if euler != 2:
-        genus = (2 - euler) // 2
-        raise InputError(f"{where}: the mesh has Euler characteristic {euler} (genus {genus}); "
+        raise InputError(f"{where}: the mesh has Euler characteristic {euler} (genus {genus(euler)}); "
                          "the method needs a genus-0 (sphere-like) surface")
     cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     dbl = np.linalg.norm(cross, axis=1)
@@ -674,7 +665,7 @@ class ShapeGradient(Method):
         if key not in cache:
             from scipy.ndimage import gaussian_filter
             smooth = volume.with_values(gaussian_filter(volume.values, sigma=sigma, mode="nearest"))
-            ch2 = smooth._channel_array(2).reshape(-1, 10)          # a new array, owned by ``smooth``
+            ch2 = smooth.channels(2).reshape(-1, 10)                # a new array, owned by ``smooth``
             if not key[1]:
                 ch2[:, 0] = volume.values.ravel()
             cache[key] = {2: ch2, 1: np.ascontiguousarray(ch2[:, :4])}

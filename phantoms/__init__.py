@@ -5,19 +5,22 @@
 >>> vol = ph.volume(n=64)                      # exact signed distance on a 64³ grid over [-2.5, 2.5]³
 >>> noisy, snr = add_noise(vol, "gaussian", 42.0, seed=0)
 >>> truth = ph.truth(noisy.grid_points().reshape(-1, 3)[:10])
+
+Modules: ``volume`` (the grid type) < ``base`` (the phantom interface) < ``analytic``, ``mesh/``, ``real``
+(the phantoms) < ``registry`` (names → phantoms); ``noise`` and ``io`` work on volumes.
 """
 
-from .errors import InputError
+from geometry.errors import InputError
+
+from .base import VARIANTS, Phantom, Truth, grid_volume
 from .io import load_volume, mask_to_sdf, save_volume
+from .mesh import MeshPhantom
 from .noise import NOISE_KINDS, add_noise, snr_db
-from .shapes import (PHANTOMS, REAL_PHANTOMS, VARIANTS, Phantom, Truth, get_phantom, grid_volume, is_phantom_name,
-                     phantom_names)
+from .registry import PHANTOMS, REAL_PHANTOMS, get_phantom, is_phantom_name, phantom_names
 from .volume import Sample, Volume
-from .mesh_phantom import MeshPhantom  # noqa: E402  (after .shapes: it subclasses Phantom)
 
 __all__ = [
     "InputError", "Volume", "Sample", "Phantom", "Truth", "PHANTOMS", "VARIANTS", "NOISE_KINDS",
     "get_phantom", "phantom_names", "grid_volume", "add_noise", "snr_db",
     "load_volume", "save_volume", "mask_to_sdf", "REAL_PHANTOMS", "is_phantom_name", "MeshPhantom",
 ]
-

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from .errors import InputError
+from geometry.errors import InputError
 from .volume import Volume
 
 __all__ = ["load_volume", "save_volume", "mask_to_sdf", "is_mask"]

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .errors import InputError
+from geometry.errors import InputError
 from .volume import Volume
 
 NOISE_KINDS = ("none", "gaussian", "uniform")

@@ -25,15 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .mesh_phantom import MeshPhantom
-from .shapes import DEFAULT_EXTENT, DEFAULT_N, _as_points, _check_n, grid_volume
+from geometry.errors import InputError
+
+from .base import DEFAULT_EXTENT, DEFAULT_N, as_points, check_n, grid_volume
+from .mesh import MeshPhantom, load_mesh
 from .volume import Volume
 
-__all__ = ["REAL_SHAPES", "MESH_PREFIX", "get_real_phantom", "Bunny", "Cortex", "BrainMRI",
+__all__ = ["REAL_SHAPES", "get_real_phantom", "get_mesh_file_phantom", "Bunny", "Cortex", "BrainMRI",
            "bunny_path", "cortex_path", "mni152_t1_path"]
-
-MESH_PREFIX = "mesh:"
 
 
 def _package_dir(package: str, extra_hint: str) -> Path:
@@ -77,8 +76,6 @@ class Bunny(MeshPhantom):
     data = "pymeshlab (core dependency)"
 
     def __init__(self, crease_angle_deg: float = 60.0):
-        from .mesh_phantom import load_mesh
-
         path = bunny_path()
         v, f = load_mesh(path)
         super().__init__(v, f, crease_angle_deg=crease_angle_deg, source="pymeshlab:tests/sample_meshes/bunny.obj")
@@ -170,7 +167,7 @@ class BrainMRI(MeshPhantom):
 
     def mri_sdf(self, points) -> np.ndarray:
         """The MRI-derived signed distance at world (normalised) points (trilinear, see the class doc)."""
-        p = _as_points(points)
+        p = as_points(points)
         q = p / self.scale + self.centre                          # back to mm
         lo, hi = self.mri.lower, self.mri.upper
         qc = np.clip(q, lo, hi)
@@ -181,7 +178,7 @@ class BrainMRI(MeshPhantom):
         if variant != "sdf":
             raise InputError(f"phantom {self.name!r} is an MRI volume: only variant 'sdf' exists "
                              f"(got {variant!r})")
-        n = _check_n(n)
+        n = check_n(n)
         return grid_volume(self.mri_sdf, n, extent)
 
 
@@ -190,30 +187,31 @@ REAL_SHAPES: dict[str, type[MeshPhantom]] = {cls.name: cls for cls in (Bunny, Co
 _CACHE: dict = {}
 
 
-def get_real_phantom(name: str, **params) -> MeshPhantom:
-    """A named real shape or ``mesh:PATH``; instances without parameters are cached per process
-    (loading, curvature and the grid volume are then computed once)."""
-    if name.startswith(MESH_PREFIX):
-        path = Path(name[len(MESH_PREFIX):]).expanduser()
-        if not str(path):
-            raise InputError("mesh:PATH needs a file path, e.g. mesh:shapes/bunny.ply")
-        try:
-            stamp = path.stat().st_mtime_ns
-        except OSError:
-            stamp = None
-        key = (name, str(path.resolve()) if stamp is not None else str(path), stamp, tuple(sorted(params.items())))
-        if key not in _CACHE:
-            try:
-                _CACHE[key] = MeshPhantom.from_file(path, name=name, **params)
-            except TypeError as exc:
-                raise InputError(f"bad parameters for phantom {name!r}: {exc}") from None
-        return _CACHE[key]
-    if name not in REAL_SHAPES:
-        raise InputError(f"unknown real shape {name!r}; valid: {', '.join(REAL_SHAPES)} or {MESH_PREFIX}PATH")
-    key = (name, tuple(sorted(params.items())))
+def _cached(key, name: str, build) -> MeshPhantom:
+    """``_CACHE[key]``, built by ``build()`` the first time; a TypeError (bad parameters) is an InputError."""
     if key not in _CACHE:
         try:
-            _CACHE[key] = REAL_SHAPES[name](**params)
+            _CACHE[key] = build()
         except TypeError as exc:
             raise InputError(f"bad parameters for phantom {name!r}: {exc}") from None
     return _CACHE[key]
+
+
+def get_mesh_file_phantom(name: str, path, **params) -> MeshPhantom:
+    """The phantom of a closed mesh file (``name`` is its phantom name, ``mesh:PATH``); cached per process
+    and file version (path and modification time), like the named shapes."""
+    path = Path(path).expanduser()
+    try:
+        stamp = path.stat().st_mtime_ns
+    except OSError:
+        stamp = None
+    key = (name, str(path.resolve()) if stamp is not None else str(path), stamp, tuple(sorted(params.items())))
+    return _cached(key, name, lambda: MeshPhantom.from_file(path, name=name, **params))
+
+
+def get_real_phantom(name: str, **params) -> MeshPhantom:
+    """A named real shape; instances are cached per process and parameters (loading, curvature and the
+    grid volume are then computed once)."""
+    if name not in REAL_SHAPES:
+        raise InputError(f"unknown real shape {name!r}; valid: {', '.join(REAL_SHAPES)}")
+    return _cached((name, tuple(sorted(params.items()))), name, lambda: REAL_SHAPES[name](**params))

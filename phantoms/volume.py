@@ -5,8 +5,11 @@ Conventions
 * ``values[i, j, k]`` is φ at the world point ``origin + (i, j, k) * spacing`` (array axis 0 = x).
 * φ < 0 inside the surface, φ > 0 outside.
 * Interpolation is trilinear.  The derivative grids (central differences, one-sided at the border,
-  via :func:`numpy.gradient`) are computed once and cached, and φ, ∇φ and the Hessian at a batch of
-  points come from **one** gather of the 8 corner values of a stacked channel array.
+  via :func:`numpy.gradient`) are computed once and cached (:meth:`Volume.channels`), and φ, ∇φ and the
+  Hessian at a batch of points come from **one** gather of the 8 corner values of that stacked channel
+  array (:func:`trilinear_channels`).
+* For many calls on one volume (an iterative method's inner loop), :meth:`Volume.sampler` returns a
+  :class:`VolumeSampler`: the same interpolation without the per-call checks, points clamped onto the box.
 """
 
 from __future__ import annotations
@@ -15,9 +18,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError
+from geometry.errors import InputError
 
-__all__ = ["Volume", "Sample", "trilinear_channels"]
+__all__ = ["Volume", "Sample", "VolumeSampler", "trilinear_channels"]
 
 
 @dataclass(frozen=True)
@@ -161,8 +164,14 @@ class Volume:
         return self.has_zero_crossing() and bool((self.boundary_values() > 0).all())
 
     # ------------------------------------------------------------------ interpolation
-    def _channel_array(self, order: int) -> np.ndarray:
-        """Stacked (nx, ny, nz, C) array: φ (C = 1), + ∇φ (C = 4), + Hessian (C = 10). Cached."""
+    def channels(self, order: int) -> np.ndarray:
+        """The stacked grids interpolation reads: an (nx, ny, nz, C) array, computed once and cached.
+
+        ``order`` 0: φ (C = 1); 1: φ, ∂φ/∂x, ∂φ/∂y, ∂φ/∂z (C = 4); 2: those and the Hessian entries
+        xx, xy, xz, yy, yz, zz (C = 10).  Derivatives are central differences (second order one-sided at
+        the border, :func:`numpy.gradient`); the mixed second derivatives are symmetrised.  The array is
+        shared with the volume's cache: treat it as read-only (or copy it).
+        """
         if order not in self._channels:
             chans = [self.values]
             if order >= 1:
@@ -210,7 +219,7 @@ class Volume:
                 f"(first: {first.round(4).tolist()}); pass clamp=True to clamp them"
             )
         idx_t = np.clip(idx, 0.0, n - 1).T
-        chans = self._channel_array(derivatives)
+        chans = self.channels(derivatives)
         out = trilinear_channels(chans.reshape(-1, chans.shape[-1]), n, idx_t).T      # (P, C)
         phi = out[:, 0]
         grad = hess = None
@@ -225,6 +234,10 @@ class Volume:
             grad = None if grad is None else grad[0]
             hess = None if hess is None else hess[0]
         return Sample(phi, grad, hess)
+
+    def sampler(self, derivatives: int = 1) -> "VolumeSampler":
+        """A callable ``points (P, 3) -> Sample`` for fast repeated sampling (see :class:`VolumeSampler`)."""
+        return VolumeSampler(self, derivatives)
 
     def __call__(self, points, *, clamp: bool = False) -> np.ndarray:
         """φ at world points (trilinear)."""
@@ -258,3 +271,29 @@ class Volume:
     def __repr__(self) -> str:
         return (f"Volume(shape={self.shape}, origin={self.origin.tolist()}, "
                 f"spacing={self.spacing.tolist()})")
+
+
+class VolumeSampler:
+    """φ (and ∇φ with ``derivatives`` = 1) at points (P, 3), clamped onto the grid box.
+
+    :meth:`Volume.sample` with ``clamp=True`` without its per-call checks (shape, finiteness, box), for
+    an inner loop: the volume's cached channel grids (:meth:`Volume.channels`) and the shared kernel
+    :func:`trilinear_channels`.  Returns a :class:`Sample` with C-contiguous ``phi`` (P,) and ``grad``
+    (P, 3).
+    """
+
+    def __init__(self, volume: Volume, derivatives: int = 1):
+        if derivatives not in (0, 1):
+            raise ValueError("derivatives must be 0 or 1")
+        ch = volume.channels(derivatives)
+        self.derivatives = derivatives
+        self.flat = ch.reshape(-1, ch.shape[-1])
+        self.shape = volume.shape
+        self.origin, self.spacing = volume.origin, volume.spacing
+        self.nmax = np.asarray(volume.shape, float) - 1.0
+
+    def __call__(self, points) -> Sample:
+        idx = np.clip((points - self.origin) / self.spacing, 0.0, self.nmax)
+        out = trilinear_channels(self.flat, self.shape, np.ascontiguousarray(idx.T))
+        grad = np.ascontiguousarray(out[1:].T) if self.derivatives else None
+        return Sample(out[0], grad)

@@ -1,4 +1,4 @@
-"""The four baselines on the clean sdf phantoms at N = 96 (issue 4, "Must show").
+"""The four baselines on the clean sdf phantoms at N = 96.
 
 Each reconstruction must be a watertight, outward-oriented (positive signed volume) mesh with Euler
 characteristic 2 whose vertices lie within 0.5 grid spacings (marching cubes, MC + Taubin) or 1.5 grid

@@ -136,3 +136,11 @@ def test_register_method_and_reconstruct(volume_file, tmp_path, monkeypatch, cap
     assert abs(trimesh.load(out, force="mesh").volume - 4 / 3 * np.pi / 8) < 0.02
     with pytest.raises(InputError, match="not a Method subclass"):
         register_method(object)
+
+
+def test_import_plugins_imports_modules_and_reports_failures():
+    from methods import import_plugins
+
+    import_plugins(["json", "textwrap"])
+    with pytest.raises(InputError, match=r"cannot import module 'no_such_plugin_module_xyz': No module named"):
+        import_plugins(["json", "no_such_plugin_module_xyz"])

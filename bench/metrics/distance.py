@@ -36,6 +36,8 @@ from __future__ import annotations
 import numpy as np
 import pymeshlab
 
+from geometry.topology import sample_surface
+
 __all__ = ["sample_mesh_surface", "point_mesh_distance", "distance_metrics", "DISTANCE_LIBRARY"]
 
 DISTANCE_LIBRARY = "pymeshlab (VCG) compute_scalar_by_distance_from_another_mesh_per_vertex"
@@ -48,22 +50,7 @@ def sample_mesh_surface(vertices: np.ndarray, faces: np.ndarray, n: int, seed: i
     Faces are chosen with probability ∝ area (inverse CDF on the cumulative areas), points uniformly in
     the face by the square-root barycentric map.  Same seed → same samples.
     """
-    v = np.asarray(vertices, float)
-    f = np.asarray(faces, dtype=np.int64)
-    t = v[f]
-    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
-    cum = np.cumsum(area)
-    if not (len(cum) and cum[-1] > 0):
-        raise ValueError("cannot sample a mesh of zero area")
-    rng = np.random.default_rng(seed)
-    u = rng.random(n) * cum[-1]
-    fi = np.minimum(np.searchsorted(cum, u, side="right"), len(f) - 1)
-    r1 = np.sqrt(rng.random(n))
-    r2 = rng.random(n)
-    w0, w1, w2 = 1.0 - r1, r1 * (1.0 - r2), r1 * r2
-    tf = t[fi]
-    pts = w0[:, None] * tf[:, 0] + w1[:, None] * tf[:, 1] + w2[:, None] * tf[:, 2]
-    return pts, fi
+    return sample_surface(vertices, faces, n, seed)
 
 
 def point_mesh_distance(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -21,9 +21,9 @@ Cross-checked in the tests against MeshLab's ``compute_selection_by_self_interse
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
+
+from geometry.topology import connected_components, edge_face_counts, euler_characteristic, face_edge_keys, is_closed
 
 __all__ = [
     "drop_degenerate_index_faces", "compact", "edge_face_counts", "topology_metrics",
@@ -50,25 +50,10 @@ def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nda
 
 # --------------------------------------------------------------------------- topology
 
-def _half_edge_keys(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
-    """Undirected key a·V + b (a < b) of each of the 3F face edges, and the face of each."""
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    e.sort(axis=1)
-    key = e[:, 0] * np.int64(n_vertices) + e[:, 1]
-    face_of = np.tile(np.arange(len(faces)), 3)
-    return key, face_of
-
-
-def edge_face_counts(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
-    """Unique undirected edges (E, 2) and the number of faces containing each."""
-    key, _ = _half_edge_keys(faces, n_vertices)
-    u, counts = np.unique(key, return_counts=True)
-    return np.column_stack([u // n_vertices, u % n_vertices]), counts
-
-
 def edge_adjacent_face_pairs(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
     """For every edge shared by exactly two faces: the two faces (P, 2) and the edge's vertices (P, 2)."""
-    key, face_of = _half_edge_keys(faces, n_vertices)
+    key = face_edge_keys(faces, n_vertices)
+    face_of = np.tile(np.arange(len(faces)), 3)
     order = np.argsort(key, kind="stable")
     ks = key[order]
     start = np.flatnonzero(np.concatenate([[True], ks[1:] != ks[:-1]]))
@@ -86,13 +71,11 @@ def topology_metrics(vertices: np.ndarray, faces: np.ndarray) -> dict:
     connected through shared vertices.
     """
     nv = len(vertices)
-    edges, counts = edge_face_counts(faces, nv)
-    watertight = bool(len(faces) > 0 and np.all(counts == 2))
-    euler = int(nv - len(edges) + len(faces))
+    watertight = is_closed(faces, nv)
+    euler = euler_characteristic(faces, nv)
     if nv == 0:
         return {"watertight": False, "euler": 0, "components": 0}
-    g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(nv, nv))
-    n_comp, _ = connected_components(g, directed=False)
+    n_comp, _ = connected_components(faces, nv, by="vertex")
     return {"watertight": watertight, "euler": euler, "components": int(n_comp)}
 
 

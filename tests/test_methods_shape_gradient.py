@@ -1,6 +1,6 @@
 """The shape-gradient method (methods/shape_gradient.py): gradient, curvature, the flow, parameters, bad input.
 
-The long phantom runs are in test_shape_gradient_phantoms.py (marked slow).
+The long phantom runs are in test_methods_shape_gradient_phantoms.py (marked slow).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from phantoms import PHANTOMS, InputError, get_phantom, grid_volume
+from phantoms import PHANTOMS, get_phantom
 
 NAMES = list(PHANTOMS)
 
@@ -177,19 +177,6 @@ def test_ellipsoid_curvature_range():
     x, _ = ph.sample_surface(50_000, seed=0)
     t = ph.truth(x)
     assert t.K.min() >= 0.25 - 1e-12 and t.K.max() <= 4 + 1e-12
-
-
-def test_bad_phantom_inputs():
-    with pytest.raises(InputError, match="valid phantoms: sphere"):
-        get_phantom("blob")
-    with pytest.raises(InputError, match="N must be an integer >= 8"):
-        get_phantom("sphere").volume(n=7)
-    with pytest.raises(InputError, match="variant"):
-        get_phantom("sphere").volume(n=8, variant="exact")
-    with pytest.raises(InputError, match="shape"):
-        get_phantom("sphere").truth(np.zeros((3, 2)))
-    with pytest.raises(InputError, match="extent"):
-        grid_volume(lambda p: p[:, 0], 8, extent=-1)
 
 
 def test_paper_variant_has_the_same_zero_set():

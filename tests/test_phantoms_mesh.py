@@ -1,4 +1,4 @@
-"""Mesh-backed phantoms (phantoms/mesh_phantom.py) and the named real shapes (phantoms/real.py)."""
+"""Mesh-backed phantoms (phantoms/mesh/): exact closest points, sign, grid volume, truth, samples."""
 
 import importlib.util
 import time
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from phantoms import PHANTOMS, InputError, MeshPhantom, get_phantom, is_phantom_name, phantom_names
-from phantoms.mesh_phantom import closest_point_on_triangles, winding_number
+from phantoms import InputError, MeshPhantom, get_phantom
+from phantoms.mesh import closest_point_on_triangles, winding_number
 
 HAS_NILEARN = importlib.util.find_spec("nilearn") is not None
 
@@ -148,21 +148,6 @@ def test_paper_variant_does_not_exist_for_meshes():
         ph.paper(np.zeros((1, 3)))
 
 
-def test_mesh_prefix_and_registry(tmp_path):
-    v, f = _icosphere(2, 3.0)
-    path = tmp_path / "ball.ply"
-    trimesh.Trimesh(v, f).export(path)
-    ph = get_phantom(f"mesh:{path}")
-    assert isinstance(ph, MeshPhantom) and ph.name == f"mesh:{path}" and ph.genus == 0
-    assert get_phantom(f"mesh:{path}") is ph                       # cached per process
-    assert ph.volume(n=16).is_closed()
-    assert list(PHANTOMS) == ["sphere", "ellipsoid", "fused_spheres", "cylinder", "torus"]
-    assert phantom_names()[-3:] == ["bunny", "cortex", "brain_mri"]
-    assert is_phantom_name("bunny") and is_phantom_name(f"mesh:{path}") and not is_phantom_name("blob")
-    with pytest.raises(InputError, match="valid phantoms: sphere.*brain_mri, or mesh:PATH"):
-        get_phantom("blob")
-
-
 # ------------------------------------------------------------------------------------------ bunny
 def test_bunny_is_the_closed_genus0_pymeshlab_mesh(bunny):
     assert len(bunny.vertices) == 28088 and len(bunny.faces) == 56172
@@ -237,47 +222,6 @@ def test_bunny_truth_contract(bunny):
 
 
 # ------------------------------------------------------------------------------------------ cortex / MRI
-@pytest.mark.skipif(HAS_NILEARN, reason="nilearn installed")
-def test_missing_nilearn_says_what_to_install():
-    with pytest.raises(InputError, match=r'pip install -e "\.\[real\]"'):
-        get_phantom("cortex")
-
-
-@pytest.mark.skipif(not HAS_NILEARN, reason='needs nilearn: pip install -e ".[real]"')
-def test_cortex_loads():
-    ph = get_phantom("cortex")
-    assert len(ph.vertices) == 10242 and ph.genus == 0 and ph.n_components == 1
-    vol = ph.volume(n=32)
-    assert vol.is_closed()
-    x, n = ph.sample_surface(300, seed=0)
-    assert np.all(ph.sdf(x + 1e-4 * n) > 0) and np.all(ph.sdf(x - 1e-4 * n) < 0)
-    t = ph.truth(x)
-    assert np.isfinite(t.H).mean() > 0.8
-
-
-@pytest.mark.skipif(not HAS_NILEARN, reason='needs nilearn: pip install -e ".[real]"')
-def test_brain_mri_loads():
-    ph = get_phantom("brain_mri")
-    assert "marching-cubes" in ph.truth_note and ph.genus == 0
-    vol = ph.volume(n=32)
-    assert vol.is_closed()
-    # the resampled MRI distance vanishes on the truth surface (to within a voxel) and has the right sign
-    x, n = ph.sample_surface(2000, seed=1)
-    vox = ph.voxel_mm * ph.scale
-    assert np.abs(ph.mri_sdf(x)).max() < vox
-    assert np.all(ph.mri_sdf(x + 2 * vox * n) > 0) and np.all(ph.mri_sdf(x - 2 * vox * n) < 0)
-    t = ph.truth(x[:300] + 0.01 * n[:300])
-    assert np.all(t.signed > 0) and np.all(t.signed <= 0.01 + 1e-12)
-    with pytest.raises(InputError, match="only variant 'sdf'"):
-        ph.volume(n=16, variant="paper")
-
-
-def test_cli_volume_for_a_real_shape(tmp_path):
-    from bench.cli import main
-
-    out = tmp_path / "b.npz"
-    assert main(["volume", "bunny", "--n", "24", "--noise", "gaussian", "--snr", "40", "-o", str(out)]) == 0
-    assert out.exists()
 
 
 # ------------------------------------------------------------------------------------------ timing (slow)

@@ -50,9 +50,9 @@ def test_gradient_and_hessian_of_quadratic():
 def test_derivative_grids_are_cached():
     vol = get_phantom("sphere").volume(n=16)
     vol.sample(np.zeros((1, 3)), derivatives=2)
-    cached = vol._channel_array(2)
+    cached = vol.channels(2)
     vol.sample(np.ones((1, 3)), derivatives=2)
-    assert vol._channel_array(2) is cached
+    assert vol.channels(2) is cached
 
 
 def test_sdf_interpolation_near_surface():
@@ -119,7 +119,7 @@ def test_interpolation_matches_scipy_and_the_flow_sampler():
     p = rng.uniform(vol.lower, vol.upper, (400, 3))
     p[:3] = [vol.lower, vol.upper, [vol.upper[0], vol.lower[1], vol.upper[2]]]      # box corners
     s = vol.sample(p, derivatives=2)
-    chans = vol._channel_array(2)
+    chans = vol.channels(2)
     expected = np.stack([RegularGridInterpolator(axes, chans[..., c])(p) for c in range(chans.shape[-1])], 1)
     np.testing.assert_allclose(s.phi, expected[:, 0], atol=1e-12)
     np.testing.assert_allclose(s.grad, expected[:, 1:4], atol=1e-12)
@@ -130,3 +130,13 @@ def test_interpolation_matches_scipy_and_the_flow_sampler():
     np.testing.assert_allclose(g.phi, s.phi, atol=1e-12)          # index maps differ by rounding only
     np.testing.assert_allclose(g.grad, s.grad, atol=1e-12)
     np.testing.assert_allclose(g.hess, s.hess, atol=1e-12)
+
+
+def test_sampler_is_sample_with_clamp_without_the_checks():
+    vol = get_phantom("ellipsoid").volume(n=20)
+    p = np.random.default_rng(4).uniform(-3.0, 3.0, (400, 3))          # some outside the box: clamped
+    s = vol.sampler(1)(p)
+    ref = vol.sample(p, derivatives=1, clamp=True)
+    assert np.allclose(s.phi, ref.phi, rtol=0, atol=1e-12) and np.allclose(s.grad, ref.grad, rtol=0, atol=1e-12)
+    assert s.grad.flags.c_contiguous and vol.sampler(0)(p).grad is None
+    assert vol.channels(1).shape == (20, 20, 20, 4) and vol.channels(1) is vol.channels(1)

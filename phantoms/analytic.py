@@ -1,158 +1,21 @@
-"""Analytic phantoms with exact ground truth (see ``PHANTOMS.md``).
-
-Every phantom offers
-
-* ``sdf(points)`` – the exact Euclidean signed distance (negative inside) everywhere;
-* ``paper(points)`` – the implicit function as printed in the paper (same zero set);
-* ``truth(points)`` – a :class:`Truth`: closest point on the true surface, unsigned and signed distance,
-  outward unit normal, mean curvature H and Gaussian curvature K there (H > 0 on a sphere; NaN where the
-  surface has a crease or rim) and the distance from the closest point to the nearest crease/rim
-  (``inf`` on smooth phantoms);
-* ``sample_surface(n, seed)`` – ``n`` seeded, area-uniform points on the true surface with their normals;
-* ``volume(n, extent, variant)`` – the level set sampled on an ``n³`` grid over ``[-extent, extent]³``.
-
-All computations are vectorised over the points.
+"""Analytic phantoms with exact ground truth (see ``PHANTOMS.md``): sphere, ellipsoid, fused spheres,
+finite cylinder and torus, each implementing the :class:`phantoms.base.Phantom` interface in closed form.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar
-
 import numpy as np
 
-from .errors import InputError
-from .volume import Volume
+from geometry.errors import InputError
 
-__all__ = [
-    "Truth", "Phantom", "Sphere", "Ellipsoid", "FusedSpheres", "Cylinder", "Torus",
-    "PHANTOMS", "REAL_PHANTOMS", "get_phantom", "phantom_names", "is_phantom_name", "grid_volume",
-]
+from .base import Phantom, Truth, as_points, check_sample_count, unit
 
-DEFAULT_N = 96
-DEFAULT_EXTENT = 2.5
-VARIANTS = ("sdf", "paper")
-
-
-@dataclass(frozen=True)
-class Truth:
-    """Ground truth at the closest true-surface point of each query point (all arrays length P)."""
-
-    closest: np.ndarray          # (P, 3) closest point on the true surface
-    distance: np.ndarray         # (P,) unsigned distance to the true surface
-    signed: np.ndarray           # (P,) signed distance (negative inside)
-    normal: np.ndarray           # (P, 3) outward unit normal at the closest point
-    H: np.ndarray                # (P,) mean curvature (NaN on a crease/rim)
-    K: np.ndarray                # (P,) Gaussian curvature (NaN on a crease/rim)
-    crease_distance: np.ndarray  # (P,) distance from the closest point to the nearest crease (inf if none)
-
-
-def _as_points(points) -> np.ndarray:
-    p = np.asarray(points, dtype=np.float64)
-    if p.ndim != 2 or p.shape[1] != 3:
-        raise InputError(f"points must have shape (P, 3); got {p.shape}")
-    return p
-
-
-def _unit(v: np.ndarray, fallback) -> np.ndarray:
-    """Normalise rows of ``v``; rows of (near) zero length become ``fallback``."""
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    small = n[..., 0] < 1e-300
-    out = v / np.where(small[..., None], 1.0, n)
-    if small.any():
-        out[small] = fallback
-    return out
+__all__ = ["Sphere", "Ellipsoid", "FusedSpheres", "Cylinder", "Torus"]
 
 
 def _sphere_points(rng: np.random.Generator, n: int) -> np.ndarray:
     v = rng.standard_normal((n, 3))
-    return _unit(v, [1.0, 0.0, 0.0])
-
-
-def grid_volume(fn, n: int = DEFAULT_N, extent: float = DEFAULT_EXTENT) -> Volume:
-    """Sample ``fn`` (points (P, 3) → values (P,)) on an n³ grid over [-extent, extent]³."""
-    n = _check_n(n)
-    extent = float(extent)
-    if not (np.isfinite(extent) and extent > 0):
-        raise InputError(f"extent must be a positive number; got {extent}")
-    spacing = 2.0 * extent / (n - 1)
-    axis = -extent + spacing * np.arange(n)
-    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
-    values = np.asarray(fn(grid), dtype=np.float64).reshape(n, n, n)
-    return Volume(values, origin=[-extent] * 3, spacing=spacing)
-
-
-def _check_n(n) -> int:
-    try:
-        n_int = int(n)
-    except (TypeError, ValueError):
-        raise InputError(f"grid size N must be an integer; got {n!r}") from None
-    if n_int != n or n_int < 8:
-        raise InputError(f"grid size N must be an integer >= 8; got {n!r}")
-    return n_int
-
-
-class Phantom:
-    """Base class of the analytic phantoms."""
-
-    name: ClassVar[str] = ""
-    description: ClassVar[str] = ""
-    genus: ClassVar[int] = 0
-    has_creases: ClassVar[bool] = False
-    #: SNR (dB) used in the paper's noisy experiments (None when the paper has no such phantom)
-    paper_snr_db: ClassVar[float | None] = None
-
-    @property
-    def params(self) -> dict:
-        """The phantom's geometric parameters (for listings and result records)."""
-        return {}
-
-    # ---- to implement
-    def sdf(self, points) -> np.ndarray:
-        raise NotImplementedError
-
-    def paper(self, points) -> np.ndarray:
-        raise NotImplementedError
-
-    def truth(self, points) -> Truth:
-        raise NotImplementedError
-
-    def sample_surface(self, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        raise NotImplementedError
-
-    # ---- shared
-    def distance(self, points) -> np.ndarray:
-        """Exact unsigned distance to the true surface."""
-        return np.abs(self.sdf(points))
-
-    def volume(self, n: int = DEFAULT_N, extent: float = DEFAULT_EXTENT, variant: str = "sdf") -> Volume:
-        """The phantom's level set on an n³ grid over [-extent, extent]³.
-
-        ``variant='sdf'`` (default) samples the exact signed distance, ``'paper'`` the printed polynomial.
-        """
-        if variant not in VARIANTS:
-            raise InputError(f"unknown variant {variant!r}; valid variants: {', '.join(VARIANTS)}")
-        fn = self.sdf if variant == "sdf" else self.paper
-        return grid_volume(fn, n, extent)
-
-    @staticmethod
-    def _rejection(n: int, seed: int, propose, accept_prob) -> np.ndarray:
-        """Seeded i.i.d. rejection sampling: ``propose(rng, m) -> points``; accept with ``accept_prob``."""
-        n = int(n)
-        if n < 1:
-            raise InputError(f"number of surface samples must be >= 1; got {n}")
-        rng = np.random.default_rng(seed)
-        out, have = [], 0
-        while have < n:
-            cand = propose(rng, max(1024, 2 * (n - have) + 1024))
-            keep = rng.random(len(cand)) < accept_prob(cand)
-            out.append(cand[keep])
-            have += int(keep.sum())
-        return np.concatenate(out)[:n]
-
-    def __repr__(self) -> str:
-        args = ", ".join(f"{k}={v}" for k, v in self.params.items())
-        return f"{type(self).__name__}({args})"
+    return unit(v, [1.0, 0.0, 0.0])
 
 
 class Sphere(Phantom):
@@ -168,24 +31,22 @@ class Sphere(Phantom):
         return {"radius": self.radius}
 
     def sdf(self, points):
-        return np.linalg.norm(_as_points(points), axis=1) - self.radius
+        return np.linalg.norm(as_points(points), axis=1) - self.radius
 
     def paper(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         return (p ** 2).sum(1) - self.radius ** 2
 
     def truth(self, points):
-        p = _as_points(points)
-        n = _unit(p, [1.0, 0.0, 0.0])
+        p = as_points(points)
+        n = unit(p, [1.0, 0.0, 0.0])
         r = np.linalg.norm(p, axis=1)
         P = len(p)
         return Truth(self.radius * n, np.abs(r - self.radius), r - self.radius, n,
                      np.full(P, 1.0 / self.radius), np.full(P, 1.0 / self.radius ** 2), np.full(P, np.inf))
 
     def sample_surface(self, n, seed=0):
-        n = int(n)
-        if n < 1:
-            raise InputError(f"number of surface samples must be >= 1; got {n}")
+        n = check_sample_count(n)
         u = _sphere_points(np.random.default_rng(seed), n)
         return self.radius * u, u
 
@@ -203,7 +64,7 @@ class Ellipsoid(Phantom):
         return {"axes": tuple(float(a) for a in self.axes)}
 
     def paper(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         return (p ** 2 / self.axes ** 2).sum(1) - 1.0
 
     def closest_point(self, points) -> np.ndarray:
@@ -214,7 +75,7 @@ class Ellipsoid(Phantom):
         precision, then a Newton polish.  The degenerate case (the query lies on the plane(s) of the
         smallest semi-axis, inside, where the root sits at the end of the bracket) is handled in closed form.
         """
-        p = _as_points(points)
+        p = as_points(points)
         y = np.abs(p)
         e = self.axes
         e2 = e ** 2
@@ -259,7 +120,7 @@ class Ellipsoid(Phantom):
         return np.copysign(x, np.where(p == 0, 1.0, p))
 
     def sdf(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         x = self.closest_point(p)
         d = np.linalg.norm(p - x, axis=1)
         return np.where((p ** 2 / self.axes ** 2).sum(1) < 1.0, -d, d)
@@ -273,11 +134,11 @@ class Ellipsoid(Phantom):
         return H, K
 
     def truth(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         x = self.closest_point(p)
         d = np.linalg.norm(p - x, axis=1)
         inside = (p ** 2 / self.axes ** 2).sum(1) < 1.0
-        n = _unit(x / self.axes ** 2, [1.0, 0.0, 0.0])
+        n = unit(x / self.axes ** 2, [1.0, 0.0, 0.0])
         H, K = self.curvature_at(x)
         return Truth(x, d, np.where(inside, -d, d), n, H, K, np.full(len(p), np.inf))
 
@@ -292,7 +153,7 @@ class Ellipsoid(Phantom):
             return np.sqrt((u ** 2 / e ** 2).sum(1)) * emin
 
         pts = self._rejection(n, seed, propose, accept) * e
-        return pts, _unit(pts / e ** 2, [1.0, 0.0, 0.0])
+        return pts, unit(pts / e ** 2, [1.0, 0.0, 0.0])
 
 
 class FusedSpheres(Phantom):
@@ -313,12 +174,12 @@ class FusedSpheres(Phantom):
         return {"radius": self.radius, "offset": self.offset}
 
     def paper(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         return np.minimum(((p - self.centres[0]) ** 2).sum(1), ((p - self.centres[1]) ** 2).sum(1)) \
             - self.radius ** 2
 
     def truth(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         r, rc = self.radius, self.crease_radius
         cand_d, cand_x, cand_n = [], [], []
         dists = []
@@ -326,7 +187,7 @@ class FusedSpheres(Phantom):
             w = p - c
             dk = np.linalg.norm(w, axis=1)
             dists.append(dk)
-            u = _unit(w, [1.0, 0.0, 0.0] if k == 0 else [1.0, 0.0, 0.0])
+            u = unit(w, [1.0, 0.0, 0.0] if k == 0 else [1.0, 0.0, 0.0])
             q = c + r * u
             valid = q[:, 2] >= 0.0 if k == 0 else q[:, 2] <= 0.0
             cand_d.append(np.where(valid, np.abs(dk - r), np.inf))
@@ -335,11 +196,11 @@ class FusedSpheres(Phantom):
         inside = np.minimum(dists[0], dists[1]) < r
         # crease circle
         rho = np.hypot(p[:, 0], p[:, 1])
-        radial = _unit(np.column_stack([p[:, 0], p[:, 1], np.zeros(len(p))]), [1.0, 0.0, 0.0])
+        radial = unit(np.column_stack([p[:, 0], p[:, 1], np.zeros(len(p))]), [1.0, 0.0, 0.0])
         cc = rc * radial
         wc = p - cc
         dc = np.linalg.norm(wc, axis=1)
-        nc = _unit(wc, [1.0, 0.0, 0.0]) * np.where(inside, -1.0, 1.0)[:, None]
+        nc = unit(wc, [1.0, 0.0, 0.0]) * np.where(inside, -1.0, 1.0)[:, None]
         nc[dc < 1e-300] = radial[dc < 1e-300]
         cand_d.append(np.sqrt((rho - rc) ** 2 + p[:, 2] ** 2))
         cand_x.append(cc)
@@ -389,21 +250,21 @@ class Cylinder(Phantom):
         return {"radius": self.radius, "half_height": self.half_height}
 
     def paper(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         return np.maximum.reduce([p[:, 2] - self.half_height, -p[:, 2] - self.half_height,
                                   p[:, 0] ** 2 + p[:, 1] ** 2 - self.radius ** 2])
 
     def sdf(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         a = np.hypot(p[:, 0], p[:, 1]) - self.radius
         b = np.abs(p[:, 2]) - self.half_height
         return np.minimum(np.maximum(a, b), 0.0) + np.hypot(np.maximum(a, 0.0), np.maximum(b, 0.0))
 
     def truth(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         r, hh = self.radius, self.half_height
         rho = np.hypot(p[:, 0], p[:, 1])
-        u = _unit(np.column_stack([p[:, 0], p[:, 1], np.zeros(len(p))]), [1.0, 0.0, 0.0])
+        u = unit(np.column_stack([p[:, 0], p[:, 1], np.zeros(len(p))]), [1.0, 0.0, 0.0])
         sz = np.where(p[:, 2] >= 0, 1.0, -1.0)
         a, b = rho - r, np.abs(p[:, 2]) - hh
         rim = (a > 0) & (b > 0)
@@ -416,7 +277,7 @@ class Cylinder(Phantom):
         x[cap] = np.column_stack([p[:, 0], p[:, 1], sz * hh])[cap]
         n[cap] = np.column_stack([0 * rho, 0 * rho, sz])[cap]
         x[rim] = (r * u + np.column_stack([0 * rho, 0 * rho, sz * hh]))[rim]
-        n[rim] = _unit(p[rim] - x[rim], [1.0, 0.0, 0.0])
+        n[rim] = unit(p[rim] - x[rim], [1.0, 0.0, 0.0])
         d = np.linalg.norm(p - x, axis=1)
         signed = self.sdf(p)
         crease = np.where(side, hh - np.abs(x[:, 2]), np.where(cap, r - np.hypot(x[:, 0], x[:, 1]), 0.0))
@@ -458,23 +319,23 @@ class Torus(Phantom):
         return {"major": self.major, "minor": self.minor}
 
     def paper(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         R, r = self.major, self.minor
         rho2 = p[:, 0] ** 2 + p[:, 1] ** 2
         return ((p ** 2).sum(1) + R ** 2 - r ** 2) ** 2 - 4 * R ** 2 * rho2
 
     def sdf(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         return np.hypot(np.hypot(p[:, 0], p[:, 1]) - self.major, p[:, 2]) - self.minor
 
     def truth(self, points):
-        p = _as_points(points)
+        p = as_points(points)
         R, r = self.major, self.minor
-        u = _unit(np.column_stack([p[:, 0], p[:, 1], np.zeros(len(p))]), [1.0, 0.0, 0.0])
+        u = unit(np.column_stack([p[:, 0], p[:, 1], np.zeros(len(p))]), [1.0, 0.0, 0.0])
         c = R * u
         w = p - c
         dw = np.linalg.norm(w, axis=1)
-        n = _unit(w, [0.0, 0.0, 1.0])
+        n = unit(w, [0.0, 0.0, 1.0])
         small = dw < 1e-300
         n[small] = u[small]
         x = c + r * n
@@ -496,39 +357,3 @@ class Torus(Phantom):
 
         pts = self._rejection(n, seed, propose, accept)
         return pts, self.truth(pts).normal
-
-
-PHANTOMS: dict[str, type[Phantom]] = {
-    cls.name: cls for cls in (Sphere, Ellipsoid, FusedSpheres, Cylinder, Torus)
-}
-
-
-#: named real shapes (data shipped inside installed packages), built lazily by ``phantoms/real.py``;
-#: any closed mesh file is a phantom as ``mesh:PATH``.  PHANTOMS keeps the analytic classes only.
-REAL_PHANTOMS: tuple[str, ...] = ("bunny", "cortex", "brain_mri")
-MESH_PREFIX = "mesh:"
-
-
-def phantom_names() -> list[str]:
-    """Analytic phantoms, then the named real shapes (``mesh:PATH`` is accepted too)."""
-    return list(PHANTOMS) + list(REAL_PHANTOMS)
-
-
-def is_phantom_name(name: str) -> bool:
-    """True for a registered phantom name or a ``mesh:PATH`` (the file is not checked here)."""
-    return name in PHANTOMS or name in REAL_PHANTOMS or (isinstance(name, str) and name.startswith(MESH_PREFIX))
-
-
-def get_phantom(name: str, **params) -> Phantom:
-    """The phantom called ``name`` (optionally with non-default parameters); ``mesh:PATH`` for a mesh file."""
-    if name in REAL_PHANTOMS or (isinstance(name, str) and name.startswith(MESH_PREFIX)):
-        from .real import get_real_phantom
-
-        return get_real_phantom(name, **params)
-    if name not in PHANTOMS:
-        raise InputError(f"unknown phantom {name!r}; valid phantoms: {', '.join(phantom_names())}, "
-                         f"or {MESH_PREFIX}PATH for a closed mesh file")
-    try:
-        return PHANTOMS[name](**params)
-    except TypeError as exc:
-        raise InputError(f"bad parameters for phantom {name!r}: {exc}") from None

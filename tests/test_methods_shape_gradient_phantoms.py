@@ -1,7 +1,7 @@
 """The shape-gradient method on the paper's grid (N = 96, `sdf` variant, α = 5, β = 1, defaults).
 
-Slow (about a minute in all): run with ``pytest -m slow tests/test_shape_gradient_phantoms.py``.
-Targets (issue 3): clean Hausdorff ≤ 0.1 h sphere, ≤ 0.3 h ellipsoid, ≤ 1.0 h cylinder and fused spheres
+Slow (about a minute in all): run with ``pytest -m slow tests/test_methods_shape_gradient_phantoms.py``.
+Targets: clean Hausdorff ≤ 0.1 h sphere, ≤ 0.3 h ellipsoid, ≤ 1.0 h cylinder and fused spheres
 (the fused spheres only with the crease polish, on by default for clean volumes);
 every mesh watertight, Euler 2, no self-intersections; Gaussian noise at the paper's SNR: Hausdorff ≤ 0.5 h on
 sphere and ellipsoid, smoother than marching cubes (lower H_std on the sphere, lower roughness on all four).

@@ -1,0 +1,167 @@
+"""What every phantom shares: the :class:`Phantom` interface, its :class:`Truth` record, the default grid
+and the input checks.
+
+Every phantom offers
+
+* ``sdf(points)`` – the exact Euclidean signed distance (negative inside) everywhere;
+* ``paper(points)`` – the implicit function as printed in the paper (same zero set);
+* ``truth(points)`` – a :class:`Truth`: closest point on the true surface, unsigned and signed distance,
+  outward unit normal, mean curvature H and Gaussian curvature K there (H > 0 on a sphere; NaN where the
+  surface has a crease or rim) and the distance from the closest point to the nearest crease/rim
+  (``inf`` on smooth phantoms);
+* ``sample_surface(n, seed)`` – ``n`` seeded, area-uniform points on the true surface with their normals;
+* ``volume(n, extent, variant)`` – the level set sampled on an ``n³`` grid over ``[-extent, extent]³``.
+
+All computations are vectorised over the points.  The analytic phantoms are in :mod:`phantoms.analytic`,
+the mesh-backed ones in :mod:`phantoms.mesh` and :mod:`phantoms.real`, the names in :mod:`phantoms.registry`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from geometry.errors import InputError
+
+from .volume import Volume
+
+__all__ = [
+    "Truth", "Phantom", "DEFAULT_N", "DEFAULT_EXTENT", "VARIANTS", "grid_volume",
+    "as_points", "unit", "check_n", "check_extent", "check_sample_count",
+]
+
+DEFAULT_N = 96
+DEFAULT_EXTENT = 2.5
+VARIANTS = ("sdf", "paper")
+
+
+@dataclass(frozen=True)
+class Truth:
+    """Ground truth at the closest true-surface point of each query point (all arrays length P)."""
+
+    closest: np.ndarray          # (P, 3) closest point on the true surface
+    distance: np.ndarray         # (P,) unsigned distance to the true surface
+    signed: np.ndarray           # (P,) signed distance (negative inside)
+    normal: np.ndarray           # (P, 3) outward unit normal at the closest point
+    H: np.ndarray                # (P,) mean curvature (NaN on a crease/rim)
+    K: np.ndarray                # (P,) Gaussian curvature (NaN on a crease/rim)
+    crease_distance: np.ndarray  # (P,) distance from the closest point to the nearest crease (inf if none)
+
+
+def as_points(points) -> np.ndarray:
+    """``points`` as a float64 (P, 3) array; InputError for any other shape."""
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise InputError(f"points must have shape (P, 3); got {p.shape}")
+    return p
+
+
+def unit(v: np.ndarray, fallback) -> np.ndarray:
+    """Normalise rows of ``v``; rows of (near) zero length become ``fallback``."""
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    small = n[..., 0] < 1e-300
+    out = v / np.where(small[..., None], 1.0, n)
+    if small.any():
+        out[small] = fallback
+    return out
+
+
+def grid_volume(fn, n: int = DEFAULT_N, extent: float = DEFAULT_EXTENT) -> Volume:
+    """Sample ``fn`` (points (P, 3) → values (P,)) on an n³ grid over [-extent, extent]³."""
+    n = check_n(n)
+    extent = check_extent(extent)
+    spacing = 2.0 * extent / (n - 1)
+    axis = -extent + spacing * np.arange(n)
+    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    values = np.asarray(fn(grid), dtype=np.float64).reshape(n, n, n)
+    return Volume(values, origin=[-extent] * 3, spacing=spacing)
+
+
+def check_n(n) -> int:
+    """The grid size N as an int; InputError unless it is an integer >= 8."""
+    try:
+        n_int = int(n)
+    except (TypeError, ValueError):
+        raise InputError(f"grid size N must be an integer; got {n!r}") from None
+    if n_int != n or n_int < 8:
+        raise InputError(f"grid size N must be an integer >= 8; got {n!r}")
+    return n_int
+
+
+def check_extent(extent) -> float:
+    """The grid half-width as a float; InputError unless it is a positive finite number."""
+    extent = float(extent)
+    if not (np.isfinite(extent) and extent > 0):
+        raise InputError(f"extent must be a positive number; got {extent}")
+    return extent
+
+
+def check_sample_count(n) -> int:
+    """The number of surface samples as an int; InputError below 1."""
+    n = int(n)
+    if n < 1:
+        raise InputError(f"number of surface samples must be >= 1; got {n}")
+    return n
+
+
+class Phantom:
+    """Base class of the analytic phantoms."""
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    genus: ClassVar[int] = 0
+    has_creases: ClassVar[bool] = False
+    #: SNR (dB) used in the paper's noisy experiments (None when the paper has no such phantom)
+    paper_snr_db: ClassVar[float | None] = None
+
+    @property
+    def params(self) -> dict:
+        """The phantom's geometric parameters (for listings and result records)."""
+        return {}
+
+    # ---- to implement
+    def sdf(self, points) -> np.ndarray:
+        raise NotImplementedError
+
+    def paper(self, points) -> np.ndarray:
+        raise NotImplementedError
+
+    def truth(self, points) -> Truth:
+        raise NotImplementedError
+
+    def sample_surface(self, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    # ---- shared
+    def distance(self, points) -> np.ndarray:
+        """Exact unsigned distance to the true surface."""
+        return np.abs(self.sdf(points))
+
+    def volume(self, n: int = DEFAULT_N, extent: float = DEFAULT_EXTENT, variant: str = "sdf") -> Volume:
+        """The phantom's level set on an n³ grid over [-extent, extent]³.
+
+        ``variant='sdf'`` (default) samples the exact signed distance, ``'paper'`` the printed polynomial.
+        """
+        if variant not in VARIANTS:
+            raise InputError(f"unknown variant {variant!r}; valid variants: {', '.join(VARIANTS)}")
+        fn = self.sdf if variant == "sdf" else self.paper
+        return grid_volume(fn, n, extent)
+
+    @staticmethod
+    def _rejection(n: int, seed: int, propose, accept_prob) -> np.ndarray:
+        """Seeded i.i.d. rejection sampling: ``propose(rng, m) -> points``; accept with ``accept_prob``."""
+        n = check_sample_count(n)
+        rng = np.random.default_rng(seed)
+        out, have = [], 0
+        while have < n:
+            cand = propose(rng, max(1024, 2 * (n - have) + 1024))
+            keep = rng.random(len(cand)) < accept_prob(cand)
+            out.append(cand[keep])
+            have += int(keep.sum())
+        return np.concatenate(out)[:n]
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v}" for k, v in self.params.items())
+        return f"{type(self).__name__}({args})"

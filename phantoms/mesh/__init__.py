@@ -1,0 +1,16 @@
+"""Mesh-backed phantoms: any closed triangle mesh as a phantom whose ground truth is the mesh itself.
+
+* :mod:`.phantom` – :class:`MeshPhantom` (validation, normalisation, truth, curvature, creases) and
+  :func:`load_mesh`;
+* :mod:`.index` – the search index: certified exact closest-point queries and the pseudonormal sign;
+* :mod:`.grid_sdf` – the exact signed distance on a grid (narrow band + closest-triangle propagation);
+* :mod:`.closest` – the point–triangle kernels and the generalised winding number.
+"""
+
+from .closest import closest_point_on_triangles, winding_number
+from .grid_sdf import signed_distance_grid
+from .index import TriangleIndex
+from .phantom import TARGET_RADIUS, MeshPhantom, load_mesh
+
+__all__ = ["MeshPhantom", "load_mesh", "TARGET_RADIUS", "TriangleIndex", "signed_distance_grid",
+           "closest_point_on_triangles", "winding_number"]

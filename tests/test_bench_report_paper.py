@@ -133,7 +133,7 @@ def test_galleries_are_the_labels_outside_the_columns_plus_the_uniform_table(con
 
 
 def test_parameters_are_not_read(tmp_path):
-    """The old report found β in the ``parameters`` column; now any parameters give the same tables."""
+    """The tables do not depend on the ``parameters`` column: the same cells with other parameters, same tables."""
     a, b = tmp_path / "a", tmp_path / "b"
     _write_run(a, {"report": PAPER_SECTION})
     _write_run(b, {"report": PAPER_SECTION}, parameters=json.dumps({"beta": 7.0, "snapshots": [2, 99]}))

@@ -194,3 +194,11 @@ def test_write_report_shows_the_configured_heads(configured):
     assert "<th>β = 1, Gaussian noise, SNR 40 dB [sg]</th>" in page
     assert "Shape gradient [sg] (β = 1) on uniform noise" in page
     assert page.count('<table class="pictures">') == 2 + 2   # two phantoms' paper tables, mc, uniform
+
+
+def test_uniform_label_alone_keeps_the_fallback_columns(tmp_path):
+    out = tmp_path / "run"
+    _write_run(out, {"report": {"uniform_label": "sg"}})
+    layout, _, galleries = _tables(out)
+    assert len(layout.columns) == 6 and layout.uniform_label == "sg"
+    assert [g["title"] for g in galleries] == ["Marching Cube [mc]", "Shape gradient [sg] on uniform noise"]

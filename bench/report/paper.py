@@ -62,28 +62,32 @@ def pick(df, *, label: str, noise: str, phantom: str) -> dict | None:
     return sub.iloc[0].to_dict() if len(sub) else None
 
 
-def _configured(config: dict) -> PaperLayout | None:
-    section = (config or {}).get("report") or {}
+def _configured_columns(section: dict) -> tuple[Column, ...] | None:
     cols = section.get("paper_columns")
     if not isinstance(cols, list):
         return None
-    columns = tuple(Column(label=str(c["label"]), noise=str(c.get("noise") or "none"), title=str(c.get("title") or ""))
-                    for c in cols if isinstance(c, dict) and c.get("label"))
-    uniform = section.get("uniform_label")
-    return PaperLayout(columns, str(uniform) if uniform else None)
+    return tuple(Column(label=str(c["label"]), noise=str(c.get("noise") or "none"), title=str(c.get("title") or ""))
+                 for c in cols if isinstance(c, dict) and c.get("label"))
 
 
-def paper_layout(config: dict | None, df, arts: Artifacts) -> PaperLayout:
-    """The run config's ``report`` section when it has ``paper_columns``; otherwise one column per (label,
-    noise) of the labels whose cells kept snapshots, in the order of the rows, and no uniform-noise table."""
-    layout = _configured(config or {})
-    if layout is not None:
-        return layout
+def _snapshot_columns(df, arts: Artifacts) -> tuple[Column, ...]:
     d = primary(df)
     with_snaps = {lab for lab, g in d.groupby("label", sort=False)
                   if any(arts.has_snapshots(cid) for cid in g["cell_id"])}
     pairs = dict.fromkeys(zip(d["label"], d["noise"]))
-    return PaperLayout(tuple(Column(label=lab, noise=nz) for lab, nz in pairs if lab in with_snaps))
+    return tuple(Column(label=lab, noise=nz) for lab, nz in pairs if lab in with_snaps)
+
+
+def paper_layout(config: dict | None, df, arts: Artifacts) -> PaperLayout:
+    """The run config's ``report`` section: ``paper_columns`` and ``uniform_label``, each when present.
+    Without ``paper_columns``, one column per (label, noise) of the labels whose cells kept snapshots, in the
+    order of the rows; without ``uniform_label``, no uniform-noise table."""
+    section = (config or {}).get("report") or {}
+    section = section if isinstance(section, dict) else {}
+    columns = _configured_columns(section)
+    uniform = section.get("uniform_label")
+    return PaperLayout(columns if columns is not None else _snapshot_columns(df, arts),
+                       str(uniform) if uniform else None)
 
 
 # ---------------------------------------------------------------------------------------------- picture rows

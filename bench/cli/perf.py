@@ -19,9 +19,9 @@ Benchmarks over the tolerance are rerun (--retries) and keep their best ratio: a
 every time, a load spike on a shared machine rarely hits the same benchmark twice.
 
 Typical uses:
-  python -m bench perf --compare bench/perf_baseline.json            # check this tree
-  python -m bench perf --quick --compare bench/perf_baseline.json    # CI: fewer rounds, slow ones skipped
-  python -m bench perf --repeat 5 --save bench/perf_baseline.json    # refresh the baseline (quiet machine)"""
+  python -m bench perf --compare bench/perf/baseline.json            # check this tree
+  python -m bench perf --quick --compare bench/perf/baseline.json    # CI: fewer rounds, slow ones skipped
+  python -m bench perf --repeat 5 --save bench/perf/baseline.json    # refresh the baseline (quiet machine)"""
 
 
 def _tolerance(text: str) -> float:
@@ -137,7 +137,7 @@ def _cmd_perf(args) -> int:
 
     ref = current.get("reference") or {}
     load = current.get("loadavg") or {}
-    print(f"reference (marching cubes, ellipsoid N = 96): median {perf._secs(ref.get('median_s'))}; "
+    print(f"reference (marching cubes, ellipsoid N = 96): median {perf.format_seconds(ref.get('median_s'))}; "
           f"mode {current.get('mode') or '?'}; load average {load}")
     print(perf.format_table(result))
     if baseline is not None:

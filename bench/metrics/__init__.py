@@ -35,36 +35,46 @@ import numpy as np
 from geometry import face_normals
 from phantoms import InputError
 
-from .curvature import CONSTANT_CURVATURE, constant_curvature_value, curvature_metrics, roughness_deg, \
-    vertex_curvature
-from .distance import DISTANCE_LIBRARY, distance_metrics, point_mesh_distance, sample_mesh_surface
-from .topology import compact, drop_degenerate_index_faces, quality_metrics, self_intersection_pairs, \
-    topology_metrics, triangle_angles
+from .curvature import (
+    CONSTANT_CURVATURE,
+    constant_curvature_value,
+    curvature_metrics,
+    roughness_deg,
+    vertex_curvature,
+)
+from .distance import (
+    DISTANCE_LIBRARY,
+    distance_metrics,
+    point_mesh_distance,
+    sample_mesh_surface,
+)
+from .registry import METRICS, Metric
+from .topology import (
+    compact,
+    drop_degenerate_index_faces,
+    quality_metrics,
+    self_intersection_pairs,
+    topology_metrics,
+    triangle_angles,
+)
 
 __all__ = [
-    "evaluate", "METRIC_NAMES", "TRUTH_FREE_NAMES", "DISTANCE_NAMES", "RUNNER_NAMES", "PARALLEL_DISTANCE",
+    "evaluate", "METRICS", "Metric", "METRIC_NAMES", "TRUTH_FREE_NAMES", "DISTANCE_NAMES", "RUNNER_NAMES", "PARALLEL_DISTANCE",
     "sample_mesh_surface", "point_mesh_distance", "self_intersection_pairs", "triangle_angles",
     "vertex_curvature", "constant_curvature_value", "CONSTANT_CURVATURE", "DISTANCE_LIBRARY",
 ]
 
 #: distances in world units; each also appears divided by the grid spacing as ``<name>_h``
-DISTANCE_NAMES = ["hausdorff", "hausdorff_95", "mean_dist", "rms_dist"]
+DISTANCE_NAMES = [k for k, m in METRICS.items() if m.kind == "distance"]
 
 #: keys evaluate returns when no truth is given (user volumes)
-TRUTH_FREE_NAMES = [
-    "H_std", "roughness_deg", "min_angle_deg", "pct_angle_lt_10",
-    "watertight", "euler", "components", "self_intersections", "n_vertices", "n_faces",
-]
+TRUTH_FREE_NAMES = [k for k, m in METRICS.items() if m.kind == "truth_free"]
 
 #: filled by the runner, not by evaluate
-RUNNER_NAMES = ["iterations", "energy_final", "wall_s", "peak_mem_mb"]
+RUNNER_NAMES = [k for k, m in METRICS.items() if m.kind == "runner"]
 
-#: every key evaluate may return plus the runner's, in a stable order (CSV columns)
-METRIC_NAMES = (
-    DISTANCE_NAMES + [f"{k}_h" for k in DISTANCE_NAMES]
-    + ["normal_consistency", "fscore@h", "H_rms_err", "H_max_err", "K_rms_err"]
-    + TRUTH_FREE_NAMES + RUNNER_NAMES
-)
+#: every registered metric, in registry order (the results.csv columns)
+METRIC_NAMES = list(METRICS)
 
 
 def evaluate(mesh, truth, spacing: float, *, n_samples: int = 100_000, seed: int = 0,

@@ -1,4 +1,4 @@
-"""The performance gate (bench.perf.gate), perf summaries, ``python -m bench perf`` and the report's cost section."""
+"""The performance gate (bench.perf.gate), perf summaries and ``python -m bench perf``."""
 
 from __future__ import annotations
 
@@ -8,8 +8,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
 import pytest
 
 from bench import perf
@@ -263,7 +261,8 @@ def test_cli_bad_baseline_or_tolerance_exit_2(tmp_path, capsys):
 
 
 def test_committed_baseline_is_a_summary_of_every_benchmark():
-    base = perf.load_summary(REPO / "bench" / "perf_baseline.json")
+    assert perf.BASELINE == REPO / "bench" / "perf" / "baseline.json"
+    base = perf.load_summary(REPO / "bench" / "perf" / "baseline.json")
     assert base["format"] == perf.FORMAT
     names = set(base["benchmarks"])
     assert {"test_marching_cubes_ellipsoid_n96", "test_poisson_ellipsoid_n96", "test_distmesh_ellipsoid_n96",
@@ -297,26 +296,3 @@ def test_perf_runs_a_benchmark_and_records_its_ratio(tmp_path):
     # reference rounds: 3 at the start, 1 before the benchmark, 1 before each of its 1 + 3 (warm-up) rounds, 1 after
     assert data["reference"]["rounds"] == 9 and data["threads"]["OMP_NUM_THREADS"]
     assert "test_marching_cubes_ellipsoid_n96" in proc.stdout
-
-
-# ---------------------------------------------------------------------------------------------- report
-def test_cost_section_table_and_chart():
-    from bench.report import cost_section
-
-    rows = []
-    for ph in ("sphere", "ellipsoid"):
-        for lab, t, m in (("marching_cubes", 0.1, 5.0), ("shape_gradient", 2.0, 30.0)):
-            for noise in ("none", "gaussian"):
-                rows.append({"phantom": ph, "N": 48, "label": lab, "status": "ok", "noise": noise,
-                             "wall_s": t * (2 if noise == "gaussian" else 1), "peak_mem_mb": m})
-    rows.append({"phantom": "sphere", "N": 48, "label": "distmesh", "status": "failed", "noise": "none",
-                 "wall_s": np.nan, "peak_mem_mb": np.nan})
-    sec = cost_section(pd.DataFrame(rows))
-    assert sec["n_cells"] == 8
-    assert sec["chart"].startswith("data:image/png;base64,")
-    h = sec["html"]
-    assert h.count("<tr><td>") == 2 and "distmesh" not in h          # failed cells have no cost
-    assert "sphere" in h and "ellipsoid" in h and "time (s)" in h and "memory (MiB)" in h
-    assert "0.15" in h and "<td>3</td>" in h                         # means over the noise settings
-    assert h.count('class="best"') == 4                                # lowest time and memory per phantom
-    assert cost_section(pd.DataFrame(rows[-1:]))["n_cells"] == 0

@@ -1,0 +1,68 @@
+"""One place for what each metric column means and how to read it (definitions: ``METRICS.md``).
+
+The registry is the schema: :func:`bench.metrics.evaluate` returns these keys, results.csv has a column
+each in this order, and the report reads how to rank and show them from here.
+
+``best`` tells a table which value of a column is the best: ``"min"``, ``"max"``, ``("target", value)``
+(closest to value wins; for ``euler`` the report uses 2 − 2·genus of the phantom instead of the stored 2) or
+``None`` (not ranked).  ``dtype`` is how a value is shown: ``"float"``, ``"int"`` or ``"bool"`` (a mean over
+seeds of a bool column is a share of yes).  ``kind`` says who computes it: ``"distance"`` (a distance to the
+true surface in world units, also reported divided by h as ``"distance_h"``), ``"truth"`` (needs the true
+surface), ``"truth_free"`` (computed for any mesh, also for user volumes) or ``"runner"`` (filled by the cell
+runner from the method's info and the cost measurement, not by ``evaluate``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["Metric", "METRICS"]
+
+
+@dataclass(frozen=True)
+class Metric:
+    name: str
+    best: Any          # "min", "max", ("target", value) or None
+    dtype: str         # "float", "int" or "bool"
+    meaning: str       # one line
+    unit: str          # "" for a pure number
+    kind: str = "truth"  # "distance", "distance_h", "truth", "truth_free" or "runner"
+
+
+_DISTANCES = {
+    "hausdorff": "symmetric Hausdorff distance between the mesh and the true surface",
+    "hausdorff_95": "symmetric Hausdorff distance with the 95th percentile in place of each max",
+    "mean_dist": "mean of both directed distance sets (Chamfer-L1 style)",
+    "rms_dist": "RMS of both directed distance sets",
+}
+
+_ROWS = [
+    *(Metric(k, "min", "float", m, "world units", "distance") for k, m in _DISTANCES.items()),
+    *(Metric(f"{k}_h", "min", "float", f"{k} divided by the grid spacing h", "h", "distance_h") for k in _DISTANCES),
+    Metric("normal_consistency", "max", "float", "mean |n_mesh · n_true| at the closest true point", ""),
+    Metric("fscore@h", "max", "float", "F-score of the two sample sets at threshold h", ""),
+    Metric("H_rms_err", "min", "float", "RMS error of the vertex mean curvature away from creases", "1/world units"),
+    Metric("H_max_err", "min", "float", "max error of the vertex mean curvature away from creases", "1/world units"),
+    Metric("K_rms_err", "min", "float", "RMS error of the vertex Gaussian curvature away from creases",
+           "1/world units²"),
+    Metric("H_std", "min", "float", "std of the vertex mean curvature over regions of constant true curvature",
+           "1/world units", "truth_free"),
+    Metric("roughness_deg", "min", "float", "mean angle between normals of faces sharing an edge, away from creases",
+           "°", "truth_free"),
+    Metric("min_angle_deg", "max", "float", "smallest triangle angle", "°", "truth_free"),
+    Metric("pct_angle_lt_10", "min", "float", "share of triangles with an angle below 10°", "%", "truth_free"),
+    Metric("watertight", "max", "bool", "every edge in exactly two faces", "", "truth_free"),
+    Metric("euler", ("target", 2), "int", "Euler characteristic V − E + F", "", "truth_free"),
+    Metric("components", ("target", 1), "int", "connected components", "", "truth_free"),
+    Metric("self_intersections", "min", "int", "intersecting non-adjacent face pairs", "", "truth_free"),
+    Metric("n_vertices", None, "int", "vertices of the mesh as given", "", "truth_free"),
+    Metric("n_faces", None, "int", "faces of the mesh as given", "", "truth_free"),
+    Metric("iterations", None, "int", "iterations of an iterative method", "", "runner"),
+    Metric("energy_final", None, "float", "energy at the last iteration of an iterative method", "", "runner"),
+    Metric("wall_s", "min", "float", "wall-clock time of the method's reconstruction call", "s", "runner"),
+    Metric("peak_mem_mb", "min", "float", "peak resident memory of the method's reconstruction call", "MiB", "runner"),
+]
+
+#: metric name -> its facts, in the order of :data:`bench.metrics.METRIC_NAMES`
+METRICS: dict[str, Metric] = {m.name: m for m in _ROWS}

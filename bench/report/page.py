@@ -1,0 +1,94 @@
+"""``index.html`` of a run folder: load ``results.csv``, ``run.json`` and the cells' records, build the
+template's context from the report's sections and write the page atomically."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..run.store import load_cells
+from .artifacts import Artifacts
+from .cost import cost_section
+from .paper import gallery_tables, paper_layout, paper_tables
+from .tables import BEST_DIRECTION, summary_tables
+
+__all__ = ["TEMPLATE_DIR", "write_report"]
+
+TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
+
+_TEXT_COLUMNS = ("error", "label", "method", "noise", "phantom", "variant", "status", "parameters", "cell_id")
+
+
+def _load_results(out: Path):
+    import pandas as pd
+
+    df = pd.read_csv(out / "results.csv", keep_default_na=True)
+    for col in _TEXT_COLUMNS:
+        if col in df.columns:
+            df[col] = df[col].astype(object).where(df[col].notna(), "").astype(str)
+    return df
+
+
+def _load_meta(out: Path) -> dict:
+    if not (out / "run.json").exists():
+        return {}
+    try:
+        return json.loads((out / "run.json").read_text())
+    except ValueError:
+        return {}
+
+
+def _failed(df, records: dict) -> list[dict]:
+    failed = []
+    for _, r in df[df["status"] != "ok"].iterrows():
+        rec = records.get(r["cell_id"], {})
+        failed.append({"cell_id": r["cell_id"], "label": r["label"], "status": r["status"], "error": r["error"],
+                       "traceback": rec.get("traceback")})
+    return failed
+
+
+def _sections(df, arts: Artifacts, config: dict) -> dict:
+    if not len(df):
+        return {"summaries": [], "paper_tables": [], "galleries": [],
+                "cost": {"html": "", "chart": None, "n_cells": 0}}
+    layout = paper_layout(config, df, arts)
+    return {"summaries": summary_tables(df), "paper_tables": paper_tables(df, arts, layout),
+            "galleries": gallery_tables(df, arts, layout), "cost": cost_section(df)}
+
+
+def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
+    config = meta.get("config") or {}
+    return {
+        "title": f"levelset-bench — {config.get('name', 'run')}",
+        "config_name": config.get("name", "run"),
+        "description": config.get("description", ""),
+        "n_rows": len(df), "n_total": (meta.get("cells") or {}).get("total", len(df)),
+        "counts": df["status"].value_counts().to_dict() if len(df) else {},
+        **_sections(df, arts, config),
+        "failed": _failed(df, records),
+        "meta": meta,
+        "config_json": json.dumps(config, indent=1),
+        "deps": (meta.get("dependencies") or {}),
+        "git": meta.get("git"), "machine": meta.get("machine") or {},
+        "sessions": meta.get("sessions") or [],
+        "best_rules": {k: (v if isinstance(v, str) else f"closest to {v[1]}") for k, v in BEST_DIRECTION.items()},
+    }
+
+
+def write_report(out: str | Path) -> Path:
+    """Render ``out/index.html`` from ``out/results.csv``, ``out/cells`` and ``out/run.json``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from jinja2 import Environment, FileSystemLoader, select_autoescape
+
+    out = Path(out)
+    df = _load_results(out)
+    context = _context(df, _load_meta(out), load_cells(out), Artifacts(out))
+    env = Environment(loader=FileSystemLoader(str(TEMPLATE_DIR)), autoescape=select_autoescape(["html"]))
+    page = env.get_template("report.html").render(**context)
+    path = out / "index.html"
+    tmp = out / ".index.html.tmp"
+    tmp.write_text(page, encoding="utf-8")
+    tmp.replace(path)
+    return path

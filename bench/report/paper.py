@@ -1,0 +1,274 @@
+"""The paper's picture tables: per phantom, columns side by side (e.g. β = 0, β = 1, β = 1 with Gaussian
+noise) with rows the initial surface, the kept iterations and the energy curve; galleries of the other methods'
+final meshes (phantoms × noise settings); the uniform-noise table of one label.
+
+Which columns stand side by side is the run config's business, not the report's: ``config["report"]
+["paper_columns"]`` (a list of ``{"title", "label", "noise"}``) and ``config["report"]["uniform_label"]``.
+Without that section every (label, noise) whose cells kept snapshot meshes is a column, in the order of the
+results.  The rows come from the snapshots the cells stored; every picture in a row shares the camera and the
+colour scale.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .artifacts import Artifacts
+from .render import colour_range, render_energy, render_mesh, view_extent
+from .tables import is_nan, noise_title
+
+__all__ = ["Column", "PaperLayout", "paper_layout", "paper_tables", "gallery_tables"]
+
+#: names of the galleries (the paper's "Marching Cube" and "DistMesh" tables), by label or method
+GALLERY_TITLES = {"marching_cubes": "Marching Cube", "distmesh": "DistMesh", "mc_taubin": "Marching cubes + Taubin",
+                  "poisson": "Screened Poisson", "shape_gradient": "Shape gradient"}
+NOISE_ORDER = {"none": 0, "gaussian": 1, "uniform": 2}
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column of the paper tables: the cells of ``label`` at ``noise``; ``title`` empty → derived."""
+
+    label: str
+    noise: str = "none"
+    title: str = ""
+
+
+@dataclass(frozen=True)
+class PaperLayout:
+    columns: tuple[Column, ...]
+    uniform_label: str | None = None
+
+    @property
+    def labels(self) -> set[str]:
+        return {c.label for c in self.columns}
+
+
+# ---------------------------------------------------------------------------------------------- choosing cells
+def primary(df):
+    """Restrict to the first variant, the first N and the first seed of each noise (the paper's layout)."""
+    if df.empty:
+        return df
+    d = df[(df["variant"] == df["variant"].iloc[0]) & (df["N"] == df["N"].iloc[0])]
+    first_seed = d.groupby("noise")["seed"].transform("min")
+    return d[d["seed"] == first_seed]
+
+
+def pick(df, *, label: str, noise: str, phantom: str) -> dict | None:
+    """The first row (a dict, whatever its status) of ``label`` at ``noise`` on ``phantom``, or None."""
+    sub = df[(df["phantom"] == phantom) & (df["noise"] == noise) & (df["label"] == label)]
+    return sub.iloc[0].to_dict() if len(sub) else None
+
+
+def _configured_columns(section: dict) -> tuple[Column, ...] | None:
+    cols = section.get("paper_columns")
+    if not isinstance(cols, list):
+        return None
+    return tuple(Column(label=str(c["label"]), noise=str(c.get("noise") or "none"), title=str(c.get("title") or ""))
+                 for c in cols if isinstance(c, dict) and c.get("label"))
+
+
+def _snapshot_columns(df, arts: Artifacts) -> tuple[Column, ...]:
+    d = primary(df)
+    with_snaps = {lab for lab, g in d.groupby("label", sort=False)
+                  if any(arts.has_snapshots(cid) for cid in g["cell_id"])}
+    pairs = dict.fromkeys(zip(d["label"], d["noise"]))
+    return tuple(Column(label=lab, noise=nz) for lab, nz in pairs if lab in with_snaps)
+
+
+def paper_layout(config: dict | None, df, arts: Artifacts) -> PaperLayout:
+    """The run config's ``report`` section: ``paper_columns`` and ``uniform_label``, each when present.
+    Without ``paper_columns``, one column per (label, noise) of the labels whose cells kept snapshots, in the
+    order of the rows; without ``uniform_label``, no uniform-noise table."""
+    section = (config or {}).get("report") or {}
+    section = section if isinstance(section, dict) else {}
+    columns = _configured_columns(section)
+    uniform = section.get("uniform_label")
+    return PaperLayout(columns if columns is not None else _snapshot_columns(df, arts),
+                       str(uniform) if uniform else None)
+
+
+# ---------------------------------------------------------------------------------------------- picture rows
+def _last_iteration(r: dict) -> int | None:
+    try:
+        return int(float(r.get("iterations")))
+    except (TypeError, ValueError, OverflowError):
+        return None
+
+
+def _cell_picture(arts: Artifacts, r: dict | None, iteration: int | None):
+    """(vertices, faces, H, note) for a table entry, the note saying what is shown or why nothing is."""
+    if r is None:
+        return None, "not in this run"
+    if r.get("status") != "ok" and arts.get(r["cell_id"]) is None:
+        return None, f"{r.get('status')}: {r.get('error', '')}"
+    if iteration is None:
+        m = arts.mesh(r["cell_id"])
+        return (m, None) if m else (None, "no mesh stored")
+    m = arts.mesh(r["cell_id"], iteration)
+    if m is not None:
+        return m, None
+    last = _last_iteration(r)
+    if last is not None and iteration > last:
+        fm = arts.mesh(r["cell_id"])
+        if fm is not None:
+            why = r.get("stop_reason") or "stopped"
+            return fm, f"final mesh: {why} at iteration {last}"
+    return None, f"iteration {iteration} not kept"
+
+
+def picture_row(entries: list[tuple[dict | None, int | None]], arts: Artifacts) -> list[dict]:
+    """Render one table row with a shared camera and colour scale."""
+    got = [_cell_picture(arts, r, it) for r, it in entries]
+    meshes = [g[0] for g in got if g[0] is not None]
+    if not meshes:
+        return [{"img": None, "note": g[1]} for g in got]
+    # one camera for the row, framed on the meshes of ordinary size: a blown-up reconstruction
+    # (e.g. a diverged mesh) is drawn with the same camera, cut by the frame, instead of shrinking the rest
+    sizes = [view_extent([m[0]])[2] for m in meshes]
+    typical = float(np.median(sizes))
+    framed = [m for m, sz in zip(meshes, sizes) if sz <= 1.5 * typical]
+    ext = view_extent([m[0] for m in framed])
+    vmin, vmax = colour_range([m[2] for m in framed])
+    out = []
+    for m, note in got:
+        if m is None:
+            out.append({"img": None, "note": note})
+            continue
+        v, f, H, _ = m
+        if view_extent([v])[2] > 1.5 * typical:
+            note = (note + "; " if note else "") + "extends far beyond the frame shared by this row"
+        out.append({"img": render_mesh(v, f, H, vmin=vmin, vmax=vmax, extent=ext),
+                    "note": note, "caption": f"{len(v):,} vertices, {len(f):,} faces"})
+    return out
+
+
+def energy_row(cells: list[dict | None], arts: Artifacts, marks: list[int]) -> list[dict]:
+    """Energy curves of a row's cells on one y-range, the snapshot iterations marked."""
+    curves = [arts.energy(r["cell_id"]) if r is not None else None for r in cells]
+    finite = [np.asarray(c, float) for c in curves if c is not None and len(c)]
+    ylim = None
+    if finite:
+        allv = np.concatenate([c[np.isfinite(c)] for c in finite])
+        if len(allv) and np.all(allv > 0):
+            ylim = (float(allv.min()) / 1.5, float(allv.max()) * 1.5)
+    out = []
+    for r, c in zip(cells, curves):
+        if c is None or not len(c):
+            out.append({"img": None, "note": "not in this run" if r is None else "no energy history"})
+        else:
+            out.append({"img": render_energy(c, marks=marks, ylim=ylim), "note": None})
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- paper tables
+def _head(col: Column, r: dict | None) -> str:
+    snr = r.get("snr_requested") if r is not None else None
+    if not col.title:
+        return f"{col.label}, {noise_title(col.noise, snr)}"
+    head = col.title
+    if r is not None and r.get("noise") != "none" and snr is not None and not is_nan(snr):
+        head += f", SNR {float(snr):g} dB"
+    return head + (f" [{r['label']}]" if r is not None else "")
+
+
+def _iteration_rows(cells: list[dict | None], arts: Artifacts) -> list[int]:
+    """The initial surface and every iteration some cell of the row kept a snapshot of."""
+    its = {0}
+    for r in cells:
+        if r is not None:
+            its.update(arts.snapshot_iterations(r["cell_id"]))
+    return sorted(its)
+
+
+def _final_shown(r: dict | None, arts: Artifacts, iterations: list[int]) -> bool:
+    """Whether the iteration rows already show the cell's final mesh (or it has none to show)."""
+    if r is None or arts.mesh(r["cell_id"]) is None:
+        return True
+    last = _last_iteration(r)
+    if last is None:
+        return False
+    return last in arts.snapshot_iterations(r["cell_id"]) or any(it > last for it in iterations)
+
+
+def _final_row(cells: list[dict | None], arts: Artifacts) -> dict:
+    pics = picture_row([(r, None) for r in cells], arts)
+    for pic, r in zip(pics, cells):
+        last = _last_iteration(r) if r is not None else None
+        if pic.get("img") and last is not None:
+            why = f"{r.get('stop_reason') or 'stopped'} at iteration {last}"
+            pic["note"] = f"{pic['note']}; {why}" if pic.get("note") else why
+    return {"name": "Final surface", "cells": pics}
+
+
+def paper_tables(df, arts: Artifacts, layout: PaperLayout | None = None) -> list[dict]:
+    """Per phantom: the layout's columns; rows the initial surface, the kept iterations, the final surface
+    when no iteration row shows it, and the energy curves."""
+    layout = layout if layout is not None else paper_layout(None, df, arts)
+    d = primary(df)
+    out = []
+    for phantom in dict.fromkeys(d["phantom"]):
+        cells = [pick(d, label=c.label, noise=c.noise, phantom=phantom) for c in layout.columns]
+        if all(r is None for r in cells):
+            continue
+        iterations = _iteration_rows(cells, arts)
+        rows = [{"name": "Initial surface Γ₀" if it == 0 else f"Iteration {it}",
+                 "cells": picture_row([(r, it) for r in cells], arts)} for it in iterations]
+        if not all(_final_shown(r, arts, iterations) for r in cells):
+            rows.append(_final_row(cells, arts))
+        rows.append({"name": "Energy", "cells": energy_row(cells, arts, [i for i in iterations if i > 0])})
+        out.append({"phantom": phantom, "heads": [_head(c, r) for c, r in zip(layout.columns, cells)],
+                    "rows": rows})
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- galleries
+def _gallery_title(label: str, method: str) -> str:
+    return GALLERY_TITLES.get(label, GALLERY_TITLES.get(method, label)) + (f" [{label}]" if label != method else "")
+
+
+def _uniform_table(d, arts: Artifacts, layout: PaperLayout) -> dict | None:
+    label = layout.uniform_label
+    rows = []
+    for phantom in dict.fromkeys(d["phantom"]):
+        r = pick(d, label=label, noise="uniform", phantom=phantom)
+        if r is None:
+            continue
+        name = phantom
+        if r.get("snr_requested") is not None and not is_nan(r.get("snr_requested")):
+            name += f" (SNR {float(r['snr_requested']):g} dB)"
+        rows.append({"name": name, "cells": picture_row([(r, None)], arts) + energy_row([r], arts, [])})
+    if not rows:
+        return None
+    method = d[d["label"] == label]["method"].iloc[0]
+    clean = [c.title for c in layout.columns if c.label == label and c.noise == "none" and c.title]
+    title = _gallery_title(label, method) + (f" ({clean[0]})" if clean else "") + " on uniform noise"
+    return {"title": title, "heads": ["final mesh", "energy"], "rows": rows}
+
+
+def gallery_tables(df, arts: Artifacts, layout: PaperLayout | None = None) -> list[dict]:
+    """Per label not in the paper tables: phantoms × noise settings of final meshes (the paper's MC /
+    DistMesh tables); plus the uniform-noise table of the layout's ``uniform_label``."""
+    layout = layout if layout is not None else paper_layout(None, df, arts)
+    d = primary(df)
+    noises = sorted(dict.fromkeys(d["noise"]), key=lambda n: NOISE_ORDER.get(n, 9))
+    out = []
+    for label in dict.fromkeys(d["label"]):
+        if label in layout.labels:
+            continue
+        method = d[d["label"] == label]["method"].iloc[0]
+        rows = []
+        for phantom in dict.fromkeys(d["phantom"]):
+            entries = [(pick(d, label=label, noise=nz, phantom=phantom), None) for nz in noises]
+            if all(e[0] is None for e in entries):
+                continue
+            rows.append({"name": phantom, "cells": picture_row(entries, arts)})
+        out.append({"title": _gallery_title(label, method), "heads": [noise_title(nz, None) for nz in noises],
+                    "rows": rows})
+    if layout.uniform_label and "uniform" in noises:
+        table = _uniform_table(d, arts, layout)
+        if table is not None:
+            out.append(table)
+    return out

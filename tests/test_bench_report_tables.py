@@ -1,0 +1,87 @@
+"""The report's summary tables (bench.report.tables): value formatting, best marks from the metric registry,
+one table per phantom × noise."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pandas as pd
+
+from bench.metrics.registry import METRICS
+from bench.report import BEST_DIRECTION, summary_tables
+from bench.report.tables import best_mask, best_rule, fmt_value
+
+
+def _row(label: str, phantom: str = "sphere", noise: str = "none", **metrics) -> dict:
+    return {"cell_id": f"{phantom}_{noise}_{label}", "phantom": phantom, "variant": "sdf", "N": 48, "noise": noise,
+            "snr_requested": np.nan if noise == "none" else 40.0, "seed": 0, "method": label, "label": label,
+            "parameters": "{}", "status": "ok", "error": "", **metrics}
+
+
+def _marked(table_html: str) -> list[str]:
+    return re.findall(r'<span class="best" title="best">([^<]*)</span>', table_html)
+
+
+# ---------------------------------------------------------------------------------------------- formatting
+def test_values_are_shown_by_their_registry_dtype():
+    assert fmt_value(2.0, "euler") == "2" and fmt_value(12.0, "n_faces") == "12"       # int columns
+    assert fmt_value(2.0, "hausdorff") == "2"                                             # 4 significant digits
+    assert fmt_value(0.123456, "hausdorff") == "0.1235"
+    assert fmt_value(1.0, "watertight") == "yes" and fmt_value(0.0, "watertight") == "no"
+    assert fmt_value(0.5, "watertight") == "50 % yes"                                     # share of seeds
+    assert fmt_value(2.5, "euler") == "2.5"                                               # a mean over seeds
+    assert fmt_value(np.nan, "hausdorff") == "–" and fmt_value(float("inf"), "hausdorff") == "∞"
+    assert fmt_value(True, "anything") == "yes" and fmt_value("<b>", "x") == "&lt;b&gt;"
+
+
+# ---------------------------------------------------------------------------------------------- best marks
+def test_best_rules_come_from_the_registry():
+    assert BEST_DIRECTION == {k: m.best for k, m in METRICS.items() if m.best is not None}
+    assert best_rule("hausdorff_h") == "min" and best_rule("fscore@h") == "max"
+    assert best_rule("n_vertices") is None and best_rule("not_a_metric") is None
+    assert best_rule("euler", genus=1) == ("target", 0) and best_rule("euler") == ("target", 2)
+    assert best_rule("components") == ("target", 1)
+
+
+def test_best_mask_min_max_target_and_too_few_values():
+    s = pd.Series([3.0, 1.0, np.nan, 1.0])
+    assert best_mask(s, "min").tolist() == [False, True, False, True]
+    assert best_mask(s, "max").tolist() == [True, False, False, False]
+    assert best_mask(pd.Series([0, 2, 4]), ("target", 3)).tolist() == [False, True, True]
+    assert not best_mask(pd.Series([1.0, np.nan]), "min").any()                           # one value: no mark
+    assert best_mask(pd.Series([True, False]), "max").tolist() == [True, False]
+
+
+# ---------------------------------------------------------------------------------------------- the tables
+def test_one_table_per_phantom_and_noise_with_the_best_marked():
+    df = pd.DataFrame([
+        _row("a", hausdorff=0.2, normal_consistency=0.99, euler=2, n_vertices=100),
+        _row("b", hausdorff=0.1, normal_consistency=0.90, euler=0, n_vertices=200),
+        _row("a", noise="gaussian", hausdorff=0.3, normal_consistency=0.8, euler=2, n_vertices=100),
+        _row("b", noise="gaussian", hausdorff=0.4, normal_consistency=0.7, euler=2, n_vertices=100),
+    ])
+    tables = summary_tables(df)
+    assert [t["title"] for t in tables] == ["sphere — clean", "sphere — gaussian noise, SNR 40 dB"]
+    assert [t["n_methods"] for t in tables] == [2, 2]
+    # clean: b has the smaller distance, a the higher normal consistency and the sphere's Euler characteristic
+    assert sorted(_marked(tables[0]["html"])) == sorted(["0.1", "0.99", "2"])
+    assert "200" in tables[0]["html"] and "<span class=\"best\" title=\"best\">200" not in tables[0]["html"]
+    # gaussian: both have Euler 2 → both marked
+    assert _marked(tables[1]["html"]).count("2") == 2
+
+
+def test_euler_target_follows_the_phantom_genus():
+    df = pd.DataFrame([_row("a", phantom="torus", euler=0), _row("b", phantom="torus", euler=2)])
+    html = summary_tables(df)[0]["html"]
+    assert _marked(html) == ["0"]
+
+
+def test_seeds_are_averaged_over_ok_cells_and_the_status_says_so():
+    rows = [_row("a", hausdorff=0.1, watertight=True), _row("a", hausdorff=0.3, watertight=False),
+            dict(_row("a", hausdorff=9.0, watertight=False), status="failed")]
+    for i, r in enumerate(rows):
+        r["seed"] = i
+    t = summary_tables(pd.DataFrame(rows))[0]
+    assert "<td>0.2</td>" in t["html"] and "50 % yes" in t["html"]
+    assert "failed×1, ok×2 (mean of 2/3 seeds)" in t["html"]

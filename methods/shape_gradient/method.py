@@ -1,0 +1,157 @@
+"""The Method: parameters, presets, and ``reconstruct`` = prepare the flow, run it, pack the result."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from geometry.operators import MeshOperators
+from geometry.sphere import PAPER_SPHERE_RADIUS, PAPER_SPHERE_VERTICES
+from phantoms import InputError, Volume
+
+from ..base import Method, Param, Reconstruction, check_volume
+from .field import estimate_noise, smoothed_field
+from .flow import ShapeGradientFlow
+from .start import initial_surface, parse_snapshots
+
+__all__ = ["ShapeGradient", "PRESETS"]
+
+#: values a preset imposes on every parameter it names (parameters passed explicitly win)
+PRESETS: dict[str, dict[str, Any]] = {
+    "none": {},
+    # the paper's algorithm as printed: no divergence term, plain (unpreconditioned) descent, the paper's
+    # paraboloid fit, no relaxation, no pre-smoothing.  The step stays capped + backtracked: taken literally
+    # (step='fixed', tau=0.1) the first step throws Γ0 past the target and the mesh tangles.
+    "paper": {"gradient": "paper", "precondition": "none", "relax": 0.0, "presmooth": 0.0,
+              "curvature": "paper", "polish": "off"},
+}
+
+_AUTO_PRESMOOTH_SIGMA = 1.0   # presmooth='auto': σ (voxels) used on noisy volumes ...
+_AUTO_PRESMOOTH_NOISE = 0.05  # ... i.e. when the estimated noise is at least this many voxels
+
+
+class ShapeGradient(Method):
+    name = "shape_gradient"
+    description = ("the paper's shape-gradient descent of E = ∫ αφ² + β|∇_Γφ|² from a sphere (full gradient, "
+                   "H¹ preconditioning, capped backtracking)")
+    params = {
+        "alpha": Param(5.0, "weight α of the data term φ² (pulls Γ onto φ = 0)", float, min=0.0),
+        "beta": Param(1.0, "weight β of the alignment term |∇_Γφ|² (wants n ∥ ∇φ); 0 = the paper's ablation",
+                      float, min=0.0),
+        "gradient": Param("full", "'full': the true shape gradient of E (MATH.md, with the divergence term); "
+                          "'paper': the paper's eq. (dJ_finel) without it", str, choices=("full", "paper")),
+        "step": Param("capped", "'capped': largest move capped at max_move voxels, then halved until E "
+                      "decreases (Armijo); 'fixed': x ← x − τVn with τ = tau, unguarded (the paper's loop)",
+                      str, choices=("capped", "fixed")),
+        "max_move": Param(1.0, "step cap: the largest vertex move per iteration, in voxels (step='capped')",
+                          float, min=1e-3, max=10.0),
+        "tau": Param(0.1, "the constant step τ of step='fixed' (world units per unit of G)", float, min=0.0),
+        "precondition": Param("h1", "'h1': Sobolev velocity V = (M + sK)⁻¹MG (M lumped areas, K cotangent "
+                              "stiffness; Jacobi-preconditioned CG); 'none': V = G", str, choices=("h1", "none")),
+        "s": Param(0.05, "H¹ smoothing weight s in world units² (precondition='h1')", float, min=0.0),
+        "relax": Param(0.5, "tangential relaxation weight per iteration (move toward the 1-ring centroid "
+                       "within the tangent plane); 0 = off", float, min=0.0, max=1.0),
+        "presmooth": Param("auto", "Gaussian pre-smoothing of the volume the derivative grids ∇φ, D²φ are "
+                           "computed from, σ in voxels (0 = off); 'auto': σ = 1 voxel when the estimated noise "
+                           "(robust std of 4th differences) is at least 0.05 voxel, else off", object),
+        "presmooth_phi": Param(False, "pre-smooth φ itself too (True: the data term then sees the shrunken "
+                               "level set of the smoothed volume), or only the derivative grids (False)", bool),
+        "polish": Param("auto", "crease polish of the final mesh (crease_polish): vertices next to sharp creases "
+                        "of the level set are Newton-projected onto φ = 0 and one endpoint of every edge "
+                        "crossing a crease is put on the crease; smooth regions are not touched. 'auto': on "
+                        "for clean volumes (estimated noise below 0.05 voxel, i.e. no pre-smoothing), off on "
+                        "noisy ones (projection onto the noisy level set would roughen the mesh)", str,
+                        choices=("auto", "on", "off")),
+        "polish_angle": Param(45.0, "crease polish: an edge crosses a crease when ∇φ at its two (projected) "
+                              "endpoints differs by more than this many degrees", float, min=1.0, max=179.0),
+        "polish_weight": Param(0.1, "crease polish: weight w of |y − p_i|² in the crease-point quadric "
+                               "(relative to one plane; smaller = sharper but less stable)", float, min=1e-6),
+        "curvature": Param("tilted", "paraboloid fit for H: 'tilted' adds linear terms (robust to a tilted "
+                           "vertex normal), 'paper' is z = A/2x² + Bxy + C/2y² as printed", str,
+                           choices=("tilted", "paper")),
+        "max_iter": Param(100, "maximum number of iterations (paper: 100; 150 for the fused spheres)", int,
+                          min=0, max=100000),
+        "tol": Param(1e-4, "stop ('converged') when the relative energy change stays below tol for 3 "
+                     "iterations (0 = off)", float, min=0.0),
+        "move_tol": Param(0.01, "stop ('converged') when the largest normal move per iteration stays below "
+                          "move_tol voxels for 3 iterations (0 = off): the surface has stopped and the energy "
+                          "only changes by the tangential relaxation", float, min=0.0),
+        "init_radius": Param(PAPER_SPHERE_RADIUS, "radius of the initial Fibonacci sphere (world units)",
+                             float, min=1e-9),
+        "init_vertices": Param(PAPER_SPHERE_VERTICES, "vertices of the initial sphere (1,896 → 3,788 "
+                               "triangles, the paper's Γ0)", int, min=12, max=5_000_000),
+        "init_center": Param(None, "centre of the initial sphere, 3 numbers (default: centre of the grid box)",
+                             object),
+        "init_mesh": Param(None, "any closed genus-0 mesh to start from instead of the sphere (trimesh.Trimesh, "
+                           "(vertices, faces) or a file path)", object),
+        "snapshots": Param("1,50,100", "iterations whose vertices are kept in info['snapshots'] (0, the "
+                           "initial surface, is always kept)", object),
+        "preset": Param("none", "'paper': the paper's algorithm as printed (gradient='paper', "
+                        "precondition='none', curvature='paper', relax=0, presmooth=0); explicitly passed "
+                        "parameters still win", str, choices=tuple(PRESETS)),
+    }
+
+    def __init__(self, **params: Any) -> None:
+        super().__init__(**params)
+        preset = PRESETS[self.config["preset"]]
+        for key, value in preset.items():
+            if key not in params:
+                self.config[key] = value
+        self.config["snapshots"] = parse_snapshots(self.config["snapshots"])
+        ps = self.config["presmooth"]
+        if not (isinstance(ps, str) and ps.strip().lower() == "auto"):
+            try:
+                ps = float(ps)
+            except (TypeError, ValueError):
+                ps = -1.0
+            if not (np.isfinite(ps) and 0.0 <= ps <= 10.0):
+                raise InputError("method 'shape_gradient', parameter 'presmooth': expected 'auto' or a number "
+                                 f"of voxels in [0, 10]; got {self.config['presmooth']!r}")
+        else:
+            ps = "auto"
+        self.config["presmooth"] = ps
+        c = self.config["init_center"]
+        if c is not None:
+            try:
+                c = np.asarray(
+                    [float(t) for t in c.replace(",", " ").split()] if isinstance(c, str) else c, dtype=float)
+            except (TypeError, ValueError):
+                c = None
+            if c is None or c.shape != (3,) or not np.isfinite(c).all():
+                raise InputError("method 'shape_gradient', parameter 'init_center': expected 3 finite numbers")
+            self.config["init_center"] = c
+
+    def prepare(self, volume: Volume, *, ops: MeshOperators | None = None) -> "ShapeGradientFlow":
+        """Check the input, build the initial surface, the (pre-smoothed) field and the operators, and
+        return the flow before its first iteration (``reconstruct`` = ``prepare(volume).run()`` + packing).
+
+        ``ops`` reuses a :class:`MeshOperators` built for the same initial connectivity (benchmarks).
+        """
+        check_volume(volume, self.name)
+        cfg = dict(self.config)
+        t_start = time.perf_counter()
+        x, faces, flipped = initial_surface(cfg, volume)
+        noise = estimate_noise(volume)
+        sigma = cfg["presmooth"]
+        if sigma == "auto":
+            sigma = _AUTO_PRESMOOTH_SIGMA if noise >= _AUTO_PRESMOOTH_NOISE * volume.h else 0.0
+        cfg["presmooth_used"] = float(sigma)
+        cfg["polish_used"] = (cfg["polish"] == "on"
+                              or (cfg["polish"] == "auto" and noise < _AUTO_PRESMOOTH_NOISE * volume.h))
+        field = smoothed_field(volume, sigma, cfg["presmooth_phi"])
+        if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):
+            ops = MeshOperators(faces, len(x))
+        field.sample_t(np.ascontiguousarray(x[:1].T), 2)     # build the cached derivative grids now (setup)
+        flow = ShapeGradientFlow(field, ops, x, cfg, volume.h, setup_seconds=time.perf_counter() - t_start)
+        flow.init_flipped = flipped
+        flow.noise = noise
+        return flow
+
+    def reconstruct(self, volume: Volume) -> Reconstruction:
+        flow = self.prepare(volume)
+        flow.run()
+        return flow.result()
+
+

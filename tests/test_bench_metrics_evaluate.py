@@ -204,27 +204,6 @@ def test_interpenetrating_spheres_self_intersect():
     assert evaluate(a, None, 0.1, n_samples=1000)["self_intersections"] == 0
 
 
-def _two_triangles(t1, t2):
-    return np.array(t1 + t2, float), np.array([[0, 1, 2], [3, 4, 5]])
-
-
-@pytest.mark.parametrize("t2, expected", [
-    ([[0.2, 0.2, -1], [0.2, 0.2, 1], [2, 2, 0.5]], 1),            # piercing
-    ([[0.2, 0.2, 0], [3, 0.1, 1], [3, 0.1, -1]], 1),              # vertex touching the face interior
-    ([[0.2, 0.2, 0.5], [3, 0.1, 1], [3, 0.1, 2]], 0),             # above, apart
-    ([[0.2, 0.2, 0.0], [2, 0.2, 0.0], [0.2, 2, 0.0]], 1),         # coplanar, overlapping
-    ([[2, 2, 0.0], [3, 2, 0.0], [2, 3, 0.0]], 0),                 # coplanar, apart
-    ([[0.0, 0.0, 1e-3], [1, 0, 1e-3], [0, 1, 1e-3]], 0),          # parallel copy just above
-])
-@pytest.mark.parametrize("rotate", [False, True])
-def test_triangle_pairs(t2, expected, rotate):
-    v, f = _two_triangles([[0, 0, 0], [1, 0, 0], [0, 1, 0]], t2)
-    if rotate:   # a generic orientation: coplanar pairs are then coplanar only up to rounding
-        rot = trimesh.transformations.random_rotation_matrix(np.random.default_rng(5).random(3))[:3, :3]
-        v = v @ rot.T + [0.3, -1.7, 2.2]
-    assert len(self_intersection_pairs(v, f)) == expected
-
-
 def test_rotated_marching_cubes_mesh_has_no_self_intersections():
     mesh, _, _ = _mc_mesh("cylinder", 40)
     rot = trimesh.transformations.random_rotation_matrix(np.random.default_rng(2).random(3))[:3, :3]
@@ -234,28 +213,6 @@ def test_rotated_marching_cubes_mesh_has_no_self_intersections():
 def test_adjacent_faces_are_not_counted(fine):
     assert len(self_intersection_pairs(fine.vertices, fine.faces)) == 0
 
-
-def test_self_intersections_match_an_independent_lp_check():
-    """Every non-adjacent pair of a crumpled sphere, decided by a feasibility LP (a point with barycentric
-    coordinates in both triangles), gives exactly our pairs."""
-    from scipy.optimize import linprog
-
-    m = icosphere(2)
-    v = m.vertices + np.random.default_rng(1).normal(scale=0.15, size=m.vertices.shape)
-    f = np.asarray(m.faces)
-    t = v[f]
-    lo, hi = t.min(1), t.max(1)
-    i, j = np.triu_indices(len(f), 1)
-    ok = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1) & ~(f[i][:, :, None] == f[j][:, None, :]).any((1, 2))
-    ref = set()
-    for a, b in zip(i[ok], j[ok]):
-        A = np.zeros((5, 6))
-        A[:3, :3], A[:3, 3:], A[3, :3], A[4, 3:] = t[a].T, -t[b].T, 1, 1
-        if linprog(np.zeros(6), A_eq=A, b_eq=[0, 0, 0, 1, 1], bounds=[(0, None)] * 6, method="highs").status == 0:
-            ref.add((int(a), int(b)))
-    mine = set(map(tuple, self_intersection_pairs(v, f).tolist()))
-    assert len(ref) > 10
-    assert mine == ref
 
 
 # ----------------------------------------------------------------------------- curvature and smoothness

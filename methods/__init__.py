@@ -7,6 +7,7 @@ from .base import (
     Method,
     Param,
     Reconstruction,
+    ReconstructionFailed,
     available_methods,
     check_volume,
     get_method,
@@ -16,6 +17,6 @@ from .base import (
 )
 
 __all__ = [
-    "Method", "Param", "Reconstruction", "available_methods", "get_method", "method_names",
+    "Method", "Param", "Reconstruction", "ReconstructionFailed", "available_methods", "get_method", "method_names",
     "register_method", "import_plugins", "check_volume", "ENTRY_POINT_GROUP", "BUILTIN_METHODS", "INFO_KEYS",
 ]

@@ -25,7 +25,7 @@ import trimesh
 from phantoms import InputError, Volume
 
 __all__ = [
-    "Param", "Method", "Reconstruction", "INFO_KEYS", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
+    "Param", "Method", "Reconstruction", "ReconstructionFailed", "INFO_KEYS", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
     "available_methods", "get_method", "register_method", "method_names", "check_volume",
 ]
 
@@ -114,9 +114,16 @@ INFO_KEYS: dict[str, str] = {
     "energy_history": "1-D floats: the energy per iteration, entry 0 = the initial surface (the report's energy "
                       "curve; its last entry is the results.csv column `energy_final`)",
     "energy_final": "float: the final energy, when there is no energy_history",
+    "warnings": "list of str: things the user must know about this result (e.g. the target's topology cannot be "
+                "reached); `reconstruct` prints each as a warning line",
     "snapshots": "{iteration: vertices (V, 3) of the final mesh's faces, or (vertices, faces)}: the report's "
                  "rows of an iterative method; iteration 0 is the initial surface",
 }
+
+
+class ReconstructionFailed(RuntimeError):
+    """A method ran but its result is not a reconstruction (collapsed, far from φ = 0, ...): the message says why.
+    The command line prints it as one line (exit code 1); a grid run records it as a failed cell."""
 
 
 @dataclass

@@ -4,8 +4,7 @@
   a higher package;
 * no import cycle between modules (imports inside functions count: a lazy import hides a cycle, it does not
   remove it);
-* no source file over 500 lines and no function over 100 lines, outside ``methods/shape_gradient*`` (which the
-  shape-gradient rewrite splits).
+* no source file over 500 lines and no function over 100 lines.
 """
 
 from __future__ import annotations
@@ -19,7 +18,6 @@ REPO = Path(__file__).resolve().parent.parent
 LAYERS = ("geometry", "phantoms", "methods", "bench")
 MAX_FILE_LINES = 500
 MAX_FUNCTION_LINES = 100
-EXEMPT = ("methods/shape_gradient",)
 
 
 def _module_name(path: Path) -> str:
@@ -132,13 +130,9 @@ def test_relative_and_lazy_imports_are_resolved(tmp_path):
     assert find_cycle(graph) is not None
 
 
-def _exempt(path: Path) -> bool:
-    return str(path.relative_to(REPO)).startswith(EXEMPT)
-
-
 @pytest.mark.parametrize("layer", LAYERS)
 def test_no_source_file_over_500_lines(layer):
-    long = {str(p.relative_to(REPO)): n for p in (REPO / layer).rglob("*.py") if not _exempt(p)
+    long = {str(p.relative_to(REPO)): n for p in (REPO / layer).rglob("*.py")
             for n in [len(p.read_text().splitlines())] if n > MAX_FILE_LINES}
     assert long == {}
 
@@ -147,8 +141,6 @@ def test_no_source_file_over_500_lines(layer):
 def test_no_function_over_100_lines(layer):
     long = {}
     for p in (REPO / layer).rglob("*.py"):
-        if _exempt(p):
-            continue
         for node in ast.walk(ast.parse(p.read_text())):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 n = node.end_lineno - node.lineno + 1

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from methods import ReconstructionFailed
 from phantoms import InputError
 
 from . import methods as _methods
@@ -39,6 +40,9 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except ReconstructionFailed as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -118,6 +119,8 @@ def _cmd_reconstruct(args) -> int:
     print(f"components:   {facts['components']}")
     print(f"volume:       {facts['signed_volume']:.6g} (signed; > 0 = outward faces)")
     print(f"time:         {wall:.3f} s")
+    for warning in rec.info.get("warnings") or []:
+        print(f"warning: {warning}", file=sys.stderr)
     scalars = {k: v for k, v in rec.info.items()
                if not k.startswith("mesh_") and isinstance(v, (bool, int, float, str, np.generic))}
     for key, value in scalars.items():

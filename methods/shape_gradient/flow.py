@@ -6,14 +6,18 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import scipy.sparse as sp
 import trimesh
+from scipy.sparse.linalg import cg, splu
 
 from geometry.operators import MeshOperators, jacobi_cg
 from phantoms import InputError
 
-from ..base import Reconstruction
+from ..base import Reconstruction, ReconstructionFailed
 from .energy import evaluate_state, gradient_from_state, no_fold
-from .polish import crease_polish
+from .guard import count_intersections, repair_intersections
+from .polish import crease_polish, newton_project
+from .remesh import remesh
 
 __all__ = ["ShapeGradientFlow", "STOP_REASONS"]
 
@@ -24,6 +28,12 @@ _FLOOR_MOVE_VOXELS = 1e-4  # the line search gives up when the largest trial mov
 _ARMIJO = 1e-4             # sufficient-decrease constant of the backtracking line search
 _CG_RTOL = 1e-3            # relative residual of the H¹ solve (an inexact solve is still a descent direction)
 _CG_MAXITER = 100
+_DIRECT_MAX_VERTICES = 40_000  # solver='auto': the LU up to this many vertices, multigrid above
+_LU_REFRESH = 5                # the direct H¹ solver refactors M + sK every this many iterations
+_PROJECTION_STEPS = 3          # final Newton projection onto φ = 0: steps ...
+_PROJECTION_MAX_VOXELS = 0.5   # ... each capped at this many voxels
+_PROJECTION_REVERT_ROUNDS = 4  # rounds of putting back the vertices whose projection made faces intersect
+_OFF_SURFACE_VOXELS = 0.5      # a result whose median |φ| at the vertices exceeds this (voxels) has failed
 _FOLD_DEGREES = 60.0       # a trial step that turns any face normal by more than this is rejected
 
 
@@ -40,7 +50,7 @@ class ShapeGradientFlow:
         self.field, self.ops, self.cfg, self.h = field, ops, cfg, float(h)
         self.t_start = time.perf_counter() - setup_seconds
         self.timings = dict.fromkeys(("setup", "interpolation", "curvature", "gradient", "preconditioner",
-                                      "energy", "relax", "polish"), 0.0)
+                                      "energy", "relax", "polish", "remesh", "guard", "projection"), 0.0)
         self.timings["setup"] = setup_seconds
         self.alpha, self.beta = cfg["alpha"], cfg["beta"]
         self.kind, self.linear = cfg["gradient"], cfg["curvature"] == "tilted"
@@ -49,12 +59,24 @@ class ShapeGradientFlow:
         self.snap_set = set(cfg["snapshots"])
         self.init_flipped = False
         self.noise = float("nan")
+        self.topology: dict = {}
+        self.init_facts: dict = {}
+        self.iteration = 0
+        self.remesh_every = int(cfg.get("remesh_every") or 0)
+        # coarse to fine: the stages' settings ({"beta", "edge_length" in voxels}), first first
+        self.stages = [dict(st) for st in (cfg.get("stages") or [{}])]
+        self.stage_starts: list[dict] = []
+        self._enter_stage(self.stages.pop(0))
         self.state = evaluate_state(field, ops, np.asarray(x, float), self.alpha, self.beta, self.timings)
         if not np.isfinite(self.state.E):
             raise InputError("method 'shape_gradient': the energy of the initial surface is not finite")
         self.history = [self.state.E]
-        self.snapshots = {0: self.state.x.copy()}
-        self.iteration = 0
+        self.snapshots = {0: self._snapshot()}
+        self.remeshes: list[tuple[int, int]] = []       # (iteration, vertices after the remesh)
+        self.remesh_refused = 0
+        self.intersections: list[tuple[int, int]] = []  # (iteration, intersecting faces found there)
+        self.repairs = self.rollbacks = 0
+        self._safe = None                               # (x, ops, state) of the last intersection-free check
         self.stop: str | None = None
         self.message = ""
         self._calm = self._still = 0
@@ -62,6 +84,8 @@ class ShapeGradientFlow:
         self.n_rejected_folds = 0
         self.curvature_fallbacks = 0
         self._V_prev = None
+        self._lu = None
+        self._lu_age = 0
         self._move_prev = self.max_move
         self._grow = True
         self.cg_iterations: list[int] = []
@@ -72,6 +96,25 @@ class ShapeGradientFlow:
     def _end(self, reason: str, message: str) -> bool:
         self.stop, self.message = reason, message
         return False
+
+    def _enter_stage(self, stage: dict) -> None:
+        self.beta = float(stage.get("beta", self.cfg["beta"]))
+        self.edge_length = float(stage.get("edge_length", self.cfg.get("edge_length") or 1.0)) * self.h
+        self.stage_starts.append({"iteration": self.iteration, "beta": self.beta,
+                                  "edge_length_voxels": self.edge_length / self.h})
+
+    def _settle(self, reason: str, message: str) -> bool:
+        """The flow has settled at this stage: go on with the next stage's settings, or end the run."""
+        if not self.stages:
+            return self._end(reason, message)
+        self._enter_stage(self.stages.pop(0))
+        self._calm = self._still = 0
+        self._move_prev, self._grow = self.max_move, False
+        if self.remesh_every:
+            self._remesh_and_guard(self.iteration)
+        self.state = evaluate_state(self.field, self.ops, self.state.x, self.alpha, self.beta, self.timings)
+        self._safe = None
+        return True
 
     def step(self) -> bool:
         """Do one iteration; False when the run has ended (``stop``/``message`` say why)."""
@@ -90,22 +133,9 @@ class ShapeGradientFlow:
             bad = int((~np.isfinite(G)).sum())
             return self._end("diverged", f"iteration {it}: the shape gradient is not finite at {bad} vertices "
                                          "(degenerate mesh or curvature fit)")
-        t0 = time.perf_counter()
         geo = state.geo
-        M = geo.vertex_areas
-        b = M * G
-        Vel = G
-        if cfg["precondition"] == "h1" and cfg["s"] > 0:
-            K = ops.stiffness(geo)
-            s = cfg["s"]
-            diag = M + s * ops.stiffness_diagonal(K)
-            sol, ncg, _ = jacobi_cg(lambda p: M * p + s * (K @ p), b, diag, x0=self._V_prev, rtol=_CG_RTOL,
-                                    maxiter=_CG_MAXITER)
-            self.cg_iterations.append(ncg)
-            if np.isfinite(sol).all() and float(b @ sol) > 0:
-                Vel = sol
-        self._V_prev = Vel
-        timings["preconditioner"] += time.perf_counter() - t0
+        b = geo.vertex_areas * G
+        Vel = self._velocity(geo, G, b)
         direction = -Vel[:, None] * geo.vertex_normals
         vmax = float(np.abs(Vel).max())
         slope = float(b @ Vel)                           # −dE/dτ at τ = 0 (> 0)
@@ -153,7 +183,7 @@ class ShapeGradientFlow:
                 if new is not None:
                     break
             if new is None:
-                return self._end("line_search_floor",
+                return self._settle("line_search_floor",
                                  f"iteration {it}: no decrease of E for moves down to "
                                  f"{self.floor_move / h:.1g} voxels (the gradient no longer predicts a "
                                  "decrease of the discrete energy)")
@@ -164,18 +194,119 @@ class ShapeGradientFlow:
         self.state = new
         self.iteration = it
         self.history.append(new.E)
+        if self.remesh_every and it % self.remesh_every == 0:
+            self._remesh_and_guard(it)
         if it in self.snap_set:
-            self.snapshots[it] = new.x.copy()
+            self.snapshots[it] = self._snapshot()
         rel = abs(prev - new.E) / max(abs(prev), 1e-300)
         self._calm = self._calm + 1 if rel < cfg["tol"] else 0
         self._still = self._still + 1 if move < cfg["move_tol"] * h else 0
         if self._calm >= _CONVERGE_PATIENCE:
-            return self._end("converged", f"iteration {it}: relative energy change below tol = {cfg['tol']:g} "
+            return self._settle("converged", f"iteration {it}: relative energy change below tol = {cfg['tol']:g} "
                                           f"for {_CONVERGE_PATIENCE} iterations")
         if self._still >= _CONVERGE_PATIENCE:
-            return self._end("converged", f"iteration {it}: largest normal move below move_tol = "
+            return self._settle("converged", f"iteration {it}: largest normal move below move_tol = "
                                           f"{cfg['move_tol']:g} voxels for {_CONVERGE_PATIENCE} iterations")
         return True
+
+    def _velocity(self, geo, G: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """The normal velocity: the H¹ (Sobolev) gradient V = (M + sK)⁻¹ M G, or G itself.
+
+        ``solver='direct'``: a sparse LU of M + sK (SuperLU, COLAMD ordering), refreshed every
+        ``_LU_REFRESH`` iterations and at every remesh — between refreshes the factor of a nearby geometry is
+        used, which is still a symmetric positive-definite smoothing, so V stays a descent direction.
+        ``'amg'``: CG on the current matrix preconditioned by a smoothed-aggregation multigrid hierarchy
+        (pyamg) of a nearby geometry, refreshed likewise (the LU's fill-in grows too fast past ~50k vertices).
+        ``'auto'``: direct up to ``_DIRECT_MAX_VERTICES`` vertices, amg above.
+        ``'cg'``: Jacobi-preconditioned CG on the current matrix, warm-started (the exact operator every
+        iteration; slow when s is many squared edge lengths).
+        """
+        cfg, ops = self.cfg, self.ops
+        if cfg["precondition"] != "h1" or cfg["s_world"] <= 0:
+            return G
+        t0 = time.perf_counter()
+        M, s = geo.vertex_areas, cfg["s_world"]
+        solver = cfg.get("solver", "auto")
+        if solver == "auto":
+            solver = "direct" if len(M) <= _DIRECT_MAX_VERTICES else "amg"
+        if solver == "direct":
+            if self._lu is None or self._lu_age >= _LU_REFRESH:
+                A = (sp.diags(M) + s * ops.stiffness(geo)).tocsc()
+                self._lu = splu(A, permc_spec="COLAMD")
+                self._lu_age = 0
+            sol = self._lu.solve(b)
+            self._lu_age += 1
+        elif solver == "amg":
+            import pyamg
+
+            A = (sp.diags(M) + s * ops.stiffness(geo)).tocsr()
+            if self._lu is None or self._lu_age >= _LU_REFRESH:
+                self._lu = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric").aspreconditioner(cycle="V")
+                self._lu_age = 0
+            sol, _ = cg(A, b, x0=self._V_prev, rtol=_CG_RTOL, maxiter=_CG_MAXITER, M=self._lu)
+            self._lu_age += 1
+        else:
+            K = ops.stiffness(geo)
+            diag = M + s * ops.stiffness_diagonal(K)
+            sol, ncg, _ = jacobi_cg(lambda p: M * p + s * (K @ p), b, diag, x0=self._V_prev, rtol=_CG_RTOL,
+                                    maxiter=_CG_MAXITER)
+            self.cg_iterations.append(ncg)
+        Vel = sol if np.isfinite(sol).all() and float(b @ sol) > 0 else G
+        self._V_prev = Vel
+        self.timings["preconditioner"] += time.perf_counter() - t0
+        return Vel
+
+    # ------------------------------------------------------------------ remeshing and the intersection guard
+    def _snapshot(self):
+        """The current vertices, with the faces too once the connectivity can change (remeshing)."""
+        x = self.state.x.copy()
+        return (x, self.ops.faces.copy()) if self.remesh_every else x
+
+    def _set_mesh(self, x: np.ndarray, ops: MeshOperators, state=None) -> None:
+        self.ops = ops
+        self.state = state if state is not None else evaluate_state(self.field, ops, x, self.alpha, self.beta,
+                                                                    self.timings)
+        self._V_prev = None          # the warm start and the factor of the H¹ solve belong to the old mesh
+        self._lu = None
+
+    def _remesh_and_guard(self, it: int) -> None:
+        """Remesh toward the target edge length, then make sure no faces intersect (repair or roll back)."""
+        t0 = time.perf_counter()
+        out = remesh(self.state.x, self.ops.faces, self.edge_length, int(self.cfg.get("remesh_iterations", 3)))
+        if out is None:
+            self.remesh_refused += 1
+        else:
+            x, f = out
+            self._set_mesh(x, MeshOperators(f, len(x)))
+            self.remeshes.append((it, len(x)))
+            # a new mesh: the line search starts again from the step cap, the stop tests count afresh
+            self._move_prev, self._grow = self.max_move, False
+            self._calm = self._still = 0
+        self.timings["remesh"] += time.perf_counter() - t0
+        self._guard(it)
+
+    def _guard(self, it: int) -> bool:
+        """Check for self-intersections; repair or roll back.  True when the mesh is now intersection-free."""
+        t0 = time.perf_counter()
+        n, bad = count_intersections(self.state.x, self.ops.faces)
+        self.intersections.append((it, n))
+        clean = n == 0
+        if not clean:
+            fixed = repair_intersections(self.ops, self.state.x, bad)
+            if fixed is not None:
+                self.repairs += 1
+                self._set_mesh(fixed, self.ops)
+                clean = True
+            elif self._safe is not None:
+                self.rollbacks += 1
+                self._set_mesh(*self._safe)
+                self.max_move = max(0.5 * self.max_move, 4.0 * self.floor_move)
+                self._move_prev = min(self._move_prev, self.max_move)
+                clean = True
+        if clean:
+            self._safe = (self.state.x.copy(), self.ops, self.state)
+        self.timings["guard"] += time.perf_counter() - t0
+        return clean
 
     def run(self) -> "ShapeGradientFlow":
         while self.step():
@@ -183,28 +314,81 @@ class ShapeGradientFlow:
         return self
 
     # ------------------------------------------------------------------ the result
-    def _polish(self):
-        """(geometry of the final mesh, info['polish']): the last iterate, crease-polished if asked."""
-        info = {"used": bool(self.cfg.get("polish_used", False))}
-        if not info["used"]:
-            return self.state.geo, info
-        t0 = time.perf_counter()
-        x, stats = crease_polish(self.field, self.ops, self.state.x, self.h, angle=self.cfg["polish_angle"],
-                                 weight=self.cfg["polish_weight"])
-        geo = self.ops.geometry(x)
-        info.update(stats)
-        info["energy"] = float(evaluate_state(self.field, self.ops, x, self.alpha, self.beta).E) \
-            if stats["zone_vertices"] else float(self.state.E)
-        self.timings["polish"] += time.perf_counter() - t0
-        return geo, info
+    def _finish(self):
+        """(final geometry, info['polish'], info['projection']): the last iterate after the post-steps.
+
+        The crease polish (clean volumes) and the final Newton projection onto φ = 0 (``projection``) are each
+        kept only if they leave the mesh free of self-intersections (when the guard is on).
+        """
+        cfg, h = self.cfg, self.h
+        guard = bool(cfg.get("guard", False))
+        if guard:
+            self._guard(self.iteration)
+        x = self.state.x
+        polish = {"used": bool(cfg.get("polish_used", False))}
+        if polish["used"]:
+            t0 = time.perf_counter()
+            xp, stats = crease_polish(self.field, self.ops, x, h, angle=cfg["polish_angle"],
+                                      weight=cfg["polish_weight"])
+            polish.update(stats)
+            if guard and stats["zone_vertices"] and count_intersections(xp, self.ops.faces)[0]:
+                polish["rejected"] = "it made faces intersect"
+            else:
+                x = xp
+            polish["energy"] = float(evaluate_state(self.field, self.ops, x, self.alpha, self.beta).E) \
+                if stats["zone_vertices"] else float(self.state.E)
+            self.timings["polish"] += time.perf_counter() - t0
+        projection = {"used": bool(cfg.get("projection_used", False))}
+        if projection["used"]:
+            t0 = time.perf_counter()
+            xq, _ = newton_project(self.field, x, steps=_PROJECTION_STEPS, max_step=_PROJECTION_MAX_VOXELS * h)
+            xq = np.where(np.isfinite(xq).all(axis=1, keepdims=True), xq, x)
+            kept_back = 0
+            for _ in range(_PROJECTION_REVERT_ROUNDS if guard else 0):
+                n, bad = count_intersections(xq, self.ops.faces)
+                if n == 0:
+                    break
+                back = np.unique(self.ops.faces[bad])        # where projecting made faces meet: not projected
+                back = np.unique(np.concatenate([back, self.ops.ring[back][self.ops.ring_valid[back]]]))
+                kept_back += int(np.any(xq[back] != x[back], axis=1).sum())
+                xq[back] = x[back]
+            ok = not (guard and count_intersections(xq, self.ops.faces)[0])
+            projection["max_move_voxels"] = float(np.linalg.norm(xq - x, axis=1).max() / h) if ok else 0.0
+            projection["kept_back"] = kept_back
+            if ok:
+                x = xq
+            else:
+                projection["rejected"] = "it made faces intersect"
+            self.timings["projection"] += time.perf_counter() - t0
+        return self.ops.geometry(x), polish, projection
+
+    def _check_result(self, geo) -> dict:
+        """Volume and distance of the final mesh to φ = 0; a collapsed or off-surface result is a failure."""
+        t = geo.corners_t
+        vol = float((t[:, 0] * np.cross(t[:, 1], t[:, 2], axis=0)).sum() / 6.0)
+        phi = self.field.sample_t(geo.vertices_t, 0)[0]
+        med = float(np.median(np.abs(phi)))
+        facts = {"signed_volume": vol, "median_abs_phi_voxels": med / self.h}
+        if self.stop != "diverged" and self.cfg.get("guard", False):
+            if vol <= self.h ** 3:
+                raise ReconstructionFailed(
+                    f"method 'shape_gradient': the surface collapsed (enclosed volume {vol:.3g}, less than one "
+                    f"voxel) after {self.iteration} iterations ({self.stop or 'max_iter'})")
+            if med > _OFF_SURFACE_VOXELS * self.h:
+                raise ReconstructionFailed(
+                    f"method 'shape_gradient': the surface did not reach φ = 0 (median |φ| at the vertices "
+                    f"{med / self.h:.2f} voxels after {self.iteration} iterations, {self.stop or 'max_iter'}); "
+                    "raise max_iter or check the volume")
+        return facts
 
     def result(self) -> Reconstruction:
-        """The mesh (closed, outward, the initial connectivity) and the info dict."""
+        """The mesh (closed, outward) and the info dict; ReconstructionFailed for a collapsed or off-surface result."""
         cfg, h = self.cfg, self.h
         t0 = time.perf_counter()
         if self._polished is None:
-            self._polished = self._polish()
-        final_geo, polish_info = self._polished
+            self._polished = self._finish()
+        final_geo, polish_info, projection_info = self._polished
+        checks = self._check_result(final_geo)
         H_final, K_final = self.ops.curvature(final_geo, linear=self.linear)
         self.timings["curvature"] += time.perf_counter() - t0
         self.timings["total"] = time.perf_counter() - self.t_start
@@ -229,10 +413,21 @@ class ShapeGradientFlow:
             "cg_iterations": list(self.cg_iterations),
             "move_history_voxels": [float(m / h) for m in self.moves],
             "init_flipped": bool(self.init_flipped),
+            "init": dict(self.init_facts),
+            "topology": dict(self.topology),
+            "warnings": [] if self.topology.get("compatible", True) else [self.topology["message"]],
             "noise_estimate": float(self.noise),
             "noise_estimate_voxels": float(self.noise / h),
             "presmooth_used": float(cfg.get("presmooth_used", 0.0)),
             "grid_spacing": float(h),
             "polish": polish_info,
+            "projection": projection_info,
+            "remeshes": [list(r) for r in self.remeshes],
+            "stages": [dict(r) for r in self.stage_starts],
+            "remesh_refused": int(self.remesh_refused),
+            "intersections": [list(r) for r in self.intersections],
+            "intersection_repairs": int(self.repairs),
+            "intersection_rollbacks": int(self.rollbacks),
+            **checks,
         }
         return Reconstruction(mesh, info)

@@ -14,7 +14,7 @@ from phantoms import InputError, Volume
 from ..base import Method, Param, Reconstruction, check_volume
 from .field import estimate_noise, smoothed_field
 from .flow import ShapeGradientFlow
-from .start import initial_surface, parse_snapshots
+from .start import initial_surface, parse_snapshots, target_topology
 
 __all__ = ["ShapeGradient", "PRESETS"]
 
@@ -25,7 +25,9 @@ PRESETS: dict[str, dict[str, Any]] = {
     # paraboloid fit, no relaxation, no pre-smoothing.  The step stays capped + backtracked: taken literally
     # (step='fixed', tau=0.1) the first step throws Γ0 past the target and the mesh tangles.
     "paper": {"gradient": "paper", "precondition": "none", "relax": 0.0, "presmooth": 0.0,
-              "curvature": "paper", "polish": "off"},
+              "curvature": "paper", "polish": "off", "init": "sphere", "remesh_every": 0, "guard": False,
+              "coarse_to_fine": False,
+              "projection": "off", "max_iter": 100},
 }
 
 _AUTO_PRESMOOTH_SIGMA = 1.0   # presmooth='auto': σ (voxels) used on noisy volumes ...
@@ -50,7 +52,13 @@ class ShapeGradient(Method):
         "tau": Param(0.1, "the constant step τ of step='fixed' (world units per unit of G)", float, min=0.0),
         "precondition": Param("h1", "'h1': Sobolev velocity V = (M + sK)⁻¹MG (M lumped areas, K cotangent "
                               "stiffness; Jacobi-preconditioned CG); 'none': V = G", str, choices=("h1", "none")),
-        "s": Param(0.05, "H¹ smoothing weight s in world units² (precondition='h1')", float, min=0.0),
+        "s": Param(18.0, "H¹ smoothing weight s in voxels² (s·h² world units²; precondition='h1'); 18 is "
+                   "0.05 world units² at the paper's N = 96", float, min=0.0),
+        "solver": Param("auto", "how the H¹ system is solved: 'direct' = sparse LU of M + sK refreshed every 5 "
+                        "iterations and at every remesh; 'amg' = CG preconditioned by a multigrid hierarchy "
+                        "(pyamg) refreshed likewise; 'cg' = Jacobi-preconditioned CG every iteration (the "
+                        "slowest for large s); 'auto' = direct up to 40,000 vertices, amg above", str,
+                        choices=("auto", "direct", "amg", "cg")),
         "relax": Param(0.5, "tangential relaxation weight per iteration (move toward the 1-ring centroid "
                        "within the tangent plane); 0 = off", float, min=0.0, max=1.0),
         "presmooth": Param("auto", "Gaussian pre-smoothing of the volume the derivative grids ∇φ, D²φ are "
@@ -71,13 +79,35 @@ class ShapeGradient(Method):
         "curvature": Param("tilted", "paraboloid fit for H: 'tilted' adds linear terms (robust to a tilted "
                            "vertex normal), 'paper' is z = A/2x² + Bxy + C/2y² as printed", str,
                            choices=("tilted", "paper")),
-        "max_iter": Param(100, "maximum number of iterations (paper: 100; 150 for the fused spheres)", int,
+        "max_iter": Param(300, "maximum number of iterations (paper: 100; 150 for the fused spheres)", int,
                           min=0, max=100000),
         "tol": Param(1e-4, "stop ('converged') when the relative energy change stays below tol for 3 "
                      "iterations (0 = off)", float, min=0.0),
         "move_tol": Param(0.01, "stop ('converged') when the largest normal move per iteration stays below "
                           "move_tol voxels for 3 iterations (0 = off): the surface has stopped and the energy "
                           "only changes by the tangential relaxation", float, min=0.0),
+        "init": Param("auto", "initial surface: 'auto' = a sphere enclosing the region φ < 0 (its bounding "
+                      "sphere plus 2 voxels) meshed at edge_length; 'sphere' = the Fibonacci sphere of init_radius "
+                      "/ init_vertices / init_center (the paper's Γ0); init_mesh overrides both", str,
+                      choices=("auto", "sphere")),
+        "edge_length": Param(1.0, "target edge length of the initial sphere (init='auto') and of the remeshing, "
+                             "in voxels", float, min=0.1, max=20.0),
+        "coarse_to_fine": Param(False, "two stages: first the data term alone (β = 0) draws the surface into "
+                                "concavities and sulci (the alignment term resists the intermediate shapes), then "
+                                "the configured β smooths and aligns it; a stage ends when the flow settles. False "
+                                "(or beta = 0, or remesh_every = 0): one stage", bool),
+        "remesh_iterations": Param(3, "split/collapse/flip/relax rounds per remesh", int, min=1, max=20),
+        "remesh_every": Param(5, "isotropic remeshing (Botsch–Kobbelt, gpytoolbox) toward edge_length every this "
+                              "many iterations; 0 = fixed connectivity (the paper)", int, min=0, max=100000),
+        "guard": Param(True, "keep the surface free of self-intersections: check at every remesh and at the end, "
+                       "repair by local smoothing or roll back (and halve the step cap); a collapsed or "
+                       "off-surface result is an error", bool),
+        "projection": Param("auto", "final Newton projection of the vertices onto φ = 0 (3 steps of at most 0.5 "
+                            "voxel; kept only if it makes no faces intersect). 'auto': on for clean volumes, off "
+                            "on noisy ones (like polish)", str, choices=("auto", "on", "off")),
+        "strict_topology": Param(False, "refuse (error) when the region φ < 0 is not compatible with one genus-0 "
+                                 "surface (several components, handles, cavities); otherwise info['topology'] "
+                                 "and a warning say so", bool),
         "init_radius": Param(PAPER_SPHERE_RADIUS, "radius of the initial Fibonacci sphere (world units)",
                              float, min=1e-9),
         "init_vertices": Param(PAPER_SPHERE_VERTICES, "vertices of the initial sphere (1,896 → 3,788 "
@@ -132,14 +162,22 @@ class ShapeGradient(Method):
         check_volume(volume, self.name)
         cfg = dict(self.config)
         t_start = time.perf_counter()
-        x, faces, flipped = initial_surface(cfg, volume)
+        topology = target_topology(volume)
+        if not topology["compatible"] and cfg["strict_topology"]:
+            raise InputError(f"method 'shape_gradient' (strict_topology): {topology['message']}")
+        cfg["stages"] = [{"beta": cfg["beta"], "edge_length": cfg["edge_length"]}]
+        if cfg["coarse_to_fine"] and cfg["remesh_every"] > 0 and cfg["beta"] > 0:
+            cfg["stages"].insert(0, {"beta": 0.0, "edge_length": cfg["edge_length"]})
+        x, faces, flipped, init_facts = initial_surface(cfg, volume)
         noise = estimate_noise(volume)
+        cfg["s_world"] = cfg["s"] * volume.h ** 2
         sigma = cfg["presmooth"]
         if sigma == "auto":
             sigma = _AUTO_PRESMOOTH_SIGMA if noise >= _AUTO_PRESMOOTH_NOISE * volume.h else 0.0
         cfg["presmooth_used"] = float(sigma)
-        cfg["polish_used"] = (cfg["polish"] == "on"
-                              or (cfg["polish"] == "auto" and noise < _AUTO_PRESMOOTH_NOISE * volume.h))
+        clean = noise < _AUTO_PRESMOOTH_NOISE * volume.h
+        cfg["polish_used"] = cfg["polish"] == "on" or (cfg["polish"] == "auto" and clean)
+        cfg["projection_used"] = cfg["projection"] == "on" or (cfg["projection"] == "auto" and clean)
         field = smoothed_field(volume, sigma, cfg["presmooth_phi"])
         if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):
             ops = MeshOperators(faces, len(x))
@@ -147,6 +185,8 @@ class ShapeGradient(Method):
         flow = ShapeGradientFlow(field, ops, x, cfg, volume.h, setup_seconds=time.perf_counter() - t_start)
         flow.init_flipped = flipped
         flow.noise = noise
+        flow.topology = topology
+        flow.init_facts = init_facts
         return flow
 
     def reconstruct(self, volume: Volume) -> Reconstruction:

@@ -1,4 +1,5 @@
-"""The initial surface: the paper's sphere or a user's closed genus-0 mesh, checked; the snapshot list."""
+"""The start of the flow: the initial surface (a sphere enclosing the zero set, the paper's sphere or a user's
+closed genus-0 mesh, checked), the target's topology against one genus-0 surface, the snapshot list."""
 
 from __future__ import annotations
 
@@ -9,7 +10,10 @@ from geometry.sphere import fibonacci_sphere
 from geometry.topology import connected_components, edge_face_counts, euler_characteristic, genus, is_oriented
 from phantoms import InputError, Volume
 
-__all__ = ["parse_snapshots", "prepare_init_mesh", "initial_surface"]
+#: the enclosing sphere of init='auto' clears the inside grid points by this many voxels
+_INIT_MARGIN_VOXELS = 2.0
+
+__all__ = ["parse_snapshots", "prepare_init_mesh", "initial_surface", "enclosing_sphere", "target_topology"]
 
 
 def parse_snapshots(value) -> tuple[int, ...]:
@@ -106,11 +110,21 @@ def prepare_init_mesh(mesh) -> tuple[np.ndarray, np.ndarray, bool]:
 
 
 
-def initial_surface(cfg: dict, volume: Volume):
-    """(vertices, faces, flipped) of the initial surface the config asks for, checked to lie in the grid."""
+def initial_surface(cfg: dict, volume: Volume, edge_length_voxels: float | None = None):
+    """(vertices, faces, flipped, facts) of the initial surface the config asks for, checked to lie in the grid.
+
+    ``init_mesh`` given: that mesh; ``init='auto'``: :func:`enclosing_sphere` at ``edge_length_voxels`` (default:
+    the config's edge length);
+    ``init='sphere'``: the Fibonacci sphere of ``init_vertices`` / ``init_radius`` / ``init_center``.
+    """
     flipped = False
+    facts: dict = {"kind": cfg["init"] if cfg["init_mesh"] is None else "mesh"}
     if cfg["init_mesh"] is not None:
         x, faces, flipped = prepare_init_mesh(cfg["init_mesh"])
+    elif cfg["init"] == "auto":
+        ell = cfg["edge_length"] if edge_length_voxels is None else edge_length_voxels
+        x, faces, more = enclosing_sphere(volume, ell * volume.h, _INIT_MARGIN_VOXELS * volume.h)
+        facts.update(more)
     else:
         center = cfg["init_center"]
         if center is None:
@@ -122,4 +136,67 @@ def initial_surface(cfg: dict, volume: Volume):
             f"method 'shape_gradient': {int((~inside).sum())} of {len(x)} vertices of the initial surface "
             f"lie outside the volume box [{volume.lower.round(4).tolist()}, {volume.upper.round(4).tolist()}]"
             " — the volume must contain the initial surface (pass a smaller init_radius or init_mesh)")
-    return x, faces, flipped
+    return x, faces, flipped, facts
+
+
+#: sub-voxel offsets (in voxels) of the level set at which the digital topology is also read (see target_topology)
+_TOPOLOGY_LEVELS = (0.0, -0.25, 0.25, -0.5, 0.5)
+
+
+def target_topology(volume: Volume) -> dict:
+    """What the region φ < 0 looks like at grid resolution, against one genus-0 surface.
+
+    The digital topology of a sampled level set is ambiguous wherever features are thinner than a voxel (a thin
+    sulcus or ear, two gyri closer than h): the counts change with the connectivity (6 or 26 neighbours) and
+    with a shift of the level by a fraction of a voxel.  So the region is read at the levels
+    φ < t·h, t ∈ {0, ±1/4, ±1/2}, with both connectivities (``skimage.measure.label`` for the components,
+    ``skimage.measure.euler_number`` for χ of the solid = components − tunnels + cavities), and the target is
+    *compatible with one genus-0 surface* when at least one reading gives one component with χ = 1.  A torus,
+    two separate objects or an object with a cavity give no such reading; the bunny and the cortex at N = 96 do.
+
+    Returns ``{"compatible": bool, "components": int, "euler_solid": int, "surface_euler": int,
+    "readings": [...], "message": str}`` (counts of the plain reading: level 0, 26-connected foreground).
+    """
+    from skimage.measure import euler_number, label
+
+    readings = []
+    for t in _TOPOLOGY_LEVELS:
+        inside = volume.values < t * volume.h
+        for conn in (3, 1):
+            n = int(label(inside, connectivity=conn, return_num=True)[1])
+            chi = int(euler_number(inside, connectivity=conn))
+            readings.append({"level_voxels": t, "connectivity": 26 if conn == 3 else 6, "components": n,
+                             "euler_solid": chi})
+    plain = readings[0]
+    compatible = any(r["components"] == 1 and r["euler_solid"] == 1 for r in readings)
+    out = {"compatible": compatible, "components": plain["components"], "euler_solid": plain["euler_solid"],
+           "surface_euler": 2 * plain["euler_solid"], "readings": readings, "message": ""}
+    if not compatible:
+        n, chi = plain["components"], plain["euler_solid"]
+        what = (f"{n} separate components" if n != 1 else
+                f"one component with Euler characteristic {chi} (a genus-0 solid has 1: "
+                f"{'handles or tunnels' if chi < 1 else 'cavities'})")
+        out["message"] = (f"the region φ < 0 has {what} at grid resolution, but the method evolves one genus-0 "
+                          "surface: the result cannot have the target's topology")
+    return out
+
+
+def enclosing_sphere(volume: Volume, edge_length: float, margin: float) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A Fibonacci sphere around the region φ < 0, meshed at about ``edge_length`` (world units).
+
+    Centre: the middle of the bounding box of the inside grid points; radius: their largest distance from it
+    plus ``margin``, reduced where needed to stay a voxel inside the grid box.  Returns (vertices, faces,
+    facts) — facts hold the centre, radius and whether it had to be shrunk.
+    """
+    inside = np.argwhere(volume.values < 0)
+    pts = volume.index_to_world(inside)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    center = 0.5 * (lo + hi)
+    radius = float(np.linalg.norm(pts - center, axis=1).max()) + margin
+    room = float(min((center - volume.lower).min(), (volume.upper - center).min())) - volume.h
+    shrunk = radius > room
+    radius = max(min(radius, room), volume.h)
+    area = 4.0 * np.pi * radius ** 2
+    n = int(max(12, round(area / (np.sqrt(3.0) / 4.0 * edge_length ** 2) / 2.0)))
+    x, f = fibonacci_sphere(n, radius, center)
+    return x, f, {"center": center.tolist(), "radius": radius, "shrunk_to_grid": bool(shrunk), "vertices": n}

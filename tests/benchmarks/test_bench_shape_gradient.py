@@ -10,8 +10,9 @@ relax) of the last round are stored in the benchmark's ``extra_info``.
   does not converge before 100 iterations, so every round is exactly 100 iterations, backtracking
   included.  The volume's derivative grids and noise estimate are cached on the volume by a warm-up run,
   so a round is the flow itself plus the final curvature.
-* One iteration at 100,000 vertices (sphere, N = 96): ``flow.step()`` only; building the initial sphere
-  and its operators (``prepare``) is the per-round setup and is not timed.
+* One iteration at 100,000 vertices (sphere, N = 96): the second ``flow.step()`` (a steady-state iteration: the
+  H¹ solver's multigrid hierarchy, refreshed every 5 iterations, is built by the first); building the initial
+  sphere, its operators and the first step are the per-round setup and are not timed.
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ from phantoms import get_phantom
 pytestmark = pytest.mark.benchmark
 
 PHASES = ("interpolation", "curvature", "gradient", "preconditioner", "energy", "relax")
+#: the paper's fixed connectivity (the Fibonacci sphere, no remeshing, no guard or projection): the flow itself
+FIXED = {"init": "sphere", "remesh_every": 0, "guard": False, "projection": "off"}
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +40,7 @@ def sphere_volume():
 
 
 def test_100_iterations_at_1896_vertices(benchmark, fused_volume):
-    method = ShapeGradient(max_iter=100, tol=0, move_tol=0)
+    method = ShapeGradient(max_iter=100, tol=0, move_tol=0, **FIXED)
     method.reconstruct(fused_volume)                     # warm-up: cached derivative grids, noise estimate
     rec = benchmark.pedantic(method.reconstruct, args=(fused_volume,), rounds=5, iterations=1)
     assert rec.info["iterations"] == 100 and len(rec.mesh.vertices) == 1896
@@ -47,17 +50,18 @@ def test_100_iterations_at_1896_vertices(benchmark, fused_volume):
 
 
 def test_one_iteration_at_100k_vertices(benchmark, sphere_volume):
-    method = ShapeGradient(init_vertices=100_000, max_iter=1)
+    method = ShapeGradient(init_vertices=100_000, max_iter=2, tol=0, move_tol=0, **FIXED)
     ops = method.prepare(sphere_volume).ops              # the operators of the 100k sphere, built once
     flows = []
 
     def setup():
         flow = method.prepare(sphere_volume, ops=ops)
+        flow.step()                                      # the first step builds the H¹ solver's hierarchy
         flows.append((flow, dict(flow.timings)))
         return (flow,), {}
 
     benchmark.pedantic(lambda flow: flow.step(), setup=setup, rounds=5, iterations=1)
     flow, before = flows[-1]
-    assert flow.iteration == 1 and len(flow.state.x) == 100_000
+    assert flow.iteration == 2 and len(flow.state.x) == 100_000
     benchmark.extra_info.update({f"{p}_s": round(flow.timings[p] - before[p], 4) for p in PHASES})
-    benchmark.extra_info["cg_iterations"] = flow.cg_iterations[-1]
+    benchmark.extra_info["cg_iterations"] = flow.cg_iterations[-1] if flow.cg_iterations else 0

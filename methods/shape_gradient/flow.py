@@ -91,6 +91,9 @@ class ShapeGradientFlow:
         self.cg_iterations: list[int] = []
         self.moves: list[float] = []
         self._polished = None
+        self.guard = bool(cfg.get("guard", False))
+        if self.guard:
+            self._guard(0)                           # the start: the first safe state (or repaired)
 
     # ------------------------------------------------------------------ one iteration
     def _end(self, reason: str, message: str) -> bool:
@@ -197,6 +200,8 @@ class ShapeGradientFlow:
         if self.remesh_every and it % self.remesh_every == 0:
             self._remesh_and_guard(it)
         if it in self.snap_set:
+            if self.guard and (not self.intersections or self.intersections[-1][0] != it):
+                self._guard(it)                      # a snapshot is a result too: intersection-free
             self.snapshots[it] = self._snapshot()
         rel = abs(prev - new.E) / max(abs(prev), 1e-300)
         self._calm = self._calm + 1 if rel < cfg["tol"] else 0

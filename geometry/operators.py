@@ -26,7 +26,7 @@ from .topology import edges_unique
 
 __all__ = [
     "face_gradient_basis", "face_gradient", "gradient_operator", "divergence", "cotangent_stiffness",
-    "lumped_mass", "MeshOperators", "MeshGeometry", "jacobi_cg",
+    "lumped_mass", "MeshOperators", "MeshGeometry", "jacobi_cg", "dot",
 ]
 
 
@@ -119,14 +119,38 @@ def lumped_mass(vertices, faces) -> sp.dia_matrix:
     return sp.diags(lumped_vertex_areas(vertices, faces))
 
 
+_DOT_BLOCK = 8192   # OpenBLAS runs a dot product of more than 10,000 entries on all its threads
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    """a·b of two 1-D float arrays on one thread.
+
+    ``a @ b`` hands long vectors to the multi-threaded BLAS: on a loaded machine each call may wait for
+    a descheduled BLAS thread (milliseconds for a 100k-vector dot, more than the sparse product of the
+    same CG iteration), and CPU time doubles.  Blocks of ``_DOT_BLOCK`` entries stay on the calling
+    thread (``np.vecdot`` of the rows, then their sum).  Same value up to rounding.
+    """
+    n = len(a)
+    if n <= _DOT_BLOCK:
+        return float(a @ b)
+    m = n - n % _DOT_BLOCK
+    out = float(np.vecdot(a[:m].reshape(-1, _DOT_BLOCK), b[:m].reshape(-1, _DOT_BLOCK)).sum())
+    return out + float(a[m:] @ b[m:]) if m < n else out
+
+
 def jacobi_cg(matvec, b: np.ndarray, diag: np.ndarray, x0: np.ndarray | None = None, *,
               rtol: float = 1e-4, maxiter: int = 200) -> tuple[np.ndarray, int, float]:
     """Jacobi-preconditioned conjugate gradients for an SPD system; returns (x, iterations, rel. residual).
 
-    ``matvec(x)`` applies the matrix; ``diag`` is its diagonal.  Stops when ‖r‖ ≤ rtol‖b‖ or after
-    ``maxiter`` iterations (the loop is over CG iterations, each a few vectorised operations).
+    ``matvec(x)`` applies the matrix — or ``matvec`` is the matrix itself (anything with ``@``, e.g. the
+    CSR matrix of :meth:`MeshOperators.h1_matrix`, one sparse product per iteration); ``diag`` is its
+    diagonal.  Stops when ‖r‖ ≤ rtol‖b‖ or after ``maxiter`` iterations (the loop is over CG iterations,
+    each a few vectorised operations, updates in place, dot products on one thread: :func:`dot`).
     """
-    bnorm = float(np.linalg.norm(b))
+    if not callable(matvec):
+        A = matvec
+        matvec = A.__matmul__
+    bnorm = float(np.sqrt(dot(b, b)))
     if bnorm == 0.0 or not np.isfinite(bnorm):
         return np.zeros_like(b), 0, 0.0 if bnorm == 0.0 else np.nan
     inv = 1.0 / diag
@@ -138,26 +162,30 @@ def jacobi_cg(matvec, b: np.ndarray, diag: np.ndarray, x0: np.ndarray | None = N
         r = b - matvec(x)
     z = inv * r
     p = z.copy()
-    rz = float(r @ z)
+    tmp = np.empty_like(b)
+    rz = dot(r, z)
     tol2 = (rtol * bnorm) ** 2
-    rr = float(r @ r)
+    rr = dot(r, r)
     it = 0
     while rr > tol2 and it < maxiter:
         Ap = matvec(p)
-        pAp = float(p @ Ap)
+        pAp = dot(p, Ap)
         if not pAp > 0:
             break
         a = rz / pAp
-        x += a * p
-        r -= a * Ap
-        rr = float(r @ r)
-        z = inv * r
-        rz_new = float(r @ z)
+        x += np.multiply(a, p, out=tmp)
+        r -= np.multiply(a, Ap, out=tmp)
+        rr = dot(r, r)
+        np.multiply(inv, r, out=z)
+        rz_new = dot(r, z)
         p *= rz_new / rz
         p += z
         rz = rz_new
         it += 1
     return x, it, float(np.sqrt(rr) / bnorm)
+
+
+_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))   # the distinct (i, j) corner pairs of a face
 
 
 def _cross_t(a, b) -> np.ndarray:
@@ -263,13 +291,17 @@ class MeshOperators:
         rows = np.repeat(faces, 3, axis=1).ravel()          # entry 9f + 3i + j is (faces[f,i], faces[f,j])
         cols = np.tile(faces, (1, 3)).ravel()
         key = rows * V + cols
-        uniq, inverse = np.unique(key, return_inverse=True)
-        self._slot = inverse.ravel()
+        uniq = np.unique(key)
         self._nnz = len(uniq)
         r, c = uniq // V, uniq % V
         self._indices = c.astype(np.int32)
         self._indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=V))]).astype(np.int32)
         self._diag_slot = np.flatnonzero(r == c)
+        # K is symmetric: assemble the 6 distinct corner products of each face (rows of _PAIRS, faces
+        # along the row) onto the slot of the upper-triangle entry (min, max), then copy it to (max, min)
+        self._slot6 = np.searchsorted(uniq, np.concatenate(
+            [np.minimum(faces[:, i], faces[:, j]) * V + np.maximum(faces[:, i], faces[:, j]) for i, j in _PAIRS]))
+        self._mirror = np.searchsorted(uniq, np.minimum(r, c) * V + np.maximum(r, c))
         #: (V, F) vertex-face incidence (ones): sums face quantities onto vertices
         self.incidence = sp.csr_matrix((np.ones(3 * F), (faces.ravel(), np.repeat(np.arange(F), 3))),
                                        shape=(V, F))
@@ -302,15 +334,33 @@ class MeshOperators:
     def stiffness(self, geo: MeshGeometry) -> sp.csr_matrix:
         """Cotangent stiffness K of ``geo`` (CSR with a pattern fixed by the connectivity).
 
-        On a face, a_f ∇λ_i·∇λ_j = e_i·e_j / (4 a_f) with e_k the edge opposite corner k.
+        On a face, a_f ∇λ_i·∇λ_j = e_i·e_j / (4 a_f) with e_k the edge opposite corner k.  The 6
+        distinct products per face are laid out by pair (contiguous rows) and summed onto the upper
+        triangle by one ``bincount`` over a precomputed slot array, then mirrored: an off-diagonal entry
+        is the same two-term sum as a full 9-entries-per-face assembly (bit-identical), a diagonal entry
+        the same terms in another order.
         """
         E = geo.edges_t
         inv = 1.0 / np.where(geo.face_areas > 0, 4.0 * geo.face_areas, np.inf)
-        d00, d11, d22 = _dot_t(E[:, 0], E[:, 0]), _dot_t(E[:, 1], E[:, 1]), _dot_t(E[:, 2], E[:, 2])
-        d01, d02, d12 = _dot_t(E[:, 0], E[:, 1]), _dot_t(E[:, 0], E[:, 2]), _dot_t(E[:, 1], E[:, 2])
-        local = np.stack([d00, d01, d02, d01, d11, d12, d02, d12, d22], axis=1) * inv[:, None]
-        data = np.bincount(self._slot, weights=local.ravel(), minlength=self._nnz)
+        w = np.empty((len(_PAIRS), len(inv)))
+        for k, (i, j) in enumerate(_PAIRS):
+            np.multiply(_dot_t(E[:, i], E[:, j]), inv, out=w[k])
+        data = np.bincount(self._slot6, weights=w.ravel(), minlength=self._nnz)[self._mirror]
         return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_vertices,) * 2)
+
+    def h1_matrix(self, geo: MeshGeometry, s: float, K: sp.csr_matrix | None = None):
+        """(A, diag): the H¹ preconditioner matrix A = M + sK (M the lumped mass, K :meth:`stiffness`) as
+        one CSR matrix with K's pattern, and its diagonal.
+
+        ``jacobi_cg(A, b, diag)`` solves (M + sK)V = b with one sparse product per CG iteration, where
+        ``jacobi_cg(lambda p: M * p + s * (K @ p), b, M + s * stiffness_diagonal(K))`` needs the product
+        and three vector passes (same solution up to rounding; the diagonal is the same numbers).
+        """
+        K = self.stiffness(geo) if K is None else K
+        data = s * K.data
+        data[self._diag_slot] += geo.vertex_areas
+        A = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_vertices,) * 2)
+        return A, data[self._diag_slot]
 
     def stiffness_diagonal(self, K: sp.csr_matrix) -> np.ndarray:
         return K.data[self._diag_slot]

@@ -185,6 +185,7 @@ def jacobi_cg(matvec, b: np.ndarray, diag: np.ndarray, x0: np.ndarray | None = N
     return x, it, float(np.sqrt(rr) / bnorm)
 
 
+_CURVATURE_BLOCK = 4096   # vertices per block of MeshOperators.curvature
 _PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))   # the distinct (i, j) corner pairs of a face
 
 
@@ -402,13 +403,21 @@ class MeshOperators:
         """
         n = geo.vertex_normals_t if normals is None else np.asarray(normals, float).T
         t1, t2 = tangent_frames_t(n)
-        # ring offsets in (W, V) layout, so that sums over the ring run over the short leading axis
         xt = geo.vertices_t
-        dx = np.take(xt[0], self._ring_self_t) - xt[0]                        # padded slots → 0
-        dy = np.take(xt[1], self._ring_self_t) - xt[1]
-        dz = np.take(xt[2], self._ring_self_t) - xt[2]
-        u = dx * t1[0] + dy * t1[1] + dz * t1[2]
-        v = dx * t2[0] + dy * t2[1] + dz * t2[2]
-        z = dx * n[0] + dy * n[1] + dz * n[2]
-        H, K = fit_ring(u, v, z, self.ring_count, linear=linear)[:2]
+        V = self.n_vertices
+        H, K = np.empty(V), np.empty(V)
+        # blocks of vertices: the dozens of (W, block) temporaries of the fit stay in the cache instead
+        # of being (W, V) arrays allocated (page faults) and streamed through memory one by one; every
+        # vertex's fit is independent, so the result is the same
+        for s in range(0, V, _CURVATURE_BLOCK):
+            b = slice(s, min(V, s + _CURVATURE_BLOCK))
+            ring = self._ring_self_t[:, b]
+            # ring offsets in (W, block) layout, so that sums over the ring run over the short leading axis
+            dx = np.take(xt[0], ring) - xt[0, b]                              # padded slots → 0
+            dy = np.take(xt[1], ring) - xt[1, b]
+            dz = np.take(xt[2], ring) - xt[2, b]
+            u = dx * t1[0][b] + dy * t1[1][b] + dz * t1[2][b]
+            v = dx * t2[0][b] + dy * t2[1][b] + dz * t2[2][b]
+            z = dx * n[0, b] + dy * n[1, b] + dz * n[2, b]
+            H[b], K[b] = fit_ring(u, v, z, self.ring_count[b], linear=linear)[:2]
         return H, K

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from . import kernels
 from .curvature import fit_ring, tangent_frames_t
 from .mesh import lumped_vertex_areas, one_ring
 from .topology import edges_unique
@@ -143,12 +144,14 @@ def jacobi_cg(matvec, b: np.ndarray, diag: np.ndarray, x0: np.ndarray | None = N
     """Jacobi-preconditioned conjugate gradients for an SPD system; returns (x, iterations, rel. residual).
 
     ``matvec(x)`` applies the matrix — or ``matvec`` is the matrix itself (anything with ``@``, e.g. the
-    CSR matrix of :meth:`MeshOperators.h1_matrix`, one sparse product per iteration); ``diag`` is its
-    diagonal.  Stops when ‖r‖ ≤ rtol‖b‖ or after ``maxiter`` iterations (the loop is over CG iterations,
+    CSR matrix of :meth:`MeshOperators.h1_matrix`, one sparse product per iteration; a CSR matrix runs
+    the compiled :func:`geometry.kernels.cg_csr`, the same iteration); ``diag`` is its diagonal.  Stops when ‖r‖ ≤ rtol‖b‖ or after ``maxiter`` iterations (the loop is over CG iterations,
     each a few vectorised operations, updates in place, dot products on one thread: :func:`dot`).
     """
     if not callable(matvec):
         A = matvec
+        if kernels.AVAILABLE and sp.issparse(A) and A.format == "csr":
+            return kernels.cg_csr(A, b, diag, x0, rtol, maxiter)
         matvec = A.__matmul__
     bnorm = float(np.sqrt(dot(b, b)))
     if bnorm == 0.0 or not np.isfinite(bnorm):
@@ -394,14 +397,19 @@ class MeshOperators:
         """Mean of the 1-ring neighbours' rows of ``x`` (V, C) — the uniform-Laplacian centroid."""
         return self.ring_mean_t(np.ascontiguousarray(np.asarray(x, float).T)).T
 
-    def curvature(self, geo: MeshGeometry, *, linear: bool = True, normals: np.ndarray | None = None):
+    def curvature(self, geo: MeshGeometry, *, linear: bool = True, normals: np.ndarray | None = None,
+                  reference: bool = False):
         """Per-vertex (H, K) by the batched paraboloid fit over the 1-ring.
 
         :func:`geometry.curvature.paraboloid_curvature` restricted to the precomputed 1-ring, for an inner
         loop: the ring offsets are gathered in (W, V) layout and handed to the same closed-form solver,
-        :func:`geometry.curvature.fit_ring`.  NaN where the fit is not determined.
+        :func:`geometry.curvature.fit_ring`.  NaN where the fit is not determined.  Runs the compiled
+        :func:`geometry.kernels.ring_curvature` (the same arithmetic vertex by vertex) unless numba is
+        missing or ``reference`` asks for the numpy form.
         """
         n = geo.vertex_normals_t if normals is None else np.asarray(normals, float).T
+        if kernels.AVAILABLE and not reference:
+            return kernels.ring_curvature(geo.vertices, n, self.ring, self.ring_count, linear)
         t1, t2 = tangent_frames_t(n)
         xt = geo.vertices_t
         V = self.n_vertices

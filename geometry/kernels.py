@@ -241,3 +241,34 @@ def ring_curvature(x: np.ndarray, n: np.ndarray, ring: np.ndarray, count: np.nda
     _ring_curvature(np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(n, dtype=np.float64),
                     ring, np.ascontiguousarray(count, dtype=np.int64), bool(linear), H, K)
     return H, K
+
+
+# ------------------------------------------------------------------------------------ trilinear
+@_jit
+def _trilinear(flat, n0, n1, n2, idx_t, out):
+    sx = n1 * n2
+    C = flat.shape[1]
+    for p in range(idx_t.shape[1]):
+        fx, fy, fz = idx_t[0, p], idx_t[1, p], idx_t[2, p]
+        if not (0.0 <= fx <= n0 - 1 and 0.0 <= fy <= n1 - 1 and 0.0 <= fz <= n2 - 1):   # NaN too
+            raise IndexError("trilinear: fractional indices outside the grid (or not finite)")
+        i0, i1, i2 = min(int(fx), n0 - 2), min(int(fy), n1 - 2), min(int(fz), n2 - 2)   # idx >= 0: floor
+        tx, ty, tz = fx - i0, fy - i1, fz - i2
+        ux, uy, uz = 1.0 - tx, 1.0 - ty, 1.0 - tz
+        a00, a01, a10, a11 = ux * uy, ux * ty, tx * uy, tx * ty
+        w0, w1, w2, w3 = a00 * uz, a00 * tz, a01 * uz, a01 * tz
+        w4, w5, w6, w7 = a10 * uz, a10 * tz, a11 * uz, a11 * tz
+        b = i0 * sx + i1 * n2 + i2
+        for c in range(C):
+            out[c, p] = (w0 * flat[b, c] + w1 * flat[b + 1, c] + w2 * flat[b + n2, c]
+                         + w3 * flat[b + n2 + 1, c] + w4 * flat[b + sx, c] + w5 * flat[b + sx + 1, c]
+                         + w6 * flat[b + sx + n2, c] + w7 * flat[b + sx + n2 + 1, c])
+
+
+def trilinear(flat: np.ndarray, shape, idx_t: np.ndarray) -> np.ndarray:
+    """:func:`phantoms.volume.trilinear_channels` point by point: (C, P) from the stacked grids ``flat``
+    (N, C) at the fractional indices ``idx_t`` (3, P), finite and inside [0, N − 1] per axis."""
+    out = np.empty((flat.shape[1], idx_t.shape[1]))
+    _trilinear(flat, int(shape[0]), int(shape[1]), int(shape[2]),
+               np.ascontiguousarray(idx_t, dtype=np.float64), out)
+    return out

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geometry import kernels
 from geometry.errors import InputError
 
 __all__ = ["Volume", "Sample", "VolumeSampler", "trilinear_channels"]
@@ -42,7 +43,7 @@ _HESS_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 _CHUNK = 4096   # points per block of trilinear_channels: the block's 8 corner rows stay in the L2 cache
 
 
-def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray) -> np.ndarray:
+def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, reference: bool = False) -> np.ndarray:
     """Trilinear interpolation of stacked grids at fractional grid indices: the one gather.
 
     ``flat`` (N0·N1·N2, C): C grids of ``shape`` (N0, N1, N2), raveled in C order, all channels of a
@@ -56,7 +57,12 @@ def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray) -> np.ndarray
     (8, P, C) corner array of all points at once (64 MB for 100k points and 10 channels) would be a
     fresh allocation per call, paid in page faults, and read back from main memory by the sum.  Each
     output value is the same 8-term sum either way (bit-identical results).
+
+    With numba, the compiled :func:`geometry.kernels.trilinear` (the same sum, point by point) runs
+    instead; ``reference=True`` keeps this numpy form.
     """
+    if kernels.AVAILABLE and not reference and flat.dtype == np.float64 and flat.flags.c_contiguous:
+        return kernels.trilinear(flat, shape, idx_t)
     n1, n2 = int(shape[1]), int(shape[2])
     sx = n1 * n2
     ijk, frac = [], []

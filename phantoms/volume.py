@@ -63,6 +63,10 @@ def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, reference:
     """
     if kernels.AVAILABLE and not reference and flat.dtype == np.float64 and flat.flags.c_contiguous:
         return kernels.trilinear(flat, shape, idx_t)
+    idx_t = np.asarray(idx_t, dtype=np.float64)
+    if idx_t.shape[1] and not ((idx_t.min(axis=1) >= 0).all()                # NaN fails both tests
+                               and (idx_t.max(axis=1) <= np.asarray(shape) - 1).all()):
+        raise IndexError("trilinear_channels: fractional indices outside the grid (or not finite)")
     n1, n2 = int(shape[1]), int(shape[2])
     sx = n1 * n2
     ijk, frac = [], []
@@ -73,8 +77,6 @@ def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, reference:
     base = ijk[0] * sx + ijk[1] * n2 + ijk[2]
     offsets = np.array([0, 1, n2, n2 + 1, sx, sx + 1, sx + n2, sx + n2 + 1], dtype=np.intp)[:, None]
     P, C = len(base), flat.shape[1]
-    if P and (base.min() < 0 or base.max() + offsets[-1, 0] >= len(flat)):
-        raise IndexError("trilinear_channels: fractional indices outside the grid (or not finite)")
     tx, ty, tz = frac
     ux, uy, uz = 1.0 - tx, 1.0 - ty, 1.0 - tz
     a00, a01, a10, a11 = ux * uy, ux * ty, tx * uy, tx * ty

@@ -207,19 +207,35 @@ class MeshGeometry:
 
     Stored by coordinate (``*_t`` arrays have shape (3, N)): numpy is several times faster on (3, N)
     arrays than on (N, 3) ones for the short per-row sums a mesh needs.  The usual (N, 3) views are
-    properties.  Face quantities are computed at once, vertex quantities and edges on first use.
+    properties.  Face quantities are computed at once, vertex quantities and edges on first use — with
+    numba by the compiled passes of :func:`geometry.kernels.face_geometry` and
+    :func:`geometry.kernels.vertex_sums` (the same arithmetic; ``reference=True`` keeps numpy).
     """
 
-    def __init__(self, ops: "MeshOperators", vertices: np.ndarray):
+    def __init__(self, ops: "MeshOperators", vertices: np.ndarray, *, reference: bool = False):
         self._ops = ops
         self.vertices = vertices                                            # (V, 3)
         self.vertices_t = xt = np.ascontiguousarray(vertices.T)             # (3, V)
-        self.corners_t = P = np.take(xt, ops.faces_t, axis=1)               # (3 coords, 3 corners, F)
+        self._vertex_areas = self._vertex_normals_t = self._edges_t = None
+        self._kernels = kernels.AVAILABLE and not reference and vertices.dtype == np.float64
+        if self._kernels:                            # one compiled pass over the faces (same numbers)
+            self._corners_t = None
+            self.cross_t, self.normals_t, self.face_areas, self.centroids_t = \
+                kernels.face_geometry(vertices, ops.faces)
+            return
+        self._corners_t = P = np.take(xt, ops.faces_t, axis=1)              # (3 coords, 3 corners, F)
         self.cross_t = c = _cross_t(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])   # 2 a_f n_f
         dbl = np.sqrt(_dot_t(c, c))
         self.face_areas = 0.5 * dbl
         self.normals_t = c / np.where(dbl > 0, dbl, 1.0)
-        self._vertex_areas = self._vertex_normals_t = self._edges_t = None
+        self.centroids_t = P.sum(axis=1) / 3.0                              # (3, F)
+
+    @property
+    def corners_t(self) -> np.ndarray:
+        """The face corners (3 coords, 3 corners, F) (gathered on first use with the kernels)."""
+        if self._corners_t is None:
+            self._corners_t = np.take(self.vertices_t, self._ops.faces_t, axis=1)
+        return self._corners_t
 
     # ---- (N, 3) views
     @property
@@ -232,7 +248,7 @@ class MeshGeometry:
 
     @property
     def centroids(self) -> np.ndarray:
-        return (self.corners_t.sum(axis=1) / 3.0).T
+        return self.centroids_t.T
 
     @property
     def vertex_normals(self) -> np.ndarray:
@@ -244,12 +260,23 @@ class MeshGeometry:
     def vertex_areas(self) -> np.ndarray:
         """Lumped vertex areas (V,): one third of the incident face areas."""
         if self._vertex_areas is None:
-            self._vertex_areas = self._ops.incidence @ (self.face_areas / 3.0)
+            if self._kernels:
+                self._vertex_sums()
+            else:
+                self._vertex_areas = self._ops.incidence @ (self.face_areas / 3.0)
         return self._vertex_areas
+
+    def _vertex_sums(self):
+        vn, self._vertex_areas = kernels.vertex_sums(self._ops.faces, self.cross_t, self.face_areas,
+                                                     self._ops.n_vertices)
+        vn /= np.maximum(np.sqrt(_dot_t(vn, vn)), 1e-300)
+        self._vertex_normals_t = vn
 
     @property
     def vertex_normals_t(self) -> np.ndarray:
         """Area-weighted vertex normals (3, V), unit length."""
+        if self._vertex_normals_t is None and self._kernels:
+            self._vertex_sums()
         if self._vertex_normals_t is None:
             vn = np.ascontiguousarray((self._ops.incidence @ self.cross_t.T).T)
             vn /= np.maximum(np.sqrt(_dot_t(vn, vn)), 1e-300)
@@ -331,8 +358,9 @@ class MeshOperators:
         return self._edges
 
     # ---------------------------------------------------------------- per-configuration geometry
-    def geometry(self, vertices: np.ndarray) -> MeshGeometry:
-        return MeshGeometry(self, np.asarray(vertices, dtype=np.float64))
+    def geometry(self, vertices: np.ndarray, *, reference: bool = False) -> MeshGeometry:
+        """The geometry of ``vertices`` (V, 3); ``reference=True``: computed by numpy, not the kernels."""
+        return MeshGeometry(self, np.asarray(vertices, dtype=np.float64), reference=reference)
 
     # ---------------------------------------------------------------- operators
     def stiffness(self, geo: MeshGeometry) -> sp.csr_matrix:

@@ -84,3 +84,13 @@ def test_trilinear_kernel_equals_numpy_gather(order):
     for reference in (True, False):
         with pytest.raises(IndexError):
             trilinear_channels(flat, vol.shape, bad, reference=reference)
+
+
+def test_geometry_kernels_equal_the_numpy_geometry(bumpy):
+    ops, geo = bumpy
+    ref = ops.geometry(geo.vertices, reference=True)
+    got = ops.geometry(geo.vertices)
+    for name in ("cross_t", "normals_t", "face_areas", "centroids_t", "vertex_areas", "vertex_normals_t",
+                 "corners_t", "edges_t", "basis"):
+        np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=1e-14, atol=1e-15,
+                                   err_msg=name)

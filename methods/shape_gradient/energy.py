@@ -72,7 +72,7 @@ def evaluate_state(field, ops: MeshOperators, x: np.ndarray, alpha: float, beta:
         if timings is not None:
             timings["energy"] += time.perf_counter() - t0
         return FlowState(x, geo, np.inf, None)
-    c = geo.corners_t.sum(axis=1) / 3.0                                     # (3, F) centroids
+    c = geo.centroids_t                                                     # (3, F) centroids
     t1 = time.perf_counter()
     ch = field.sample_t(c, 1)
     t2 = time.perf_counter()

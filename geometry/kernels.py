@@ -11,7 +11,9 @@ the tests compare both (``tests/test_geometry_operators.py``):
 * :func:`trilinear` — :func:`phantoms.volume.trilinear_channels` point by point;
 * :func:`face_geometry`, :func:`vertex_sums` — the face and vertex quantities of
   :class:`geometry.operators.MeshGeometry` (cross products, normals, areas, centroids; vertex normal and
-  area sums) in one pass each, without the (3, 3, F) corner array.
+  area sums) in one pass each, without the (3, 3, F) corner array;
+* :func:`ring_mean3` — :meth:`geometry.operators.MeshOperators.ring_mean_t` (3 rows) without its
+  (W, V) temporaries.
 
 Why: at 100k vertices one flow iteration is ~80 CG iterations whose numpy form is bound by passes over
 memory, and a paraboloid fit whose numpy form streams dozens of (W, V) temporaries; numpy alone stays
@@ -33,7 +35,8 @@ except ImportError:  # pragma: no cover - numba is a dependency; the numpy refer
     numba = None
     AVAILABLE = False
 
-__all__ = ["AVAILABLE", "cg_csr", "ring_curvature", "trilinear", "face_geometry", "vertex_sums"]
+__all__ = ["AVAILABLE", "cg_csr", "ring_curvature", "trilinear", "face_geometry", "vertex_sums",
+           "ring_mean3"]
 
 
 def _jit(fn=None, **flags):
@@ -328,3 +331,29 @@ def vertex_sums(faces: np.ndarray, cross_t: np.ndarray, areas: np.ndarray, n_ver
     vn, va = np.zeros((3, n_vertices)), np.zeros(n_vertices)
     _vertex_sums(faces, cross_t, areas, vn, va)
     return vn, va
+
+
+# ------------------------------------------------------------------------------------ ring mean
+@_jit
+def _ring_mean(xt, ring, out):
+    for i in range(xt.shape[1]):
+        cnt = 0
+        s0 = s1 = s2 = 0.0
+        for w in range(ring.shape[1]):
+            j = ring[i, w]
+            if j < 0:
+                break
+            s0 += xt[0, j]
+            s1 += xt[1, j]
+            s2 += xt[2, j]
+            cnt += 1
+        c = max(cnt, 1)
+        out[0, i], out[1, i], out[2, i] = s0 / c, s1 / c, s2 / c
+
+
+def ring_mean3(xt: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """Mean of the 1-ring neighbours (``ring`` (V, W), trailing −1) of 3-vectors stored by coordinate
+    (3, V): :meth:`geometry.operators.MeshOperators.ring_mean_t`."""
+    out = np.empty((3, xt.shape[1]))
+    _ring_mean(np.ascontiguousarray(xt, dtype=np.float64), ring, out)
+    return out

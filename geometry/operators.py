@@ -415,8 +415,11 @@ class MeshOperators:
             return w
         return w / np.where(geo.vertex_areas > 0, geo.vertex_areas, np.inf)
 
-    def ring_mean_t(self, xt: np.ndarray) -> np.ndarray:
-        """Mean of the 1-ring neighbours of per-vertex vectors stored by coordinate (C, V) → (C, V)."""
+    def ring_mean_t(self, xt: np.ndarray, *, reference: bool = False) -> np.ndarray:
+        """Mean of the 1-ring neighbours of per-vertex vectors stored by coordinate (C, V) → (C, V)
+        (3 rows with numba: :func:`geometry.kernels.ring_mean3`, unless ``reference``)."""
+        if kernels.AVAILABLE and not reference and len(xt) == 3:
+            return kernels.ring_mean3(xt, self.ring)
         w = self.ring_weight_t
         cnt = np.maximum(self.ring_count, 1)
         return np.stack([(np.take(row, self._ring_t) * w).sum(0) / cnt for row in xt])

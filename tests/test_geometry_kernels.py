@@ -94,3 +94,9 @@ def test_geometry_kernels_equal_the_numpy_geometry(bumpy):
                  "corners_t", "edges_t", "basis"):
         np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=1e-14, atol=1e-15,
                                    err_msg=name)
+
+
+def test_ring_mean_kernel_equals_numpy(bumpy):
+    ops, geo = bumpy
+    np.testing.assert_allclose(ops.ring_mean_t(geo.vertices_t), ops.ring_mean_t(geo.vertices_t, reference=True),
+                               rtol=1e-14, atol=1e-15)

@@ -9,7 +9,7 @@ the tests compare both (``tests/test_geometry_operators.py``):
 * :func:`ring_curvature` — :meth:`geometry.operators.MeshOperators.curvature` (the 1-ring gather and
   :func:`geometry.curvature.fit_ring`) vertex by vertex, nothing but the result written to memory;
 * :func:`trilinear` — :func:`phantoms.volume.trilinear_channels` point by point;
-* :func:`face_geometry`, :func:`vertex_sums` — the face and vertex quantities of
+* :func:`face_geometry`, :func:`vertex_sums`, :func:`face_edges` — the face and vertex quantities of
   :class:`geometry.operators.MeshGeometry` (cross products, normals, areas, centroids; vertex normal and
   area sums) in one pass each, without the (3, 3, F) corner array;
 * :func:`ring_mean3` — :meth:`geometry.operators.MeshOperators.ring_mean_t` (3 rows) without its
@@ -36,7 +36,7 @@ except ImportError:  # pragma: no cover - numba is a dependency; the numpy refer
     numba = None
     AVAILABLE = False
 
-__all__ = ["AVAILABLE", "cg_csr", "ring_curvature", "trilinear", "face_geometry", "vertex_sums",
+__all__ = ["AVAILABLE", "cg_csr", "ring_curvature", "trilinear", "face_geometry", "vertex_sums", "face_edges",
            "ring_mean3", "face_energies"]
 
 
@@ -402,3 +402,21 @@ def face_energies(ch: np.ndarray, normals_t: np.ndarray, areas: np.ndarray, alph
     Ef, X = np.empty(F), np.empty((3, F))
     _face_energies(ch, normals_t, areas, float(alpha), float(beta), Ef, X)
     return Ef, X
+
+
+@_jit
+def _face_edges(x, faces, E):
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            a, b = faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]       # e_k = P[k+2] − P[k+1]
+            E[0, k, f] = x[b, 0] - x[a, 0]
+            E[1, k, f] = x[b, 1] - x[a, 1]
+            E[2, k, f] = x[b, 2] - x[a, 2]
+
+
+def face_edges(x: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The edge opposite each corner, counter-clockwise, (3 coords, 3 corners, F):
+    :attr:`geometry.operators.MeshGeometry.edges_t` without the corner array."""
+    E = np.empty((3, 3, len(faces)))
+    _face_edges(np.ascontiguousarray(x, dtype=np.float64), faces, E)
+    return E

@@ -286,6 +286,8 @@ class MeshGeometry:
     @property
     def edges_t(self) -> np.ndarray:
         """Edge opposite each corner, counter-clockwise: (3 coords, 3 corners, F)."""
+        if self._edges_t is None and self._kernels and self._corners_t is None:
+            self._edges_t = kernels.face_edges(self.vertices, self._ops.faces)
         if self._edges_t is None:
             P = self.corners_t
             self._edges_t = np.stack([P[:, 2] - P[:, 1], P[:, 0] - P[:, 2], P[:, 1] - P[:, 0]], axis=1)

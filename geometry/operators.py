@@ -144,13 +144,15 @@ def jacobi_cg(matvec, b: np.ndarray, diag: np.ndarray, x0: np.ndarray | None = N
     """Jacobi-preconditioned conjugate gradients for an SPD system; returns (x, iterations, rel. residual).
 
     ``matvec(x)`` applies the matrix — or ``matvec`` is the matrix itself (anything with ``@``, e.g. the
-    CSR matrix of :meth:`MeshOperators.h1_matrix`, one sparse product per iteration; a CSR matrix runs
-    the compiled :func:`geometry.kernels.cg_csr`, the same iteration); ``diag`` is its diagonal.  Stops when ‖r‖ ≤ rtol‖b‖ or after ``maxiter`` iterations (the loop is over CG iterations,
-    each a few vectorised operations, updates in place, dot products on one thread: :func:`dot`).
+    CSR matrix of :meth:`MeshOperators.h1_matrix`, one sparse product per iteration; from
+    :data:`geometry.kernels.MIN_SIZE` unknowns on, a CSR matrix runs the compiled
+    :func:`geometry.kernels.cg_csr`, the same iteration); ``diag`` is its diagonal.  Stops when
+    ‖r‖ ≤ rtol‖b‖ or after ``maxiter`` iterations (the loop is over CG iterations, each a few vectorised
+    operations, updates in place, dot products on one thread: :func:`dot`).
     """
     if not callable(matvec):
         A = matvec
-        if kernels.AVAILABLE and sp.issparse(A) and A.format == "csr":
+        if kernels.wanted(len(b)) and sp.issparse(A) and A.format == "csr":
             return kernels.cg_csr(A, b, diag, x0, rtol, maxiter)
         matvec = A.__matmul__
     bnorm = float(np.sqrt(dot(b, b)))
@@ -217,7 +219,7 @@ class MeshGeometry:
         self.vertices = vertices                                            # (V, 3)
         self.vertices_t = xt = np.ascontiguousarray(vertices.T)             # (3, V)
         self._vertex_areas = self._vertex_normals_t = self._edges_t = None
-        self._kernels = kernels.AVAILABLE and not reference and vertices.dtype == np.float64
+        self._kernels = kernels.wanted(len(vertices)) and not reference and vertices.dtype == np.float64
         if self._kernels:                            # one compiled pass over the faces (same numbers)
             self._corners_t = None
             self.cross_t, self.normals_t, self.face_areas, self.centroids_t = \
@@ -420,7 +422,7 @@ class MeshOperators:
     def ring_mean_t(self, xt: np.ndarray, *, reference: bool = False) -> np.ndarray:
         """Mean of the 1-ring neighbours of per-vertex vectors stored by coordinate (C, V) → (C, V)
         (3 rows with numba: :func:`geometry.kernels.ring_mean3`, unless ``reference``)."""
-        if kernels.AVAILABLE and not reference and len(xt) == 3:
+        if kernels.wanted(xt.shape[1]) and not reference and len(xt) == 3:
             return kernels.ring_mean3(xt, self.ring)
         w = self.ring_weight_t
         cnt = np.maximum(self.ring_count, 1)
@@ -441,7 +443,7 @@ class MeshOperators:
         missing or ``reference`` asks for the numpy form.
         """
         n = geo.vertex_normals_t if normals is None else np.asarray(normals, float).T
-        if kernels.AVAILABLE and not reference:
+        if kernels.wanted(self.n_vertices) and not reference:
             return kernels.ring_curvature(geo.vertices, n, self.ring, self.ring_count, linear)
         t1, t2 = tangent_frames_t(n)
         xt = geo.vertices_t

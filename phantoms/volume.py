@@ -61,7 +61,7 @@ def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, reference:
     With numba, the compiled :func:`geometry.kernels.trilinear` (the same sum, point by point) runs
     instead; ``reference=True`` keeps this numpy form.
     """
-    if kernels.AVAILABLE and not reference and flat.dtype == np.float64 and flat.flags.c_contiguous:
+    if kernels.wanted(idx_t.shape[1]) and not reference and flat.dtype == np.float64 and flat.flags.c_contiguous:
         return kernels.trilinear(flat, shape, idx_t)
     idx_t = np.asarray(idx_t, dtype=np.float64)
     if idx_t.shape[1] and not ((idx_t.min(axis=1) >= 0).all()                # NaN fails both tests

@@ -15,6 +15,19 @@ from phantoms.volume import trilinear_channels
 pytestmark = pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed")
 
 
+@pytest.fixture(autouse=True)
+def kernels_on_small_arrays(monkeypatch):
+    """The test meshes are below the size from which the suite uses the kernels: use them anyway."""
+    monkeypatch.setattr(kernels, "MIN_SIZE", 0)
+
+
+def test_kernels_run_from_min_size_on(monkeypatch):
+    monkeypatch.setattr(kernels, "MIN_SIZE", 10_000)
+    assert kernels.wanted(10_000) and not kernels.wanted(9_999)
+    monkeypatch.setattr(kernels, "AVAILABLE", False)
+    assert not kernels.wanted(10**6)
+
+
 @pytest.fixture(scope="module")
 def bumpy():
     u, f = fibonacci_sphere(4000, 1.0)

@@ -77,7 +77,7 @@ def evaluate_state(field, ops: MeshOperators, x: np.ndarray, alpha: float, beta:
     t1 = time.perf_counter()
     ch = field.sample_t(c, 1)
     t2 = time.perf_counter()
-    if kernels.AVAILABLE and ch.dtype == np.float64 and ch.flags.c_contiguous:
+    if kernels.wanted(len(geo.face_areas)) and ch.dtype == np.float64 and ch.flags.c_contiguous:
         Ef, X = kernels.face_energies(ch, geo.normals_t, geo.face_areas, alpha, beta)   # same arithmetic
     else:
         Ef, X = face_energies(ch[0], ch[1:4], geo.normals_t, geo.face_areas, alpha, beta)

@@ -1,7 +1,7 @@
 """Compiled (numba) kernels of the shape-gradient flow's inner loop.
 
 Each kernel computes what a numpy function of the suite computes — that function stays the reference and
-the tests compare both (``tests/test_geometry_operators.py``):
+the tests compare both (``tests/test_geometry_kernels.py``):
 
 * :func:`cg_csr` — :func:`geometry.operators.jacobi_cg` on a CSR matrix (copied to a padded row layout
   whose product vectorises): the sparse product, the dot products and the vector updates of one CG

@@ -49,10 +49,11 @@ def fit_ring(u, v, z, count, *, linear: bool = True):
     """
     uu, uv, vv = u * u, u * v, v * v
     S = lambda p: p.sum(0)  # noqa: E731 - sum over the neighbourhood
+    D = lambda p, q: np.einsum("wv,wv->v", p, q)  # noqa: E731 - S(p * q) without the (W, V) product
     # moments of the design columns a = (u²/2, uv, v²/2, u, v)
-    q11, q12, q13 = 0.25 * S(uu * uu), 0.5 * S(uu * uv), 0.25 * S(uu * vv)
-    q22, q23, q33 = S(uv * uv), 0.5 * S(uv * vv), 0.25 * S(vv * vv)
-    r1, r2, r3 = 0.5 * S(uu * z), S(uv * z), 0.5 * S(vv * z)
+    q11, q12, q13 = 0.25 * D(uu, uu), 0.5 * D(uu, uv), 0.25 * D(uu, vv)
+    q22, q23, q33 = D(uv, uv), 0.5 * D(uv, vv), 0.25 * D(vv, vv)
+    r1, r2, r3 = 0.5 * D(uu, z), D(uv, z), 0.5 * D(vv, z)
     trace = q11 + q22 + q33
     scale = np.where(trace > 0, trace, 1.0)
     ridge = 1e-12 * scale
@@ -61,11 +62,11 @@ def fit_ring(u, v, z, count, *, linear: bool = True):
     det_q = q11 * (q22 * q33 - q23 * q23) - q12 * (q12 * q33 - q23 * q13) + q13 * (q12 * q23 - q22 * q13)
     q11r, q22r, q33r = q11 + ridge, q22 + ridge, q33 + ridge
     if linear:
-        c14, c15 = 0.5 * S(uu * u), 0.5 * S(uu * v)
-        c24, c25 = S(uv * u), S(uv * v)
-        c34, c35 = 0.5 * S(vv * u), 0.5 * S(vv * v)
+        c14, c15 = 0.5 * D(uu, u), 0.5 * D(uu, v)
+        c24, c25 = D(uv, u), D(uv, v)
+        c34, c35 = 0.5 * D(vv, u), 0.5 * D(vv, v)
         l44, l45, l55 = S(uu) + ridge, S(uv), S(vv) + ridge
-        r4, r5 = S(u * z), S(v * z)
+        r4, r5 = D(u, z), D(v, z)
         few = cnt < 5                      # too few neighbours for the linear terms: fit them as zero
         if few.any():
             for arr in (c14, c15, c24, c25, c34, c35, l45, r4, r5):

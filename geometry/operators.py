@@ -20,13 +20,14 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from . import kernels
 from .curvature import fit_ring, tangent_frames_t
 from .mesh import lumped_vertex_areas, one_ring
 from .topology import edges_unique
 
 __all__ = [
     "face_gradient_basis", "face_gradient", "gradient_operator", "divergence", "cotangent_stiffness",
-    "lumped_mass", "MeshOperators", "MeshGeometry", "jacobi_cg",
+    "lumped_mass", "MeshOperators", "MeshGeometry", "jacobi_cg", "dot",
 ]
 
 
@@ -119,14 +120,42 @@ def lumped_mass(vertices, faces) -> sp.dia_matrix:
     return sp.diags(lumped_vertex_areas(vertices, faces))
 
 
+_DOT_BLOCK = 8192   # OpenBLAS runs a dot product of more than 10,000 entries on all its threads
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    """a·b of two 1-D float arrays on one thread.
+
+    ``a @ b`` hands long vectors to the multi-threaded BLAS: on a loaded machine each call may wait for
+    a descheduled BLAS thread (milliseconds for a 100k-vector dot, more than the sparse product of the
+    same CG iteration), and CPU time doubles.  Blocks of ``_DOT_BLOCK`` entries stay on the calling
+    thread (``np.vecdot`` of the rows, then their sum).  Same value up to rounding.
+    """
+    n = len(a)
+    if n <= _DOT_BLOCK:
+        return float(a @ b)
+    m = n - n % _DOT_BLOCK
+    out = float(np.vecdot(a[:m].reshape(-1, _DOT_BLOCK), b[:m].reshape(-1, _DOT_BLOCK)).sum())
+    return out + float(a[m:] @ b[m:]) if m < n else out
+
+
 def jacobi_cg(matvec, b: np.ndarray, diag: np.ndarray, x0: np.ndarray | None = None, *,
               rtol: float = 1e-4, maxiter: int = 200) -> tuple[np.ndarray, int, float]:
     """Jacobi-preconditioned conjugate gradients for an SPD system; returns (x, iterations, rel. residual).
 
-    ``matvec(x)`` applies the matrix; ``diag`` is its diagonal.  Stops when ‖r‖ ≤ rtol‖b‖ or after
-    ``maxiter`` iterations (the loop is over CG iterations, each a few vectorised operations).
+    ``matvec(x)`` applies the matrix — or ``matvec`` is the matrix itself (anything with ``@``, e.g. the
+    CSR matrix of :meth:`MeshOperators.h1_matrix`, one sparse product per iteration; from
+    :data:`geometry.kernels.MIN_SIZE` unknowns on, a CSR matrix runs the compiled
+    :func:`geometry.kernels.cg_csr`, the same iteration); ``diag`` is its diagonal.  Stops when
+    ‖r‖ ≤ rtol‖b‖ or after ``maxiter`` iterations (the loop is over CG iterations, each a few vectorised
+    operations, updates in place, dot products on one thread: :func:`dot`).
     """
-    bnorm = float(np.linalg.norm(b))
+    if not callable(matvec):
+        A = matvec
+        if kernels.wanted(len(b)) and sp.issparse(A) and A.format == "csr":
+            return kernels.cg_csr(A, b, diag, x0, rtol, maxiter)
+        matvec = A.__matmul__
+    bnorm = float(np.sqrt(dot(b, b)))
     if bnorm == 0.0 or not np.isfinite(bnorm):
         return np.zeros_like(b), 0, 0.0 if bnorm == 0.0 else np.nan
     inv = 1.0 / diag
@@ -138,26 +167,31 @@ def jacobi_cg(matvec, b: np.ndarray, diag: np.ndarray, x0: np.ndarray | None = N
         r = b - matvec(x)
     z = inv * r
     p = z.copy()
-    rz = float(r @ z)
+    tmp = np.empty_like(b)
+    rz = dot(r, z)
     tol2 = (rtol * bnorm) ** 2
-    rr = float(r @ r)
+    rr = dot(r, r)
     it = 0
     while rr > tol2 and it < maxiter:
         Ap = matvec(p)
-        pAp = float(p @ Ap)
+        pAp = dot(p, Ap)
         if not pAp > 0:
             break
         a = rz / pAp
-        x += a * p
-        r -= a * Ap
-        rr = float(r @ r)
-        z = inv * r
-        rz_new = float(r @ z)
+        x += np.multiply(a, p, out=tmp)
+        r -= np.multiply(a, Ap, out=tmp)
+        rr = dot(r, r)
+        np.multiply(inv, r, out=z)
+        rz_new = dot(r, z)
         p *= rz_new / rz
         p += z
         rz = rz_new
         it += 1
     return x, it, float(np.sqrt(rr) / bnorm)
+
+
+_CURVATURE_BLOCK = 4096   # vertices per block of MeshOperators.curvature
+_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))   # the distinct (i, j) corner pairs of a face
 
 
 def _cross_t(a, b) -> np.ndarray:
@@ -175,19 +209,35 @@ class MeshGeometry:
 
     Stored by coordinate (``*_t`` arrays have shape (3, N)): numpy is several times faster on (3, N)
     arrays than on (N, 3) ones for the short per-row sums a mesh needs.  The usual (N, 3) views are
-    properties.  Face quantities are computed at once, vertex quantities and edges on first use.
+    properties.  Face quantities are computed at once, vertex quantities and edges on first use — with
+    numba by the compiled passes of :func:`geometry.kernels.face_geometry` and
+    :func:`geometry.kernels.vertex_sums` (the same arithmetic; ``reference=True`` keeps numpy).
     """
 
-    def __init__(self, ops: "MeshOperators", vertices: np.ndarray):
+    def __init__(self, ops: "MeshOperators", vertices: np.ndarray, *, reference: bool = False):
         self._ops = ops
         self.vertices = vertices                                            # (V, 3)
         self.vertices_t = xt = np.ascontiguousarray(vertices.T)             # (3, V)
-        self.corners_t = P = np.take(xt, ops.faces_t, axis=1)               # (3 coords, 3 corners, F)
+        self._vertex_areas = self._vertex_normals_t = self._edges_t = None
+        self._kernels = kernels.wanted(len(vertices)) and not reference and vertices.dtype == np.float64
+        if self._kernels:                            # one compiled pass over the faces (same numbers)
+            self._corners_t = None
+            self.cross_t, self.normals_t, self.face_areas, self.centroids_t = \
+                kernels.face_geometry(vertices, ops.faces)
+            return
+        self._corners_t = P = np.take(xt, ops.faces_t, axis=1)              # (3 coords, 3 corners, F)
         self.cross_t = c = _cross_t(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])   # 2 a_f n_f
         dbl = np.sqrt(_dot_t(c, c))
         self.face_areas = 0.5 * dbl
         self.normals_t = c / np.where(dbl > 0, dbl, 1.0)
-        self._vertex_areas = self._vertex_normals_t = self._edges_t = None
+        self.centroids_t = P.sum(axis=1) / 3.0                              # (3, F)
+
+    @property
+    def corners_t(self) -> np.ndarray:
+        """The face corners (3 coords, 3 corners, F) (gathered on first use with the kernels)."""
+        if self._corners_t is None:
+            self._corners_t = np.take(self.vertices_t, self._ops.faces_t, axis=1)
+        return self._corners_t
 
     # ---- (N, 3) views
     @property
@@ -200,7 +250,7 @@ class MeshGeometry:
 
     @property
     def centroids(self) -> np.ndarray:
-        return (self.corners_t.sum(axis=1) / 3.0).T
+        return self.centroids_t.T
 
     @property
     def vertex_normals(self) -> np.ndarray:
@@ -212,12 +262,23 @@ class MeshGeometry:
     def vertex_areas(self) -> np.ndarray:
         """Lumped vertex areas (V,): one third of the incident face areas."""
         if self._vertex_areas is None:
-            self._vertex_areas = self._ops.incidence @ (self.face_areas / 3.0)
+            if self._kernels:
+                self._vertex_sums()
+            else:
+                self._vertex_areas = self._ops.incidence @ (self.face_areas / 3.0)
         return self._vertex_areas
+
+    def _vertex_sums(self):
+        vn, self._vertex_areas = kernels.vertex_sums(self._ops.faces, self.cross_t, self.face_areas,
+                                                     self._ops.n_vertices)
+        vn /= np.maximum(np.sqrt(_dot_t(vn, vn)), 1e-300)
+        self._vertex_normals_t = vn
 
     @property
     def vertex_normals_t(self) -> np.ndarray:
         """Area-weighted vertex normals (3, V), unit length."""
+        if self._vertex_normals_t is None and self._kernels:
+            self._vertex_sums()
         if self._vertex_normals_t is None:
             vn = np.ascontiguousarray((self._ops.incidence @ self.cross_t.T).T)
             vn /= np.maximum(np.sqrt(_dot_t(vn, vn)), 1e-300)
@@ -227,6 +288,8 @@ class MeshGeometry:
     @property
     def edges_t(self) -> np.ndarray:
         """Edge opposite each corner, counter-clockwise: (3 coords, 3 corners, F)."""
+        if self._edges_t is None and self._kernels and self._corners_t is None:
+            self._edges_t = kernels.face_edges(self.vertices, self._ops.faces)
         if self._edges_t is None:
             P = self.corners_t
             self._edges_t = np.stack([P[:, 2] - P[:, 1], P[:, 0] - P[:, 2], P[:, 1] - P[:, 0]], axis=1)
@@ -263,13 +326,17 @@ class MeshOperators:
         rows = np.repeat(faces, 3, axis=1).ravel()          # entry 9f + 3i + j is (faces[f,i], faces[f,j])
         cols = np.tile(faces, (1, 3)).ravel()
         key = rows * V + cols
-        uniq, inverse = np.unique(key, return_inverse=True)
-        self._slot = inverse.ravel()
+        uniq = np.unique(key)
         self._nnz = len(uniq)
         r, c = uniq // V, uniq % V
         self._indices = c.astype(np.int32)
         self._indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=V))]).astype(np.int32)
         self._diag_slot = np.flatnonzero(r == c)
+        # K is symmetric: assemble the 6 distinct corner products of each face (rows of _PAIRS, faces
+        # along the row) onto the slot of the upper-triangle entry (min, max), then copy it to (max, min)
+        self._slot6 = np.searchsorted(uniq, np.concatenate(
+            [np.minimum(faces[:, i], faces[:, j]) * V + np.maximum(faces[:, i], faces[:, j]) for i, j in _PAIRS]))
+        self._mirror = np.searchsorted(uniq, np.minimum(r, c) * V + np.maximum(r, c))
         #: (V, F) vertex-face incidence (ones): sums face quantities onto vertices
         self.incidence = sp.csr_matrix((np.ones(3 * F), (faces.ravel(), np.repeat(np.arange(F), 3))),
                                        shape=(V, F))
@@ -295,22 +362,41 @@ class MeshOperators:
         return self._edges
 
     # ---------------------------------------------------------------- per-configuration geometry
-    def geometry(self, vertices: np.ndarray) -> MeshGeometry:
-        return MeshGeometry(self, np.asarray(vertices, dtype=np.float64))
+    def geometry(self, vertices: np.ndarray, *, reference: bool = False) -> MeshGeometry:
+        """The geometry of ``vertices`` (V, 3); ``reference=True``: computed by numpy, not the kernels."""
+        return MeshGeometry(self, np.asarray(vertices, dtype=np.float64), reference=reference)
 
     # ---------------------------------------------------------------- operators
     def stiffness(self, geo: MeshGeometry) -> sp.csr_matrix:
         """Cotangent stiffness K of ``geo`` (CSR with a pattern fixed by the connectivity).
 
-        On a face, a_f ∇λ_i·∇λ_j = e_i·e_j / (4 a_f) with e_k the edge opposite corner k.
+        On a face, a_f ∇λ_i·∇λ_j = e_i·e_j / (4 a_f) with e_k the edge opposite corner k.  The 6
+        distinct products per face are laid out by pair (contiguous rows) and summed onto the upper
+        triangle by one ``bincount`` over a precomputed slot array, then mirrored: an off-diagonal entry
+        is the same two-term sum as a full 9-entries-per-face assembly (bit-identical), a diagonal entry
+        the same terms in another order.
         """
         E = geo.edges_t
         inv = 1.0 / np.where(geo.face_areas > 0, 4.0 * geo.face_areas, np.inf)
-        d00, d11, d22 = _dot_t(E[:, 0], E[:, 0]), _dot_t(E[:, 1], E[:, 1]), _dot_t(E[:, 2], E[:, 2])
-        d01, d02, d12 = _dot_t(E[:, 0], E[:, 1]), _dot_t(E[:, 0], E[:, 2]), _dot_t(E[:, 1], E[:, 2])
-        local = np.stack([d00, d01, d02, d01, d11, d12, d02, d12, d22], axis=1) * inv[:, None]
-        data = np.bincount(self._slot, weights=local.ravel(), minlength=self._nnz)
+        w = np.empty((len(_PAIRS), len(inv)))
+        for k, (i, j) in enumerate(_PAIRS):
+            np.multiply(_dot_t(E[:, i], E[:, j]), inv, out=w[k])
+        data = np.bincount(self._slot6, weights=w.ravel(), minlength=self._nnz)[self._mirror]
         return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_vertices,) * 2)
+
+    def h1_matrix(self, geo: MeshGeometry, s: float, K: sp.csr_matrix | None = None):
+        """(A, diag): the H¹ preconditioner matrix A = M + sK (M the lumped mass, K :meth:`stiffness`) as
+        one CSR matrix with K's pattern, and its diagonal.
+
+        ``jacobi_cg(A, b, diag)`` solves (M + sK)V = b with one sparse product per CG iteration, where
+        ``jacobi_cg(lambda p: M * p + s * (K @ p), b, M + s * stiffness_diagonal(K))`` needs the product
+        and three vector passes (same solution up to rounding; the diagonal is the same numbers).
+        """
+        K = self.stiffness(geo) if K is None else K
+        data = s * K.data
+        data[self._diag_slot] += geo.vertex_areas
+        A = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_vertices,) * 2)
+        return A, data[self._diag_slot]
 
     def stiffness_diagonal(self, K: sp.csr_matrix) -> np.ndarray:
         return K.data[self._diag_slot]
@@ -333,8 +419,11 @@ class MeshOperators:
             return w
         return w / np.where(geo.vertex_areas > 0, geo.vertex_areas, np.inf)
 
-    def ring_mean_t(self, xt: np.ndarray) -> np.ndarray:
-        """Mean of the 1-ring neighbours of per-vertex vectors stored by coordinate (C, V) → (C, V)."""
+    def ring_mean_t(self, xt: np.ndarray, *, reference: bool = False) -> np.ndarray:
+        """Mean of the 1-ring neighbours of per-vertex vectors stored by coordinate (C, V) → (C, V)
+        (3 rows with numba: :func:`geometry.kernels.ring_mean3`, unless ``reference``)."""
+        if kernels.wanted(xt.shape[1]) and not reference and len(xt) == 3:
+            return kernels.ring_mean3(xt, self.ring)
         w = self.ring_weight_t
         cnt = np.maximum(self.ring_count, 1)
         return np.stack([(np.take(row, self._ring_t) * w).sum(0) / cnt for row in xt])
@@ -343,22 +432,35 @@ class MeshOperators:
         """Mean of the 1-ring neighbours' rows of ``x`` (V, C) — the uniform-Laplacian centroid."""
         return self.ring_mean_t(np.ascontiguousarray(np.asarray(x, float).T)).T
 
-    def curvature(self, geo: MeshGeometry, *, linear: bool = True, normals: np.ndarray | None = None):
+    def curvature(self, geo: MeshGeometry, *, linear: bool = True, normals: np.ndarray | None = None,
+                  reference: bool = False):
         """Per-vertex (H, K) by the batched paraboloid fit over the 1-ring.
 
         :func:`geometry.curvature.paraboloid_curvature` restricted to the precomputed 1-ring, for an inner
         loop: the ring offsets are gathered in (W, V) layout and handed to the same closed-form solver,
-        :func:`geometry.curvature.fit_ring`.  NaN where the fit is not determined.
+        :func:`geometry.curvature.fit_ring`.  NaN where the fit is not determined.  Runs the compiled
+        :func:`geometry.kernels.ring_curvature` (the same arithmetic vertex by vertex) unless numba is
+        missing or ``reference`` asks for the numpy form.
         """
         n = geo.vertex_normals_t if normals is None else np.asarray(normals, float).T
+        if kernels.wanted(self.n_vertices) and not reference:
+            return kernels.ring_curvature(geo.vertices, n, self.ring, self.ring_count, linear)
         t1, t2 = tangent_frames_t(n)
-        # ring offsets in (W, V) layout, so that sums over the ring run over the short leading axis
         xt = geo.vertices_t
-        dx = np.take(xt[0], self._ring_self_t) - xt[0]                        # padded slots → 0
-        dy = np.take(xt[1], self._ring_self_t) - xt[1]
-        dz = np.take(xt[2], self._ring_self_t) - xt[2]
-        u = dx * t1[0] + dy * t1[1] + dz * t1[2]
-        v = dx * t2[0] + dy * t2[1] + dz * t2[2]
-        z = dx * n[0] + dy * n[1] + dz * n[2]
-        H, K = fit_ring(u, v, z, self.ring_count, linear=linear)[:2]
+        V = self.n_vertices
+        H, K = np.empty(V), np.empty(V)
+        # blocks of vertices: the dozens of (W, block) temporaries of the fit stay in the cache instead
+        # of being (W, V) arrays allocated (page faults) and streamed through memory one by one; every
+        # vertex's fit is independent, so the result is the same
+        for s in range(0, V, _CURVATURE_BLOCK):
+            b = slice(s, min(V, s + _CURVATURE_BLOCK))
+            ring = self._ring_self_t[:, b]
+            # ring offsets in (W, block) layout, so that sums over the ring run over the short leading axis
+            dx = np.take(xt[0], ring) - xt[0, b]                              # padded slots → 0
+            dy = np.take(xt[1], ring) - xt[1, b]
+            dz = np.take(xt[2], ring) - xt[2, b]
+            u = dx * t1[0][b] + dy * t1[1][b] + dz * t1[2][b]
+            v = dx * t2[0][b] + dy * t2[1][b] + dz * t2[2][b]
+            z = dx * n[0, b] + dy * n[1, b] + dz * n[2, b]
+            H[b], K[b] = fit_ring(u, v, z, self.ring_count[b], linear=linear)[:2]
         return H, K

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geometry import kernels
 from geometry.errors import InputError
 
 __all__ = ["Volume", "Sample", "VolumeSampler", "trilinear_channels"]
@@ -39,7 +40,10 @@ class Sample:
 _HESS_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
-def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray) -> np.ndarray:
+_CHUNK = 4096   # points per block of trilinear_channels: the block's 8 corner rows stay in the L2 cache
+
+
+def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, reference: bool = False) -> np.ndarray:
     """Trilinear interpolation of stacked grids at fractional grid indices: the one gather.
 
     ``flat`` (N0·N1·N2, C): C grids of ``shape`` (N0, N1, N2), raveled in C order, all channels of a
@@ -48,7 +52,21 @@ def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray) -> np.ndarray
     corner rows of every point (~13× faster than fancy indexing with numpy 2.x); the weights are 8
     products of coordinate arrays.  Shared by :meth:`Volume.sample` and the shape-gradient flow's
     inner loop.
+
+    The gather and the weighted sum run over blocks of ``_CHUNK`` points into one reused buffer: the
+    (8, P, C) corner array of all points at once (64 MB for 100k points and 10 channels) would be a
+    fresh allocation per call, paid in page faults, and read back from main memory by the sum.  Each
+    output value is the same 8-term sum either way (bit-identical results).
+
+    With numba, the compiled :func:`geometry.kernels.trilinear` (the same sum, point by point) runs
+    instead; ``reference=True`` keeps this numpy form.
     """
+    if kernels.wanted(idx_t.shape[1]) and not reference and flat.dtype == np.float64 and flat.flags.c_contiguous:
+        return kernels.trilinear(flat, shape, idx_t)
+    idx_t = np.asarray(idx_t, dtype=np.float64)
+    if idx_t.shape[1] and not ((idx_t.min(axis=1) >= 0).all()                # NaN fails both tests
+                               and (idx_t.max(axis=1) <= np.asarray(shape) - 1).all()):
+        raise IndexError("trilinear_channels: fractional indices outside the grid (or not finite)")
     n1, n2 = int(shape[1]), int(shape[2])
     sx = n1 * n2
     ijk, frac = [], []
@@ -58,12 +76,20 @@ def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray) -> np.ndarray
         frac.append(idx_t[c] - i0)
     base = ijk[0] * sx + ijk[1] * n2 + ijk[2]
     offsets = np.array([0, 1, n2, n2 + 1, sx, sx + 1, sx + n2, sx + n2 + 1], dtype=np.intp)[:, None]
-    corners = np.take(flat, base + offsets, axis=0)                      # (8, P, C)
+    P, C = len(base), flat.shape[1]
     tx, ty, tz = frac
     ux, uy, uz = 1.0 - tx, 1.0 - ty, 1.0 - tz
     a00, a01, a10, a11 = ux * uy, ux * ty, tx * uy, tx * ty
     w = np.stack([a00 * uz, a00 * tz, a01 * uz, a01 * tz, a10 * uz, a10 * tz, a11 * uz, a11 * tz])
-    return np.einsum("kpc,kp->cp", corners, w)
+    out = np.empty((C, P))
+    buf = np.empty((8, min(P, _CHUNK), C))
+    for s in range(0, P, _CHUNK):
+        e = min(P, s + _CHUNK)
+        corners = buf[:, :e - s]
+        # indices are checked above, so 'clip' only skips numpy's own bounds buffering
+        np.take(flat, base[s:e] + offsets, axis=0, out=corners, mode="clip")   # (8, n, C)
+        np.einsum("kpc,kp->cp", corners, w[:, s:e], out=out[:, s:e])
+    return out
 
 
 @dataclass(eq=False)

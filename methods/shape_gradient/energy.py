@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from geometry import kernels
 from geometry.operators import MeshGeometry, MeshOperators
 from phantoms import InputError
 
@@ -72,11 +73,14 @@ def evaluate_state(field, ops: MeshOperators, x: np.ndarray, alpha: float, beta:
         if timings is not None:
             timings["energy"] += time.perf_counter() - t0
         return FlowState(x, geo, np.inf, None)
-    c = geo.corners_t.sum(axis=1) / 3.0                                     # (3, F) centroids
+    c = geo.centroids_t                                                     # (3, F) centroids
     t1 = time.perf_counter()
     ch = field.sample_t(c, 1)
     t2 = time.perf_counter()
-    Ef, X = face_energies(ch[0], ch[1:4], geo.normals_t, geo.face_areas, alpha, beta)
+    if kernels.wanted(len(geo.face_areas)) and ch.dtype == np.float64 and ch.flags.c_contiguous:
+        Ef, X = kernels.face_energies(ch, geo.normals_t, geo.face_areas, alpha, beta)   # same arithmetic
+    else:
+        Ef, X = face_energies(ch[0], ch[1:4], geo.normals_t, geo.face_areas, alpha, beta)
     E = float(Ef.sum())
     if timings is not None:
         timings["interpolation"] += t2 - t1

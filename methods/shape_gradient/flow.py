@@ -6,11 +6,10 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import scipy.sparse as sp
 import trimesh
 from scipy.sparse.linalg import cg, splu
 
-from geometry.operators import MeshOperators, jacobi_cg
+from geometry.operators import MeshOperators, dot, jacobi_cg
 from phantoms import InputError
 
 from ..base import Reconstruction, ReconstructionFailed
@@ -141,7 +140,7 @@ class ShapeGradientFlow:
         Vel = self._velocity(geo, G, b)
         direction = -Vel[:, None] * geo.vertex_normals
         vmax = float(np.abs(Vel).max())
-        slope = float(b @ Vel)                           # −dE/dτ at τ = 0 (> 0)
+        slope = dot(b, Vel)                           # −dE/dτ at τ = 0 (> 0)
         if vmax == 0.0:
             return self._end("converged", f"iteration {it}: the shape gradient vanishes")
         shift = None
@@ -236,27 +235,24 @@ class ShapeGradientFlow:
             solver = "direct" if len(M) <= _DIRECT_MAX_VERTICES else "amg"
         if solver == "direct":
             if self._lu is None or self._lu_age >= _LU_REFRESH:
-                A = (sp.diags(M) + s * ops.stiffness(geo)).tocsc()
-                self._lu = splu(A, permc_spec="COLAMD")
+                self._lu = splu(ops.h1_matrix(geo, s)[0].tocsc(), permc_spec="COLAMD")
                 self._lu_age = 0
             sol = self._lu.solve(b)
             self._lu_age += 1
         elif solver == "amg":
             import pyamg
 
-            A = (sp.diags(M) + s * ops.stiffness(geo)).tocsr()
+            A = ops.h1_matrix(geo, s)[0]
             if self._lu is None or self._lu_age >= _LU_REFRESH:
                 self._lu = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric").aspreconditioner(cycle="V")
                 self._lu_age = 0
             sol, _ = cg(A, b, x0=self._V_prev, rtol=_CG_RTOL, maxiter=_CG_MAXITER, M=self._lu)
             self._lu_age += 1
         else:
-            K = ops.stiffness(geo)
-            diag = M + s * ops.stiffness_diagonal(K)
-            sol, ncg, _ = jacobi_cg(lambda p: M * p + s * (K @ p), b, diag, x0=self._V_prev, rtol=_CG_RTOL,
-                                    maxiter=_CG_MAXITER)
+            A, diag = ops.h1_matrix(geo, s)
+            sol, ncg, _ = jacobi_cg(A, b, diag, x0=self._V_prev, rtol=_CG_RTOL, maxiter=_CG_MAXITER)
             self.cg_iterations.append(ncg)
-        Vel = sol if np.isfinite(sol).all() and float(b @ sol) > 0 else G
+        Vel = sol if np.isfinite(sol).all() and dot(b, sol) > 0 else G
         self._V_prev = Vel
         self.timings["preconditioner"] += time.perf_counter() - t0
         return Vel

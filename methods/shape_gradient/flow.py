@@ -27,7 +27,8 @@ _FLOOR_MOVE_VOXELS = 1e-4  # the line search gives up when the largest trial mov
 _ARMIJO = 1e-4             # sufficient-decrease constant of the backtracking line search
 _CG_RTOL = 1e-3            # relative residual of the H¹ solve (an inexact solve is still a descent direction)
 _CG_MAXITER = 100
-_DIRECT_MAX_VERTICES = 40_000  # solver='auto': the LU up to this many vertices, multigrid above
+_DIRECT_MAX_VERTICES = 40_000  # solver='auto': the LU up to this many vertices, multigrid above ...
+_CG_MAX_S_EDGES = 2.0          # ... or CG while s is at most this many squared edge lengths
 _LU_REFRESH = 5                # the direct H¹ solver refactors M + sK every this many iterations
 _PROJECTION_STEPS = 3          # final Newton projection onto φ = 0: steps ...
 _PROJECTION_MAX_VOXELS = 0.5   # ... each capped at this many voxels
@@ -85,6 +86,7 @@ class ShapeGradientFlow:
         self._V_prev = None
         self._lu = None
         self._lu_age = 0
+        self._solver_choice: str | None = None
         self._move_prev = self.max_move
         self._grow = True
         self.cg_iterations: list[int] = []
@@ -221,7 +223,7 @@ class ShapeGradientFlow:
         used, which is still a symmetric positive-definite smoothing, so V stays a descent direction.
         ``'amg'``: CG on the current matrix preconditioned by a smoothed-aggregation multigrid hierarchy
         (pyamg) of a nearby geometry, refreshed likewise (the LU's fill-in grows too fast past ~50k vertices).
-        ``'auto'``: direct up to ``_DIRECT_MAX_VERTICES`` vertices, amg above.
+        ``'auto'``: :meth:`_auto_solver`.
         ``'cg'``: Jacobi-preconditioned CG on the current matrix, warm-started (the exact operator every
         iteration; slow when s is many squared edge lengths).
         """
@@ -229,10 +231,10 @@ class ShapeGradientFlow:
         if cfg["precondition"] != "h1" or cfg["s_world"] <= 0:
             return G
         t0 = time.perf_counter()
-        M, s = geo.vertex_areas, cfg["s_world"]
+        s = cfg["s_world"]
         solver = cfg.get("solver", "auto")
         if solver == "auto":
-            solver = "direct" if len(M) <= _DIRECT_MAX_VERTICES else "amg"
+            solver = self._auto_solver(geo, s)
         if solver == "direct":
             if self._lu is None or self._lu_age >= _LU_REFRESH:
                 self._lu = splu(ops.h1_matrix(geo, s)[0].tocsc(), permc_spec="COLAMD")
@@ -257,6 +259,20 @@ class ShapeGradientFlow:
         self.timings["preconditioner"] += time.perf_counter() - t0
         return Vel
 
+    def _auto_solver(self, geo, s: float) -> str:
+        """solver='auto': warm-started CG while s is at most ``_CG_MAX_S_EDGES`` squared edge lengths (the system
+        is then well conditioned: a few iterations), else the LU up to ``_DIRECT_MAX_VERTICES`` vertices, else
+        multigrid.  Decided once per mesh."""
+        if self._solver_choice is None:
+            e = self.ops.edges
+            d = geo.vertices[e[:, 0]] - geo.vertices[e[:, 1]]
+            ell2 = float(np.mean(np.einsum("ij,ij->i", d, d)))
+            if s <= _CG_MAX_S_EDGES * ell2:
+                self._solver_choice = "cg"
+            else:
+                self._solver_choice = "direct" if len(geo.vertices) <= _DIRECT_MAX_VERTICES else "amg"
+        return self._solver_choice
+
     # ------------------------------------------------------------------ remeshing and the intersection guard
     def _snapshot(self):
         """The current vertices, with the faces too once the connectivity can change (remeshing)."""
@@ -269,6 +285,7 @@ class ShapeGradientFlow:
                                                                     self.timings)
         self._V_prev = None          # the warm start and the factor of the H¹ solve belong to the old mesh
         self._lu = None
+        self._solver_choice = None
 
     def _remesh_and_guard(self, it: int) -> None:
         """Remesh toward the target edge length, then make sure no faces intersect (repair or roll back)."""

@@ -57,7 +57,8 @@ class ShapeGradient(Method):
         "solver": Param("auto", "how the H¹ system is solved: 'direct' = sparse LU of M + sK refreshed every 5 "
                         "iterations and at every remesh; 'amg' = CG preconditioned by a multigrid hierarchy "
                         "(pyamg) refreshed likewise; 'cg' = Jacobi-preconditioned CG every iteration (the "
-                        "slowest for large s); 'auto' = direct up to 40,000 vertices, amg above", str,
+                        "slowest for large s); 'auto' = cg while s ≤ 2 squared edge lengths (coarse meshes), else direct up to "
+                        "40,000 vertices, amg above", str,
                         choices=("auto", "direct", "amg", "cg")),
         "relax": Param(0.5, "tangential relaxation weight per iteration (move toward the 1-ring centroid "
                        "within the tangent plane); 0 = off", float, min=0.0, max=1.0),

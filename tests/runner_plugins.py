@@ -42,3 +42,17 @@ class CrashingMethod(Method):
 
     def reconstruct(self, volume):
         os.kill(os.getpid(), signal.SIGKILL)
+
+
+@register_method
+class InwardMethod(Method):
+    name = "inward"
+    description = "marching cubes with every face flipped: scores like the correct mesh, but faces inward"
+    params: dict = {}
+
+    def reconstruct(self, volume):
+        from methods import Reconstruction, get_method
+
+        rec = get_method("marching_cubes").reconstruct(volume)
+        rec.mesh.faces = rec.mesh.faces[:, ::-1]
+        return Reconstruction(rec.mesh, {})

@@ -131,8 +131,10 @@ def test_register_method_and_reconstruct(volume_file, tmp_path, monkeypatch, cap
 
     assert get_method("mc_shrunk", factor="0.5").config["factor"] == 0.5
     out = tmp_path / "shrunk.obj"
-    assert main(["reconstruct", str(volume_file), "-m", "mc_shrunk", "--set", "factor=0.5", "-o", str(out)]) == 0
-    assert "mc_shrunk" in capsys.readouterr().out
+    # a half-size sphere is not a reconstruction of the unit sphere: written for inspection, exit 1, says why
+    assert main(["reconstruct", str(volume_file), "-m", "mc_shrunk", "--set", "factor=0.5", "-o", str(out)]) == 1
+    captured = capsys.readouterr()
+    assert "mc_shrunk" in captured.out and "invalid mesh" in captured.err and "off the zero set" in captured.err
     assert abs(trimesh.load(out, force="mesh").volume - 4 / 3 * np.pi / 8) < 0.02
     with pytest.raises(InputError, match="not a Method subclass"):
         register_method(object)

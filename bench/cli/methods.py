@@ -19,6 +19,8 @@ import numpy as np
 
 from phantoms import InputError, load_volume
 
+from ..metrics.validity import check_mesh
+
 MESH_SUFFIXES = {".ply": "ply", ".obj": "obj", ".stl": "stl"}
 
 
@@ -102,9 +104,10 @@ def _cmd_reconstruct(args) -> int:
     t0 = time.perf_counter()
     rec = method.reconstruct(volume)
     wall = time.perf_counter() - t0
-    mesh = rec.mesh
+    mesh = getattr(rec, "mesh", None)
     if mesh is None or len(mesh.faces) == 0:
         raise InputError(f"method {args.method!r} returned an empty mesh")
+    invalid = check_mesh(mesh, volume)
     out.parent.mkdir(parents=True, exist_ok=True)
     mesh.export(out, file_type=MESH_SUFFIXES[suffix])
     facts = mesh_facts(mesh)
@@ -119,6 +122,7 @@ def _cmd_reconstruct(args) -> int:
     print(f"components:   {facts['components']}")
     print(f"volume:       {facts['signed_volume']:.6g} (signed; > 0 = outward faces)")
     print(f"time:         {wall:.3f} s")
+    print(f"valid:        {'no — ' + '; '.join(invalid) if invalid else 'yes'}")
     for warning in rec.info.get("warnings") or []:
         print(f"warning: {warning}", file=sys.stderr)
     scalars = {k: v for k, v in rec.info.items()
@@ -128,8 +132,13 @@ def _cmd_reconstruct(args) -> int:
     if args.info_json:
         Path(args.info_json).write_text(json.dumps(
             {"method": args.method, "params": method.config, "wall_s": wall, "mesh": facts,
+             "valid": not invalid, "invalid_reasons": invalid,
              "info": {k: (v.item() if isinstance(v, np.generic) else v) for k, v in scalars.items()}},
             indent=2, default=str))
+    if invalid:
+        print(f"error: method {args.method!r} returned an invalid mesh (written to {out} for inspection): "
+              f"{'; '.join(invalid)}", file=sys.stderr)
+        return 1
     return 0
 
 

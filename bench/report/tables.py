@@ -117,7 +117,8 @@ def _status_text(g, ok) -> str:
 
 
 def _method_rows(sub, metrics: list[str]):
-    """One row per method label: the mean of each metric over its ok cells (over all when none is ok)."""
+    """One row per method label: the mean of each metric over its ok cells (over all when none is ok: such a row
+    is shown, below the valid ones, and never marked best)."""
     import pandas as pd
 
     rows = []
@@ -130,8 +131,11 @@ def _method_rows(sub, metrics: list[str]):
             vals = _numeric(ok[m] if len(ok) else g[m])
             rec[m] = float(vals.mean()) if vals.notna().any() else np.nan
         rec["status"] = _status_text(g, ok)
+        rec["_valid"] = len(ok) > 0
         rows.append(rec)
-    return pd.DataFrame(rows)
+    t = pd.DataFrame(rows)
+    # validity first: methods with a valid (ok) result above those without one; only they can be "best"
+    return t.sort_values("_valid", ascending=False, kind="stable").reset_index(drop=True) if len(t) else t
 
 
 def _genus(phantom: str) -> int:
@@ -149,7 +153,8 @@ def _marked_html(t, metrics: list[str], genus: int) -> str:
     shown = pd.DataFrame({"method": [html.escape(str(x)) for x in t["method"]]})
     for m in [c for c in metrics if c in t.columns]:
         rule = best_rule(m, genus)
-        mask = best_mask(t[m], rule) if rule is not None else np.zeros(len(t), bool)
+        eligible = t[m].where(t["_valid"], np.nan)            # an invalid or failed result is never best
+        mask = best_mask(eligible, rule) if rule is not None else np.zeros(len(t), bool)
         shown[m] = [f'<span class="best" title="best">{fmt_value(v, m)}</span>' if b else fmt_value(v, m)
                     for v, b in zip(t[m], mask)]
     shown["status"] = [html.escape(str(s)) for s in t["status"]]

@@ -6,7 +6,9 @@ cache, when given), so any executor can run it anywhere.  It returns a plain dic
     {"row": {...}, "artifacts": {...}, "traceback": str | None}
 
 ``row`` is the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop
-reason, cost, ``status`` ``ok`` / ``failed`` and ``error``); ``artifacts`` holds the arrays the report draws:
+reason, cost, ``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`:
+``error`` says why; the metrics that can be computed are kept) / ``failed`` and ``error``); ``artifacts`` holds
+the arrays the report draws:
 the final mesh with its per-vertex mean curvature, the energy history and the snapshots.  Which
 ``Reconstruction.info`` keys are read is documented in :data:`methods.INFO_KEYS`.
 """
@@ -23,6 +25,7 @@ import numpy as np
 from methods import get_method, import_plugins
 from phantoms import Volume, add_noise, get_phantom
 
+from ..metrics.validity import check_mesh
 from .cost import measure
 from .grid import canonical_json, slug
 from .store import save_npz
@@ -159,6 +162,7 @@ def run_cell(cell: dict, cache_dir: str | None = None) -> dict:
         import_plugins(cell.get("imports") or ())
         stage = "volume"
         ph, vol = build_volume(cell, cache_dir)
+        clean = vol
         if cell["noise"] != "none":
             vol, achieved = add_noise(vol, cell["noise"], cell["snr_requested"], seed=cell["seed"])
             row["snr_achieved"] = float(achieved)
@@ -174,14 +178,21 @@ def run_cell(cell: dict, cache_dir: str | None = None) -> dict:
         except Exception as exc:  # pictures are optional; the metrics are not
             artifacts = {}
             runner_values["artifact_error"] = error_text(exc)
+        stage = "validity"
+        invalid = check_mesh(rec.mesh, clean)          # against the clean level set the grid knows
         stage = "metrics"
-        metrics = evaluate(rec.mesh, ph, vol.h, n_samples=cell["n_samples"], seed=cell["seed"])
+        try:
+            metrics = evaluate(rec.mesh, ph, vol.h, n_samples=cell["n_samples"], seed=cell["seed"])
+        except Exception:
+            if not invalid:
+                raise
+            metrics = {}                               # an invalid mesh keeps what can be computed
         row.update(plain(dict(metrics)))
         for k, v in runner_values.items():
             if v is not None or k not in row:
                 row[k] = plain(v)
-        row["status"] = "ok"
-        row["error"] = ""
+        row["status"] = "invalid" if invalid else "ok"
+        row["error"] = f"invalid: {'; '.join(invalid)}" if invalid else ""
     except Exception as exc:
         row["status"] = "failed"
         row["error"] = f"{stage}: {error_text(exc)}"

@@ -25,7 +25,7 @@ from .store import CACHE_DIR, check_output_dir, load_cells, read_json, save_cell
 
 __all__ = ["run_grid", "RunSummary"]
 
-STATUSES = ("ok", "failed", "timeout")
+STATUSES = ("ok", "invalid", "failed", "timeout")
 
 
 def _now() -> str:
@@ -39,6 +39,7 @@ class RunSummary:
     out: Path
     total: int
     ok: int = 0
+    invalid: int = 0
     failed: int = 0
     timeout: int = 0
     skipped: int = 0
@@ -49,7 +50,8 @@ class RunSummary:
     statuses: dict = field(default_factory=dict)
 
     def line(self) -> str:
-        parts = [f"{self.ok} ok", f"{self.failed} failed", f"{self.timeout} timeout"]
+        parts = [f"{self.ok} ok"] + ([f"{self.invalid} invalid"] if self.invalid else []) \
+            + [f"{self.failed} failed", f"{self.timeout} timeout"]
         resumed = f", {self.skipped} already done" if self.skipped else ""
         where = f" → {self.report}" if self.report else f" → {self.out}"
         return (f"{self.total} cells: {', '.join(parts)} ({self.ran} run{resumed}) in "

@@ -55,7 +55,7 @@ def test_results_csv_has_ids_metrics_extras_runner_columns_then_status_in_grid_o
     rows = [{"cell_id": "b", "hausdorff": 1.0, "my_counter": 3, "stop_reason": "converged", "cell_s": 2.0,
              "status": "ok", "error": ""}]
     cols = result_columns(rows)
-    assert cols[:len(ID_COLUMNS)] == ID_COLUMNS and cols[-2:] == TAIL_COLUMNS
+    assert cols[:len(ID_COLUMNS)] == ID_COLUMNS and cols[-3:] == TAIL_COLUMNS
     metric_cols = [c for c in cols if c in METRIC_NAMES]
     assert metric_cols == [m for m in METRIC_NAMES if m in metric_cols]
     assert cols.index("my_counter") < cols.index("stop_reason") and "cell_s" not in cols

@@ -16,7 +16,8 @@ __all__ = ["TEMPLATE_DIR", "write_report"]
 
 TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 
-_TEXT_COLUMNS = ("error", "label", "method", "noise", "phantom", "variant", "status", "parameters", "cell_id")
+_TEXT_COLUMNS = ("error", "label", "method", "noise", "phantom", "variant", "status", "parameters", "cell_id",
+                 "flags")
 
 
 def _load_results(out: Path):

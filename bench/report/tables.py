@@ -130,12 +130,18 @@ def _method_rows(sub, metrics: list[str]):
                 continue
             vals = _numeric(ok[m] if len(ok) else g[m])
             rec[m] = float(vals.mean()) if vals.notna().any() else np.nan
-        rec["status"] = _status_text(g, ok)
+        flags = sorted({f for v in (ok if len(ok) else g).get("flags", pd.Series(dtype=object))
+                        if isinstance(v, str) for f in v.split(";") if f})
+        rec["status"] = _status_text(g, ok) + "".join(f" ⚑{f}" for f in flags)
         rec["_valid"] = len(ok) > 0
+        rec["_unflagged"] = not flags
         rows.append(rec)
     t = pd.DataFrame(rows)
-    # validity first: methods with a valid (ok) result above those without one; only they can be "best"
-    return t.sort_values("_valid", ascending=False, kind="stable").reset_index(drop=True) if len(t) else t
+    # validity first: valid unflagged methods, then valid flagged ones, then those without a valid result (only
+    # valid ones can be "best")
+    if not len(t):
+        return t
+    return t.sort_values(["_valid", "_unflagged"], ascending=False, kind="stable").reset_index(drop=True)
 
 
 def _genus(phantom: str) -> int:

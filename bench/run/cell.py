@@ -25,6 +25,7 @@ import numpy as np
 from methods import get_method, import_plugins
 from phantoms import Volume, add_noise, get_phantom
 
+from ..metrics.flags import result_flags
 from ..metrics.validity import check_mesh
 from .cost import measure
 from .grid import canonical_json, slug
@@ -191,6 +192,7 @@ def run_cell(cell: dict, cache_dir: str | None = None) -> dict:
         for k, v in runner_values.items():
             if v is not None or k not in row:
                 row[k] = plain(v)
+        row["flags"] = ";".join(result_flags(row, ph))
         row["status"] = "invalid" if invalid else "ok"
         row["error"] = f"invalid: {'; '.join(invalid)}" if invalid else ""
     except Exception as exc:

@@ -47,7 +47,7 @@ ID_COLUMNS = ["cell_id", "phantom", "variant", "N", "noise", "snr_requested", "s
               "method", "label", "parameters"]
 #: columns the runner fills from the method's info and the cost measurement
 RUNNER_COLUMNS = ["iterations", "energy_final", "stop_reason", "wall_s", "peak_mem_mb"]
-TAIL_COLUMNS = ["status", "error"]
+TAIL_COLUMNS = ["flags", "status", "error"]
 #: row keys kept in the cell's json but not in results.csv
 _NOT_IN_CSV = ("cell_s", "artifact_error")
 

@@ -1,0 +1,45 @@
+"""Suspect results: a valid mesh (bench.metrics.validity) can still be doubtful.  The ``flags`` column holds,
+``;``-separated:
+
+* ``topology_mismatch`` — the mesh's Euler characteristic or number of components differs from the truth's
+  (a phantom knows its own: ``genus`` and ``n_components``; one component unless it says otherwise);
+* ``dropped_components`` — fewer components than the truth (a method that kept only its largest part);
+* ``self_intersecting`` — at least one pair of non-adjacent faces intersects;
+* ``not_converged`` — the method stopped on ``max_iter``, ``line_search_floor`` or ``diverged``.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["result_flags", "FLAGS"]
+
+FLAGS = ("topology_mismatch", "dropped_components", "self_intersecting", "not_converged")
+_NOT_CONVERGED = ("max_iter", "line_search_floor", "diverged")
+
+
+def _number(row: dict, key: str) -> float | None:
+    v = row.get(key)
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def result_flags(row: dict, phantom=None) -> list[str]:
+    """The flags of one result row (its metrics and stop_reason) against ``phantom``'s topology (None: no truth)."""
+    flags = []
+    euler, comps = _number(row, "euler"), _number(row, "components")
+    if phantom is not None and euler is not None and comps is not None:
+        n_true = int(getattr(phantom, "n_components", 1) or 1)
+        euler_true = 2 * n_true - 2 * int(getattr(phantom, "genus", 0) or 0)
+        if int(euler) != euler_true or int(comps) != n_true:
+            flags.append("topology_mismatch")
+        if int(comps) < n_true:
+            flags.append("dropped_components")
+    if (_number(row, "self_intersections") or 0) > 0:
+        flags.append("self_intersecting")
+    if row.get("stop_reason") in _NOT_CONVERGED:
+        flags.append("not_converged")
+    return flags

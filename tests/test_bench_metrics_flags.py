@@ -1,0 +1,43 @@
+"""bench.metrics.flags: suspect but valid results, against the truth's topology and the method's stop."""
+
+from __future__ import annotations
+
+import pytest
+
+from bench.metrics.flags import result_flags
+from bench.run import expand_grid, run_cell
+from bench.config import config_from_dict
+from phantoms import get_phantom
+
+
+def test_each_flag_from_a_row():
+    sphere, torus = get_phantom("sphere"), get_phantom("torus")
+    clean = {"euler": 2, "components": 1, "self_intersections": 0, "stop_reason": "converged"}
+    assert result_flags(clean, sphere) == []
+    assert result_flags(clean, torus) == ["topology_mismatch"]                   # a sphere for a torus
+    assert result_flags({**clean, "euler": 0}, torus) == []
+    assert result_flags({**clean, "self_intersections": 3}, sphere) == ["self_intersecting"]
+    for stop in ("max_iter", "line_search_floor", "diverged"):
+        assert result_flags({**clean, "stop_reason": stop}, sphere) == ["not_converged"]
+    assert result_flags(clean, None) == []                                       # no truth: no topology flag
+
+
+def test_dropped_components_against_a_two_component_truth():
+    class TwoSpheres:
+        genus, n_components = 0, 2
+
+    row = {"euler": 2, "components": 1, "self_intersections": 0, "stop_reason": None}
+    assert result_flags(row, TwoSpheres()) == ["topology_mismatch", "dropped_components"]
+    assert result_flags({**row, "euler": 4, "components": 2}, TwoSpheres()) == []
+
+
+@pytest.mark.parametrize("method, params, flag", [
+    ("shape_gradient", {"max_iter": 40}, "topology_mismatch"),           # one genus-0 surface for a torus
+    ("distmesh", {"max_iter": 3}, "not_converged"),                     # stopped early: max_iter
+])
+def test_grid_rows_carry_their_flags(method, params, flag):
+    cfg = config_from_dict({"grid": {"phantoms": ["torus"], "n": 40}, "methods": [{"name": method, "params": params}],
+                            "metrics": {"n_samples": 2000}})
+    cfg.validate()
+    row = run_cell(expand_grid(cfg)[0])["row"]
+    assert flag in row["flags"].split(";"), (row["status"], row["error"], row["flags"])

@@ -41,3 +41,22 @@ def test_grid_rows_carry_their_flags(method, params, flag):
     cfg.validate()
     row = run_cell(expand_grid(cfg)[0])["row"]
     assert flag in row["flags"].split(";"), (row["status"], row["error"], row["flags"])
+
+
+def test_poisson_drops_the_inner_surface_of_nested_spheres(tmp_path):
+    """A hollow ball (an outer sphere and an inward-facing inner one) as a mesh phantom: screened Poisson keeps
+    one surface — flagged dropped_components — while marching cubes keeps both."""
+    import trimesh
+
+    outer = trimesh.creation.icosphere(3, radius=1.4)
+    inner = trimesh.creation.icosphere(3, radius=0.7)
+    inner.invert()
+    path = tmp_path / "shell.ply"
+    trimesh.util.concatenate([outer, inner]).export(path)
+    cfg = config_from_dict({"grid": {"phantoms": [f"mesh:{path}"], "n": 40},
+                            "methods": [{"name": "poisson"}, {"name": "marching_cubes"}],
+                            "metrics": {"n_samples": 2000}})
+    cfg.validate()
+    rows = {c["label"]: run_cell(c)["row"] for c in expand_grid(cfg)}
+    assert "dropped_components" in rows["poisson"]["flags"].split(";"), rows["poisson"]
+    assert rows["marching_cubes"]["flags"] == "" and rows["marching_cubes"]["components"] == 2

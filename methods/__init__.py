@@ -8,6 +8,8 @@ from .base import (
     Param,
     Reconstruction,
     ReconstructionFailed,
+    WrongReturnType,
+    as_reconstruction,
     available_methods,
     check_volume,
     get_method,
@@ -18,5 +20,6 @@ from .base import (
 
 __all__ = [
     "Method", "Param", "Reconstruction", "ReconstructionFailed", "available_methods", "get_method", "method_names",
-    "register_method", "import_plugins", "check_volume", "ENTRY_POINT_GROUP", "BUILTIN_METHODS", "INFO_KEYS",
+    "register_method", "import_plugins", "as_reconstruction", "WrongReturnType", "check_volume",
+    "ENTRY_POINT_GROUP", "BUILTIN_METHODS", "INFO_KEYS",
 ]

@@ -25,7 +25,7 @@ import trimesh
 from phantoms import InputError, Volume
 
 __all__ = [
-    "Param", "Method", "Reconstruction", "ReconstructionFailed", "INFO_KEYS", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
+    "Param", "Method", "Reconstruction", "ReconstructionFailed", "WrongReturnType", "as_reconstruction", "INFO_KEYS", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
     "available_methods", "get_method", "register_method", "method_names", "check_volume",
 ]
 
@@ -136,6 +136,25 @@ class Reconstruction:
 
     mesh: trimesh.Trimesh
     info: dict = field(default_factory=dict)
+
+
+class WrongReturnType(ReconstructionFailed, TypeError):
+    """A method returned something other than a :class:`Reconstruction` of a ``trimesh.Trimesh`` and a dict."""
+
+
+def as_reconstruction(result: Any, name: str) -> Reconstruction:
+    """``result`` if it is what a method must return (a :class:`Reconstruction` holding a ``trimesh.Trimesh``
+    and an ``info`` dict); else :class:`WrongReturnType` naming the method and what it returned."""
+    if not isinstance(result, Reconstruction):
+        raise WrongReturnType(f"method {name!r} returned {type(result).__name__}, expected methods.Reconstruction "
+                              "(return Reconstruction(mesh, info))")
+    if not isinstance(result.mesh, trimesh.Trimesh):
+        raise WrongReturnType(f"method {name!r} returned a Reconstruction whose mesh is "
+                              f"{type(result.mesh).__name__}, expected trimesh.Trimesh")
+    if not isinstance(result.info, dict):
+        raise WrongReturnType(f"method {name!r} returned a Reconstruction whose info is "
+                              f"{type(result.info).__name__}, expected dict")
+    return result
 
 
 class Method:

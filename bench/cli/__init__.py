@@ -1,7 +1,7 @@
 """The command line: ``python -m bench <command> ...`` — argument parsing and exit codes only.
 
 Each room registers its subcommands (``register(subparsers)``): :mod:`.volumes` (phantoms, volume, info),
-:mod:`.run` (run, report), :mod:`.methods` (methods, reconstruct), :mod:`.perf` (perf).  Errors a user can fix
+:mod:`.run` (run, report), :mod:`.methods` (methods, reconstruct), :mod:`.check` (check-method), :mod:`.perf` (perf).  Errors a user can fix
 (:class:`phantoms.InputError`) print one line on stderr and exit with code 2, never a traceback.
 """
 
@@ -13,6 +13,7 @@ import sys
 from methods import ReconstructionFailed
 from phantoms import InputError
 
+from . import check as _check
 from . import methods as _methods
 from . import perf as _perf
 from . import run as _run
@@ -27,7 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                  "level-set volumes.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for room in (_volumes, _run, _methods, _perf):
+    for room in (_volumes, _run, _methods, _check, _perf):
         room.register(sub)
     return parser
 

@@ -38,11 +38,25 @@ def _param_line(key: str, spec) -> str:
     return f"    {key:<17} {typ:<6} default {default:<10} {spec.doc}{bounds}"
 
 
+def add_import_option(p) -> None:
+    """``--import MODULE`` (repeatable): import a module that registers methods before the name is resolved."""
+    p.add_argument("--import", dest="imports", action="append", metavar="MODULE", default=None,
+                   help="import MODULE first (e.g. one that calls methods.register_method); repeatable")
+
+
+def import_modules(args) -> None:
+    """Import the ``--import`` modules (InputError naming a module that fails to import)."""
+    from methods import import_plugins
+
+    import_plugins(args.imports or ())
+
+
 def _cmd_methods(args) -> int:
     import warnings
 
     from methods import available_methods
 
+    import_modules(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         methods = available_methods()
@@ -91,7 +105,7 @@ def _fmt(value) -> str:
 
 
 def _cmd_reconstruct(args) -> int:
-    from methods import get_method
+    from methods import as_reconstruction, get_method
     from methods.marching_cubes import mesh_facts
 
     out = Path(args.output)
@@ -99,13 +113,14 @@ def _cmd_reconstruct(args) -> int:
     if suffix not in MESH_SUFFIXES:
         raise InputError(f"output {str(out)!r}: unknown mesh format {suffix or '(none)'!r}; "
                          f"use one of {', '.join(MESH_SUFFIXES)}")
+    import_modules(args)
     method = get_method(args.method, **parse_assignments(args.set))  # bad names/params fail before I/O
     volume = load_volume(args.input, mask=True if args.mask else None)
     t0 = time.perf_counter()
-    rec = method.reconstruct(volume)
+    rec = as_reconstruction(method.reconstruct(volume), args.method)  # wrong type: one line, exit 1
     wall = time.perf_counter() - t0
-    mesh = getattr(rec, "mesh", None)
-    if mesh is None or len(mesh.faces) == 0:
+    mesh = rec.mesh
+    if len(mesh.faces) == 0:
         raise InputError(f"method {args.method!r} returned an empty mesh")
     invalid = check_mesh(mesh, volume)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -148,6 +163,7 @@ def register(subparsers) -> None:
                                           "entry-point group levelset_bench.methods) with its parameters, "
                                           "types, defaults, ranges and documentation.")
     p.add_argument("name", nargs="?", help="show only this method")
+    add_import_option(p)
     p.set_defaults(func=_cmd_methods)
 
     p = subparsers.add_parser("reconstruct", help="reconstruct a mesh from a volume file",
@@ -161,4 +177,5 @@ def register(subparsers) -> None:
     p.add_argument("-o", "--output", required=True, help="output mesh: .ply, .obj or .stl")
     p.add_argument("--mask", action="store_true", help="require the input to be a binary mask")
     p.add_argument("--info-json", metavar="FILE", help="also write the mesh and method facts as JSON")
+    add_import_option(p)
     p.set_defaults(func=_cmd_reconstruct)

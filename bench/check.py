@@ -1,0 +1,219 @@
+"""``python -m bench check-method NAME``: does a method honour the contract of :class:`methods.Method`?
+
+The counterpart of ``benchopt test`` for a method author.  The method runs on a few small volumes (N ≈ 24–32,
+seconds in all) built here from exact or zero-set-exact level-set functions:
+
+* ``sphere``      — the unit sphere centred in a cubic grid;
+* ``anisotropic`` — an ellipsoid (1.0, 0.7, 0.5) off the grid centre, on a grid with a different spacing and
+  number of points per axis and a non-zero origin (catches index coordinates, transposed axes, a
+  spacing taken as one number);
+* ``noisy``       — the sphere with Gaussian noise at 30 dB (checked against the clean level set);
+* ``torus``       — a torus (R = 1, r = 0.45): genus 1, in a flat grid;
+* ``no_surface``  — φ > 0 everywhere: there is nothing to reconstruct.
+
+Each output goes through the suite's own validity rules (:func:`bench.metrics.validity.check_mesh`: non-empty,
+finite, world coordinates inside the box, closed, edge-manifold, consistently oriented, outward, on φ = 0) after
+a type check (a :class:`methods.Reconstruction` holding a ``trimesh.Trimesh`` and an ``info`` dict).  What
+passes:
+
+* sphere, anisotropic, noisy: a valid mesh — raising anything is a violation;
+* torus: a valid mesh (of any genus: a method that can only make genus-0 surfaces may wrap the hole, and the
+  suite's ``topology_mismatch`` flag reports that in a grid run), or a clear refusal —
+  :class:`methods.ReconstructionFailed` or :class:`phantoms.InputError` with a message;
+* no_surface: a clear refusal (``InputError``, as :func:`methods.check_volume` raises, or
+  ``ReconstructionFailed``) or a :class:`methods.Reconstruction` with an empty mesh.  A non-empty mesh (a
+  surface that is not there) or any other exception (e.g. a ``ValueError`` from deep inside a library) is a
+  violation.
+
+Each violation comes with what to fix.  :func:`check_method` returns the per-case results; the command prints
+them and exits 1 on any violation.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from methods import Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction
+from phantoms import InputError, Volume, add_noise
+
+from .metrics.validity import check_mesh
+from .run.values import error_text, plain
+
+__all__ = ["CASES", "CaseResult", "check_method", "case_volumes", "HINTS"]
+
+CASES = ("sphere", "anisotropic", "noisy", "torus", "no_surface")
+
+#: what to fix, by the first words of a violation
+HINTS = {
+    "empty": "return the triangles of the zero level set; an empty mesh is only right when φ has no zero crossing",
+    "non-finite": "a vertex has NaN/inf coordinates: look for a division by a zero gradient or normal",
+    "bad indices": "faces must index rows of vertices (0-based)",
+    "outside the volume": "vertices must be in world coordinates: volume.index_to_world(ijk) = origin + ijk * "
+                          "spacing (per axis), with array axis 0 = x; scikit-image's marching_cubes gives "
+                          "index coordinates unless you pass spacing= and add volume.origin",
+    "open": "the mesh must be closed: build the trimesh with merged vertices (adjacent faces must share vertex "
+            "indices, not only positions), e.g. mesh.merge_vertices()",
+    "non-manifold": "every edge must be in exactly two faces: drop duplicate faces, split pinched vertices",
+    "inconsistently oriented": "neighbouring faces must traverse their shared edge in opposite directions "
+                               "(trimesh.repair.fix_winding)",
+    "inward": "faces must be counter-clockwise seen from outside (normals up the gradient of φ, φ < 0 inside): "
+              "reverse them, faces[:, ::-1]",
+    "off the zero set": "the vertices must lie on φ = 0 of the volume you were given (median |φ| ≤ h/2): check "
+                        "world coordinates (origin, per-axis spacing), axis order (axis 0 = x) and the sign "
+                        "convention (φ < 0 inside)",
+    "wrong type": "return methods.Reconstruction(mesh, info) with a trimesh.Trimesh and a dict",
+    "raised": "raise phantoms.InputError for a volume the method cannot take and methods.ReconstructionFailed "
+              "for a run that failed (both with a message); anything else is a bug",
+    "surface": "φ > 0 everywhere: there is no surface; call methods.check_volume(volume, self.name) first "
+               "(it raises InputError) or return an empty mesh",
+}
+
+
+@dataclass
+class CaseResult:
+    """One case: what the method did, how long it took, what it returned, what is wrong."""
+
+    case: str
+    outcome: str = ""                     # "mesh", "empty mesh", "refused", "raised", "wrong type"
+    seconds: float = 0.0
+    violations: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    info: dict = field(default_factory=dict)
+    facts: dict = field(default_factory=dict)
+    traceback: str | None = None
+
+    @property
+    def passed(self) -> bool:
+        return not self.violations
+
+
+def _grid(lower, spacing, shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    lower, spacing = np.asarray(lower, float), np.asarray(spacing, float)
+    axes = [lower[d] + np.arange(shape[d]) * spacing[d] for d in range(3)]
+    x, y, z = np.meshgrid(*axes, indexing="ij")
+    return x, y, z
+
+
+def _sphere(n: int) -> Volume:
+    lower, spacing = np.full(3, -1.45), np.full(3, 2.9 / (n - 1))
+    x, y, z = _grid(lower, spacing, (n, n, n))
+    return Volume(np.sqrt(x**2 + y**2 + z**2) - 1.0, lower, spacing)
+
+
+def _ellipsoid(n: int) -> Volume:
+    centre, axes = np.array([0.4, -0.3, 0.2]), np.array([1.0, 0.7, 0.5])
+    half = axes + 0.35
+    spacing = 2 * half / (n - 1) * np.array([1.0, 0.95, 0.9])
+    shape = tuple(int(k) for k in np.ceil(2 * half / spacing).astype(int) + 1)
+    lower = centre - half
+    x, y, z = _grid(lower, spacing, shape)
+    q = np.sqrt(((x - centre[0]) / axes[0])**2 + ((y - centre[1]) / axes[1])**2 + ((z - centre[2]) / axes[2])**2)
+    return Volume((q - 1.0) * axes.min(), lower, spacing)      # zero set exact, |∇φ| ≈ 1 near it
+
+
+def _torus(n: int) -> Volume:
+    R, r = 1.0, 0.45
+    h = 2 * (R + r + 0.25) / (n - 1)
+    shape = (n, n, int(np.ceil(2 * (r + 0.25) / h)) + 1)
+    lower = np.array([-(R + r + 0.25), -(R + r + 0.25), -(shape[2] - 1) * h / 2])
+    x, y, z = _grid(lower, np.full(3, h), shape)
+    return Volume(np.sqrt((np.sqrt(x**2 + y**2) - R)**2 + z**2) - r, lower, np.full(3, h))
+
+
+def case_volumes(n: int = 24, seed: int = 0) -> dict[str, tuple[Volume, Volume]]:
+    """``{case: (volume given to the method, clean volume the output is checked against)}``."""
+    sphere = _sphere(n)
+    noisy, _ = add_noise(sphere, "gaussian", 30.0, seed=seed)
+    ell, torus = _ellipsoid(n + 4), _torus(n + 4)
+    empty = sphere.with_values(np.abs(sphere.values) + 0.5)
+    return {"sphere": (sphere, sphere), "anisotropic": (ell, ell), "noisy": (noisy, sphere),
+            "torus": (torus, torus), "no_surface": (empty, empty)}
+
+
+def _info_notes(info: dict) -> list[str]:
+    """Known info keys with a value of the wrong kind (see methods.INFO_KEYS)."""
+    notes = []
+    if "iterations" in info and not isinstance(info["iterations"], (int, np.integer)):
+        notes.append(f"info['iterations'] should be an int, got {type(info['iterations']).__name__}")
+    if "stop_reason" in info and not isinstance(info["stop_reason"], str):
+        notes.append(f"info['stop_reason'] should be a str, got {type(info['stop_reason']).__name__}")
+    if "energy_history" in info and np.ndim(info["energy_history"]) != 1:
+        notes.append("info['energy_history'] should be a 1-D sequence of floats")
+    w = info.get("warnings")
+    if w is not None and not (isinstance(w, (list, tuple)) and all(isinstance(s, str) for s in w)):
+        notes.append("info['warnings'] should be a list of str")
+    return notes
+
+
+def _mesh_facts(mesh) -> dict:
+    from methods.marching_cubes import mesh_facts
+
+    try:
+        return mesh_facts(mesh)
+    except Exception:  # facts are for the reader; a broken mesh is judged by check_mesh
+        return {"vertices": len(mesh.vertices), "faces": len(mesh.faces)}
+
+
+def _judge(res: CaseResult, rec: Reconstruction, clean: Volume) -> None:
+    mesh = rec.mesh
+    res.facts = _mesh_facts(mesh)
+    empty = len(mesh.vertices) == 0 or len(mesh.faces) == 0
+    if res.case == "no_surface":
+        res.outcome = "empty mesh" if empty else "mesh"
+        if not empty:
+            res.violations.append(f"surface: returned a mesh of {len(mesh.faces)} faces for a volume with no "
+                                  "zero crossing")
+        return
+    res.outcome = "mesh"
+    res.violations += check_mesh(mesh, clean)
+    if res.case == "torus" and not res.violations and res.facts.get("euler") != 0:
+        res.notes.append(f"Euler characteristic {res.facts.get('euler')} (the torus has 0): a grid run flags "
+                         "this as topology_mismatch")
+
+
+def run_case(method, case: str, volume: Volume, clean: Volume) -> CaseResult:
+    """Run ``method`` on one case volume and judge the result (never raises for what the method does)."""
+    res = CaseResult(case)
+    t0 = time.perf_counter()
+    try:
+        out = method.reconstruct(volume)
+        res.seconds = time.perf_counter() - t0
+        rec = as_reconstruction(out, method.name)
+    except (InputError, ReconstructionFailed) as exc:
+        res.seconds = res.seconds or time.perf_counter() - t0
+        wrong_type = isinstance(exc, WrongReturnType)
+        res.outcome = "wrong type" if wrong_type else "refused"
+        res.notes.append(error_text(exc))
+        if wrong_type:
+            res.violations.append(f"wrong type: {exc}")
+        elif case in ("sphere", "anisotropic", "noisy"):
+            res.violations.append(f"raised {error_text(exc)} on a volume it must reconstruct")
+        return res
+    except Exception as exc:  # noqa: BLE001 - whatever the method raised is the finding
+        res.seconds = time.perf_counter() - t0
+        res.outcome = "raised"
+        res.violations.append(f"raised {error_text(exc)}")
+        res.traceback = traceback.format_exc()
+        return res
+    res.info = {k: plain(v) for k, v in rec.info.items() if k not in ("snapshots", "energy_history")}
+    res.notes += _info_notes(rec.info)
+    _judge(res, rec, clean)
+    return res
+
+
+def check_method(method, n: int = 24, cases=CASES, seed: int = 0) -> list[CaseResult]:
+    """Run ``method`` (an instance) on each of ``cases`` at about ``n`` points per axis."""
+    volumes = case_volumes(n, seed)
+    return [run_case(method, c, *volumes[c]) for c in cases]
+
+
+def hint(violation: str) -> str:
+    """What to fix for one violation."""
+    for key, text in HINTS.items():
+        if violation.startswith(key):
+            return text
+    return ""

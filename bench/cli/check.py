@@ -1,0 +1,94 @@
+"""``python -m bench check-method NAME [--import MODULE] [--set key=value ...]``: the method contract, tested.
+
+Runs the method on the small volumes of :mod:`bench.check`, prints per case the outcome, the time, the mesh
+facts, the method's ``info`` and every violation with what to fix; exit code 1 on any violation, 0 when the
+method honours the contract, 2 on bad input (unknown method or parameter, a module that does not import).
+"""
+
+from __future__ import annotations
+
+from ..check import CASES, check_method, hint
+from .methods import add_import_option, import_modules, parse_assignments
+
+HELP = """\
+Run a method on small test volumes (sphere; anisotropic off-centre ellipsoid; noisy sphere; torus; a volume
+with no zero crossing) and check each output against the contract every method must honour: a
+methods.Reconstruction holding a closed, edge-manifold, consistently and outward oriented trimesh in world
+coordinates on phi = 0, with finite vertices (the suite's validity rules). On the volume with no surface the
+method must refuse clearly (phantoms.InputError / methods.ReconstructionFailed) or return an empty mesh; on the
+torus a clear refusal is accepted too. Exit code 1 on any violation, with what to fix."""
+
+
+def _short(value) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    text = str(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _print_case(r, verbose: bool) -> None:
+    verdict = "ok  " if r.passed else "FAIL"
+    what = r.outcome
+    if r.facts:
+        what += f", {r.facts.get('faces', '?')} faces, euler {r.facts.get('euler', '?')}"
+    print(f"  {r.case:<12} {verdict}  {r.seconds:7.3f} s  {what}")
+    for note in r.notes:
+        print(f"  {'':<12}       note: {note}")
+    if r.info:
+        items = ", ".join(f"{k}={_short(v)}" for k, v in r.info.items())
+        print(f"  {'':<12}       info: {items}")
+    for v in r.violations:
+        print(f"  {'':<12}       violation: {v}")
+        fix = hint(v)
+        if fix:
+            print(f"  {'':<12}         fix: {fix}")
+    if verbose and r.traceback:
+        print(r.traceback)
+
+
+def _cmd_check(args) -> int:
+    from methods import get_method
+
+    import_modules(args)
+    method = get_method(args.name, **parse_assignments(args.set))
+    cases = args.case or list(CASES)
+    settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())
+    print(f"check-method {method.name} ({settings or 'no parameters'}), N = {args.n}")
+    results = check_method(method, n=args.n, cases=cases)
+    for r in results:
+        _print_case(r, args.verbose)
+    bad = [r.case for r in results if not r.passed]
+    total = sum(r.seconds for r in results)
+    if bad:
+        print(f"FAIL: {len(bad)} of {len(results)} cases violate the method contract ({', '.join(bad)}); "
+              f"{total:.2f} s in the method")
+        return 1
+    print(f"ok: {len(results)} cases honour the method contract; {total:.2f} s in the method")
+    return 0
+
+
+def _grid_points(text: str) -> int:
+    import argparse
+
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 12 <= n <= 128:
+        raise argparse.ArgumentTypeError(f"must be in [12, 128]: {text!r}")
+    return n
+
+
+def register(subparsers) -> None:
+    import argparse
+
+    p = subparsers.add_parser("check-method", help="check that a method honours the method contract",
+                              description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("name", metavar="NAME", help="method name (see: python -m bench methods)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="set a method parameter (repeatable)")
+    add_import_option(p)
+    p.add_argument("--n", type=_grid_points, default=24, help="grid points per axis of the test volumes "
+                                                              "(default 24)")
+    p.add_argument("--case", action="append", choices=CASES, help="run only this case (repeatable)")
+    p.add_argument("--verbose", "-v", action="store_true", help="print the traceback of a method that raised")
+    p.set_defaults(func=_cmd_check)

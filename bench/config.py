@@ -29,6 +29,8 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
 
     [run]
     timeout = 3600                          # seconds per cell (0 or absent: none)
+    method_timeout = 600                    # seconds for method.reconstruct alone (0 or absent: none)
+    score_timeout = 600                     # seconds for the validity check and metrics alone
     imports = ["my_package.my_methods"]     # modules imported first (e.g. to register_method plug-ins)
 
     [report]                                # optional: what the report shows side by side
@@ -68,7 +70,7 @@ _GRID_KEYS = {"phantoms", "variants", "n", "extent", "seeds", "noise"}
 _NOISE_KEYS = {"kind", "snr"}
 _METHOD_KEYS = {"name", "label", "params", "sweep", "phantom_params"}
 _METRICS_KEYS = {"n_samples"}
-_RUN_KEYS = {"timeout", "imports"}
+_RUN_KEYS = {"timeout", "method_timeout", "score_timeout", "imports"}
 _REPORT_KEYS = {"paper_columns", "uniform_label"}
 _COLUMN_KEYS = {"title", "label", "noise"}
 
@@ -186,6 +188,8 @@ class RunConfig:
     methods: list[MethodSpec] = field(default_factory=list)
     n_samples: int = 100_000
     timeout: float | None = None
+    method_timeout: float | None = None
+    score_timeout: float | None = None
     imports: list[str] = field(default_factory=list)
     report: dict = field(default_factory=dict)
     source: str = ""
@@ -205,6 +209,9 @@ class RunConfig:
             "metrics": {"n_samples": self.n_samples},
             "run": {"timeout": self.timeout or 0, "imports": list(self.imports)},
         }
+        for key in ("method_timeout", "score_timeout"):
+            if getattr(self, key):
+                d["run"][key] = getattr(self, key)
         if self.report:
             d["report"] = copy.deepcopy(self.report)
         return d
@@ -316,11 +323,12 @@ def config_from_dict(data: dict, source: str = "") -> RunConfig:
     if "n_samples" in metrics:
         cfg.n_samples = _int(metrics["n_samples"], "metrics.n_samples", 1000)
     run = _check_keys(data.get("run", {}), _RUN_KEYS, f"{where}: [run]")
-    if "timeout" in run:
-        t = _float(run["timeout"], "run.timeout")
-        if t < 0:
-            raise InputError("run.timeout: must be >= 0 (0 = no timeout)")
-        cfg.timeout = t or None
+    for key in ("timeout", "method_timeout", "score_timeout"):
+        if key in run:
+            t = _float(run[key], f"run.{key}")
+            if t < 0:
+                raise InputError(f"run.{key}: must be >= 0 (0 = no timeout)")
+            setattr(cfg, key, t or None)
     if "imports" in run:
         imports = run["imports"]
         if not isinstance(imports, list) or not all(isinstance(s, str) for s in imports):
@@ -386,6 +394,9 @@ def _method_from(m: Any, where: str) -> MethodSpec:
     for k, v in sweep.items():
         if not isinstance(v, list) or not v:
             raise InputError(f"{where}.sweep.{k}: expected a non-empty list of values")
+        if k in params:
+            raise InputError(f"{where}: parameter {k!r} is set in both params and sweep; keep it in one "
+                             "(the sweep would silently replace the params value)")
     pp = m.get("phantom_params", {})
     if not isinstance(pp, dict) or not all(isinstance(v, dict) for v in pp.values()):
         raise InputError(f"{where}.phantom_params: expected tables [methods.phantom_params.<phantom>]")

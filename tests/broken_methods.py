@@ -6,10 +6,12 @@ is marching cubes with one thing wrong, so the check must find exactly that.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import trimesh
 
-from methods import Method, Reconstruction, check_volume, get_method, register_method
+from methods import Method, Param, Reconstruction, check_volume, get_method, register_method
 
 
 def _mc(volume) -> trimesh.Trimesh:
@@ -88,3 +90,32 @@ class BrokenNoCheck(Method):
             check_volume(volume, self.name)
             return Reconstruction(_mc(volume), {})
         return Reconstruction(trimesh.creation.icosphere(1, 0.5), {})
+
+
+class _SlowFaces(trimesh.Trimesh):
+    """A mesh whose faces take ``slow_s`` seconds to read once the method has returned it."""
+
+    slow_s = 0.0
+
+    @property
+    def faces(self):
+        if self.slow_s:
+            time.sleep(self.slow_s)
+        return trimesh.Trimesh.faces.fget(self)
+
+    @faces.setter
+    def faces(self, values):
+        trimesh.Trimesh.faces.fset(self, values)
+
+
+@register_method
+class SlowToScore(Method):
+    name = "slow_to_score"
+    description = "marching cubes in milliseconds, but its mesh takes `seconds` to score (time-limit tests)"
+    params = {"seconds": Param(60.0, "seconds each read of the faces takes once returned", float, min=0.0)}
+
+    def reconstruct(self, volume):
+        mc = _mc(volume)
+        mesh = _SlowFaces(mc.vertices, mc.faces, process=False)
+        mesh.slow_s = self.config["seconds"]
+        return Reconstruction(mesh, {"iterations": 0})

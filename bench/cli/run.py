@@ -64,6 +64,11 @@ def register(subparsers) -> None:
     p.add_argument("--timeout", type=_nonneg_float, default=None, metavar="S",
                    help="seconds per cell before it is killed and recorded as timeout (0 = none; "
                         "default: the config's run.timeout)")
+    p.add_argument("--method-timeout", type=_nonneg_float, default=None, metavar="S",
+                   help="seconds for the method alone (method.reconstruct; 0 = none; default: run.method_timeout)")
+    p.add_argument("--score-timeout", type=_nonneg_float, default=None, metavar="S",
+                   help="seconds for the scoring alone (validity check and metrics, after the method returned; "
+                        "0 = none; default: run.score_timeout)")
     p.add_argument("--save-meshes", action="store_true", help="write each cell's mesh to DIR/meshes/<cell_id>.ply")
     p.add_argument("--no-report", action="store_true", help="skip index.html")
     p.add_argument("--dry-run", action="store_true", help="validate, list the cells and exit")
@@ -182,8 +187,10 @@ def _cmd_run(args) -> int:
     if args.executor == "dask":
         from ..run.executors.dask import DaskExecutor
 
-        timeout = cfg.timeout if args.timeout is None else (args.timeout or None)  # as run_grid resolves it
-        executor = DaskExecutor(scheduler=args.scheduler, workers=args.workers, timeout=timeout,
+        from ..run.runner import time_limits
+
+        limits = time_limits(cfg, args.timeout, args.method_timeout, args.score_timeout)  # as run_grid does
+        executor = DaskExecutor(scheduler=args.scheduler, workers=args.workers, timeout=limits,
                                 cache_dir=str(out / CACHE_DIR), imports=list(cfg.imports))
     print(f"{cfg.name}: {len(cells)} cells → {out}", file=sys.stderr)
     try:
@@ -192,7 +199,8 @@ def _cmd_run(args) -> int:
             print(f"dask: {executor.describe()}", file=sys.stderr)
         summary = run_grid(cfg, out, jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
                            timeout=args.timeout, save_meshes=args.save_meshes, argv=sys.argv[1:],
-                           executor=executor)
+                           executor=executor, method_timeout=args.method_timeout,
+                           score_timeout=args.score_timeout)
     except KeyboardInterrupt:
         print(f"interrupted: the finished cells are in {out}; complete the run with "
               f"`python -m bench run --resume --out {out}`", file=sys.stderr)

@@ -48,6 +48,17 @@ def _failed(df, records: dict) -> list[dict]:
     return failed
 
 
+def _facts(df, records: dict) -> list[dict]:
+    """Each cell's method info (``row.method_info`` of its json) as one line of ``key=value`` pairs."""
+    facts = []
+    for _, r in df.iterrows():
+        info = ((records.get(r["cell_id"]) or {}).get("row") or {}).get("method_info")
+        if info:
+            text = "; ".join(f"{k}={json.dumps(v, default=str)[:200]}" for k, v in info.items())
+            facts.append({"cell_id": r["cell_id"], "label": r["label"], "text": text})
+    return facts
+
+
 def _sections(df, arts: Artifacts, config: dict) -> dict:
     if not len(df):
         return {"summaries": [], "paper_tables": [], "galleries": [],
@@ -67,6 +78,7 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
         "counts": df["status"].value_counts().to_dict() if len(df) else {},
         **_sections(df, arts, config),
         "failed": _failed(df, records),
+        "facts": _facts(df, records),
         "meta": meta,
         "config_json": json.dumps(config, indent=1),
         "deps": (meta.get("dependencies") or {}),

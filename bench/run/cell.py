@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from methods import get_method, import_plugins
+from methods import as_reconstruction, get_method, import_plugins
 from phantoms import Volume, add_noise, get_phantom
 
 from ..metrics.flags import result_flags
@@ -32,7 +32,7 @@ from .grid import canonical_json, slug
 from .store import save_npz
 from .values import error_text, plain
 
-__all__ = ["run_cell", "failed_result", "build_volume", "vertex_mean_curvature"]
+__all__ = ["run_cell", "failed_result", "build_volume", "vertex_mean_curvature", "method_info"]
 
 
 def _volume_cache_path(cache_dir: str, cell: dict) -> Path:
@@ -150,8 +150,18 @@ def _runner_values(rec, cost: dict) -> dict[str, Any]:
     }
 
 
-def run_cell(cell: dict, cache_dir: str | None = None) -> dict:
-    """Compute one cell from its parameters; never raises for a failing method (see the module docstring)."""
+def method_info(info: dict) -> dict:
+    """The method's ``info`` as plain values for the cell's json (``row["method_info"]``): every key, the
+    author's own ones included; the arrays the artifacts hold (energy history, snapshots) left out."""
+    return {str(k): plain(v) for k, v in (info or {}).items() if k not in ("snapshots", "energy_history")}
+
+
+def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
+    """Compute one cell from its parameters; never raises for a failing method (see the module docstring).
+
+    ``on_phase(phase, facts)``, when given, is called as the method starts (``"method"``, {}) and as it
+    returns (``"scoring"``, its wall time and info columns): the executor's per-phase time limits
+    (:mod:`bench.run.limits`)."""
     from bench.metrics import evaluate
 
     t0 = time.perf_counter()
@@ -171,8 +181,14 @@ def run_cell(cell: dict, cache_dir: str | None = None) -> dict:
         method = get_method(cell["method"], **cell["params"])
         row["parameters"] = canonical_json(plain(getattr(method, "config", cell["params"])))
         stage = "reconstruction"
+        if on_phase is not None:
+            on_phase("method", {})
         rec, cost = measure(method.reconstruct, vol)
+        rec = as_reconstruction(rec, cell["method"])   # a bare trimesh etc.: named, not an AttributeError
         runner_values = _runner_values(rec, cost)
+        row["method_info"] = method_info(rec.info)
+        if on_phase is not None:
+            on_phase("scoring", plain(runner_values))
         stage = "pictures"
         try:
             artifacts = _artifacts(rec, vol.h)

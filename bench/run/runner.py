@@ -20,10 +20,11 @@ import numpy as np
 
 from .executors.local import LocalExecutor
 from .grid import expand_grid
+from .limits import TimeLimits
 from .provenance import environment
 from .store import CACHE_DIR, check_output_dir, load_cells, read_json, save_cell, write_json, write_results_csv
 
-__all__ = ["run_grid", "RunSummary"]
+__all__ = ["run_grid", "RunSummary", "time_limits"]
 
 STATUSES = ("ok", "invalid", "failed", "timeout")
 
@@ -122,19 +123,31 @@ class _Progress:
         self.bar.close()
 
 
+def time_limits(cfg, timeout: float | None = None, method_timeout: float | None = None,
+                score_timeout: float | None = None) -> TimeLimits:
+    """The run's :class:`TimeLimits`: each argument overrides the config's (None: the config's, 0: none)."""
+    def pick(arg, conf):
+        return conf if arg is None else (arg or None)
+
+    return TimeLimits(pick(timeout, cfg.timeout), pick(method_timeout, getattr(cfg, "method_timeout", None)),
+                      pick(score_timeout, getattr(cfg, "score_timeout", None)))
+
+
 def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = False, retry_failed: bool = False,
              timeout: float | None = None, save_meshes: bool = False, progress: bool | None = None,
-             argv: list[str] | None = None, executor=None) -> RunSummary:
+             argv: list[str] | None = None, executor=None, method_timeout: float | None = None,
+             score_timeout: float | None = None) -> RunSummary:
     """Run every cell of the validated config ``cfg`` into the folder ``out``.
 
     ``resume`` skips the cells already finished there (``retry_failed``: except failed / timed-out ones);
-    ``timeout`` is per cell in seconds (None: the config's, 0: none); ``executor`` is any object with
+    ``timeout`` is per cell, ``method_timeout`` per method run and ``score_timeout`` per scoring, in seconds
+    (None: the config's, 0: none; see :mod:`bench.run.limits`); ``executor`` is any object with
     ``run(cells, on_start, on_result)`` (default: a :class:`LocalExecutor` of ``jobs`` processes).
     """
     out = Path(out)
     check_output_dir(out, resume)
     cells = expand_grid(cfg)
-    timeout = cfg.timeout if timeout is None else (timeout or None)
+    limits = time_limits(cfg, timeout, method_timeout, score_timeout)
     jobs = jobs or os.cpu_count() or 1
     write_json(out / "config.json", cfg.to_dict())
 
@@ -145,7 +158,7 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
     todo = [c for c in cells if c["cell_id"] not in records]
     summary = RunSummary(out=out, total=len(cells), skipped=len(cells) - len(todo))
     session = {"start": _now(), "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
-               "timeout_s": timeout, "cells_to_run": len(todo), "resumed_from": len(cells) - len(todo),
+               **limits.to_dict(), "cells_to_run": len(todo), "resumed_from": len(cells) - len(todo),
                "executor": (executor.describe() if hasattr(executor, "describe") else {"executor": "local"})}
     log = RunLog(out, cfg, len(cells), session, resume)
     log.write(records, end=False)
@@ -159,7 +172,7 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
         bar.finish(cell, result["row"])
 
     if executor is None:
-        executor = LocalExecutor(jobs, timeout, cache_dir=str(out / CACHE_DIR), preload=list(cfg.imports))
+        executor = LocalExecutor(jobs, limits, cache_dir=str(out / CACHE_DIR), preload=list(cfg.imports))
     try:
         executor.run(todo, bar.start, on_result)
     finally:

@@ -175,7 +175,7 @@ def _worker_cache_dir() -> str | None:
         return None
 
 
-def run_cell_task(cell: dict, cache_dir: str | None, timeout: float | None, preload: list[str]) -> dict:
+def run_cell_task(cell: dict, cache_dir: str | None, timeout, preload: list[str]) -> dict:
     """The Dask task: one cell in its own child process on this worker (timeout and crash isolation exactly as
     with the local executor).  Returns the runner's result dict ``{"row", "artifacts", "traceback"}``."""
     from bench.run.cell import failed_result
@@ -227,7 +227,10 @@ class DaskExecutor:
         self.workers = int(workers or os.cpu_count() or 1)
         if self.workers < 1:
             raise InputError("--workers must be >= 1")
-        self.timeout = timeout if timeout and timeout > 0 else None
+        from ..limits import TimeLimits
+
+        self.limits = TimeLimits.of(timeout)   # a number: the whole-cell limit; or per phase (bench.run.limits)
+        self.timeout = self.limits.cell
         # the volume cache folder is shared only when the workers run on this machine
         self.cache_dir = None if self.scheduler else cache_dir
         self.imports = list(imports or [])
@@ -242,7 +245,7 @@ class DaskExecutor:
     def describe(self) -> dict:
         """What run.json records about the executor."""
         d = {"executor": "dask", "scheduler": self.scheduler or "LocalCluster",
-             "timeout_s": self.timeout, "retries": self.retries}
+             **self.limits.to_dict(), "retries": self.retries}
         if self.scheduler is None:
             d["workers"] = self.workers
         if self.client is not None:
@@ -380,7 +383,7 @@ class DaskExecutor:
         for i, cell in enumerate(cells):
             key = f"bench-cell-{cell['cell_id']}-{token}"
             by_key[key] = cell
-            fut = self.client.submit(run_cell_task, cell, self.cache_dir, self.timeout, self.imports, key=key,
+            fut = self.client.submit(run_cell_task, cell, self.cache_dir, self.limits, self.imports, key=key,
                                      retries=self.retries, priority=len(cells) - i)  # grid order first
             futures.append(fut)
             submitted[key] = time.monotonic()

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from ..cell import failed_result, run_cell
+from ..limits import TimeLimits
 from ..values import error_text
 
 __all__ = ["LocalExecutor"]
@@ -32,8 +33,12 @@ def _cell_process(cell: dict, cache_dir: str | None, result_conn, lifeline_conn)
         os._exit(3)
 
     threading.Thread(target=watch, daemon=True).start()
+
+    def on_phase(phase: str, facts: dict) -> None:  # the parent's per-phase deadlines (bench.run.limits)
+        result_conn.send(("phase", phase, facts))
+
     try:
-        result = run_cell(cell, cache_dir)
+        result = run_cell(cell, cache_dir, on_phase)
     except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the runner handles it, not a row
         os._exit(130)
     except BaseException as exc:  # run_cell catches Exception; this is SystemExit etc.
@@ -55,6 +60,9 @@ class _Running:
     cell: dict
     started: float
     deadline: float | None
+    phase: str = "setup"
+    phase_started: float = 0.0
+    facts: dict | None = None          # the method's wall time and info columns, once it returned
 
 
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
@@ -68,10 +76,11 @@ class LocalExecutor:
     replace it: ``run(cells, on_start, on_result)``.
     """
 
-    def __init__(self, jobs: int, timeout: float | None, cache_dir: str | None = None,
+    def __init__(self, jobs: int, timeout: "float | TimeLimits | None", cache_dir: str | None = None,
                  preload: list[str] | None = None) -> None:
         self.jobs = max(1, int(jobs))
-        self.timeout = timeout if timeout and timeout > 0 else None
+        self.limits = TimeLimits.of(timeout)   # a number: the whole-cell limit
+        self.timeout = self.limits.cell
         self.cache_dir = cache_dir
         self.preload = preload or []
 
@@ -99,7 +108,28 @@ class LocalExecutor:
         send_end.close()
         life_recv.close()
         now = time.monotonic()
-        return _Running(proc, recv_end, life_send, cell, now, now + self.timeout if self.timeout else None)
+        return _Running(proc, recv_end, life_send, cell, now, self.limits.deadline(now, "setup", now), "setup", now)
+
+    def _receive(self, r: _Running):
+        """The cell's result if it sent one; phase messages move the cell's deadline (None: still running)."""
+        while r.conn.poll():
+            msg = r.conn.recv()
+            if not (isinstance(msg, tuple) and len(msg) == 3 and msg[0] == "phase"):
+                return msg
+            now = time.monotonic()
+            r.phase, r.phase_started = msg[1], now
+            r.facts = msg[2] if msg[1] == "scoring" else r.facts
+            r.deadline = self.limits.deadline(r.started, r.phase, now)
+        return None
+
+    def _timed_out(self, r: _Running) -> dict:
+        """The row of a cell killed at its deadline: which limit ran out, in which phase."""
+        r.proc.kill()
+        limit = self.limits.which(r.started, r.phase, r.phase_started)
+        facts = r.facts or {}
+        result = failed_result(r.cell, "timeout", self.limits.message(limit, r.phase, facts.get("wall_s")))
+        result["row"].update({k: v for k, v in facts.items() if v is not None})
+        return result
 
     @staticmethod
     def _finish(r: _Running) -> None:
@@ -131,18 +161,14 @@ class LocalExecutor:
                 wait([r.conn for r in running] + [r.proc.sentinel for r in running], timeout=wait_s)
                 still = []
                 for r in running:
-                    result = None
-                    if r.conn.poll():
-                        try:
-                            result = r.conn.recv()
-                        except (EOFError, OSError):
-                            result = self._crash(r)
-                    elif not r.proc.is_alive():
+                    try:
+                        result = self._receive(r)
+                        if result is None and not r.proc.is_alive():
+                            result = self._receive(r) or self._crash(r)
+                    except (EOFError, OSError):
                         result = self._crash(r)
-                    elif r.deadline is not None and time.monotonic() >= r.deadline:
-                        r.proc.kill()
-                        result = failed_result(r.cell, "timeout",
-                                               f"timeout: no result after {self.timeout:g} s (cell killed)")
+                    if result is None and r.deadline is not None and time.monotonic() >= r.deadline:
+                        result = self._timed_out(r)
                     if result is None:
                         still.append(r)
                         continue

@@ -29,8 +29,7 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
 
     [run]
     timeout = 3600                          # seconds per cell (0 or absent: none)
-    method_timeout = 600                    # seconds for method.reconstruct alone (0 or absent: none)
-    score_timeout = 600                     # seconds for the validity check and metrics alone
+    method_timeout = 600                    # seconds for method.reconstruct alone; score_timeout: for scoring
     imports = ["my_package.my_methods"]     # modules imported first (e.g. to register_method plug-ins)
 
     [report]                                # optional: what the report shows side by side
@@ -209,9 +208,7 @@ class RunConfig:
             "metrics": {"n_samples": self.n_samples},
             "run": {"timeout": self.timeout or 0, "imports": list(self.imports)},
         }
-        for key in ("method_timeout", "score_timeout"):
-            if getattr(self, key):
-                d["run"][key] = getattr(self, key)
+        d["run"].update({k: getattr(self, k) for k in ("method_timeout", "score_timeout") if getattr(self, k)})
         if self.report:
             d["report"] = copy.deepcopy(self.report)
         return d

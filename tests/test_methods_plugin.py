@@ -2,7 +2,8 @@
 (group ``levelset_bench.methods``) without installing anything, listed by ``methods`` and run by
 ``reconstruct``; and the same through :func:`methods.register_method`.
 
-The plug-in module is the README's "Adding a method" example, verbatim.
+The plug-in module is a toy sphere fit (the README's own example, a real method, is tested verbatim by
+tests/test_bench_cli_check.py).
 """
 
 from __future__ import annotations

@@ -1,0 +1,140 @@
+"""``python -m bench check-method``: every built-in honours the method contract; each broken method of
+tests/broken_methods.py is named with its violation and exit code 1; the README's "Adding a method" example,
+copied verbatim into a package of its own, passes — and ``--import`` loads it for ``methods`` and
+``reconstruct`` too."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import trimesh
+
+from bench.cli import main
+from methods import BUILTIN_METHODS
+from methods import base as methods_base
+from phantoms import get_phantom, save_volume
+
+REPO = Path(__file__).resolve().parent.parent
+TESTS = Path(__file__).resolve().parent
+
+
+@pytest.fixture
+def broken(monkeypatch):
+    """tests/ on the path, broken_methods importable afresh, the registry restored afterwards."""
+    monkeypatch.syspath_prepend(str(TESTS))
+    monkeypatch.setattr(methods_base, "_REGISTERED", dict(methods_base._REGISTERED))
+    monkeypatch.delitem(sys.modules, "broken_methods", raising=False)
+
+
+@pytest.mark.parametrize("name", list(BUILTIN_METHODS))
+def test_every_builtin_method_passes(name, capsys):
+    t0 = time.perf_counter()
+    code = main(["check-method", name])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert out.strip().splitlines()[-1].startswith("ok: 5 cases honour the method contract")
+    for case in ("sphere", "anisotropic", "noisy", "torus", "no_surface"):
+        assert re.search(rf"^  {case}\s+ok ", out, re.M), (case, out)
+    assert time.perf_counter() - t0 < 60   # a few seconds each on an idle machine
+
+
+@pytest.mark.parametrize("name, violation, cases", [
+    ("broken_open", "violation: open: ", 4),
+    ("broken_inward", "violation: inward: the enclosed volume is negative", 4),
+    ("broken_index", "violation: outside the volume", 4),
+    ("broken_nan", "violation: non-finite: 1 vertices", 4),
+    ("broken_type", "violation: wrong type: method 'broken_type' returned Trimesh, expected methods.Reconstruction",
+     4),
+    ("broken_raises", "violation: raised ValueError: deliberate bug", 5),
+    ("broken_no_check", "violation: surface: returned a mesh of 80 faces for a volume with no zero crossing", 1),
+])
+def test_each_broken_method_is_named_and_exits_1(name, violation, cases, broken, capsys):
+    code = main(["check-method", name, "--import", "broken_methods"])
+    out = capsys.readouterr().out
+    assert code == 1, out
+    assert out.count(violation) == cases, out
+    assert out.count("fix: ") == cases                          # every violation says what to fix
+    assert f"FAIL: {cases} of 5 cases violate the method contract" in out
+
+
+def test_bad_input_exits_2(broken, capsys):
+    assert main(["check-method", "no_such_method"]) == 2
+    assert "unknown method 'no_such_method'" in capsys.readouterr().err
+    assert main(["check-method", "marching_cubes", "--import", "no_such_module_xyz"]) == 2
+    assert "cannot import module 'no_such_module_xyz'" in capsys.readouterr().err
+    assert main(["check-method", "marching_cubes", "--set", "step_size=0"]) == 2
+    assert "parameter 'step_size'" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------------------------- the README example
+def _readme_example() -> tuple[str, str]:
+    """(relative path, source) of the README's "Adding a method" example, verbatim."""
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Adding a method", 1)[1].split("\n## ", 1)[0]
+    blocks = [b for b in re.findall(r"```python\n(.*?)```", section, re.S) if b.startswith("# my_package/")]
+    assert len(blocks) == 1, "the README's 'Adding a method' example (a block starting '# my_package/...')"
+    return blocks[0].splitlines()[0][2:].strip(), blocks[0]
+
+
+@pytest.fixture(scope="module")
+def readme_package(tmp_path_factory):
+    root = tmp_path_factory.mktemp("readme_pkg")
+    rel, source = _readme_example()
+    path = root / rel
+    path.parent.mkdir(parents=True)
+    (path.parent / "__init__.py").write_text("")
+    path.write_text(source)
+    module = ".".join(Path(rel).with_suffix("").parts)
+    name = re.search(r'^\s+name = "(\w+)"', source, re.M).group(1)
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(root), str(REPO)] + [p for p in [env.get("PYTHONPATH")] if p])
+    env["PYTHONWARNINGS"] = "ignore"
+    return module, name, env
+
+
+def _bench(env, *args, cwd=REPO) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "bench", *args], env=env, cwd=cwd, capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_the_readme_example_passes_check_method(readme_package):
+    module, name, env = readme_package
+    res = _bench(env, "check-method", name, "--import", module)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "ok: 5 cases honour the method contract" in res.stdout
+    without = _bench(env, "check-method", name)                  # not installed: only --import finds it
+    assert without.returncode == 2 and f"unknown method '{name}'" in without.stderr
+
+
+def test_import_on_methods_and_reconstruct(readme_package, tmp_path):
+    module, name, env = readme_package
+    listing = _bench(env, "methods", name, "--import", module)
+    assert listing.returncode == 0, listing.stderr
+    assert listing.stdout.startswith(f"{name} — ") and f"class: {module}:" in listing.stdout
+    vol = tmp_path / "sphere.npz"
+    save_volume(vol, get_phantom("sphere").volume(n=32))
+    out = tmp_path / "sphere.ply"
+    res = _bench(env, "reconstruct", str(vol), "-m", name, "-o", str(out), "--import", module)
+    assert res.returncode == 0, res.stderr
+    assert "valid:        yes" in res.stdout
+    assert trimesh.load(out, force="mesh").is_watertight
+    bad = _bench(env, "reconstruct", str(vol), "-m", name, "-o", str(out), "--import", "no_such_module_xyz")
+    assert bad.returncode == 2 and bad.stderr.strip() == ("error: cannot import module 'no_such_module_xyz': "
+                                                          "No module named 'no_such_module_xyz'")
+
+
+def test_reconstruct_names_a_wrong_return_type(broken, tmp_path, capsys):
+    vol = tmp_path / "sphere.npz"
+    save_volume(vol, get_phantom("sphere").volume(n=24))
+    code = main(["reconstruct", str(vol), "-m", "broken_type", "-o", str(tmp_path / "x.ply"),
+                 "--import", "broken_methods"])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err.strip() == ("error: method 'broken_type' returned Trimesh, expected methods.Reconstruction "
+                           "(return Reconstruction(mesh, info))")

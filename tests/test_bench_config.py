@@ -47,3 +47,19 @@ def test_a_plugin_module_that_fails_to_import_is_one_input_error():
     cfg.imports = ["no_such_module_for_levelset_bench"]
     with pytest.raises(InputError, match="run.imports: cannot import module 'no_such_module_for_levelset_bench'"):
         cfg.validate()
+
+
+def test_a_key_in_both_params_and_sweep_is_refused(tmp_path, capsys):
+    from bench.cli import main
+
+    toml = ('[grid]\nphantoms = ["sphere"]\n[[methods]]\nname = "shape_gradient"\n'
+            'params = { alpha = 5.0, beta = 1.0 }\nsweep = { beta = [0.0, 1.0] }\n')
+    path = tmp_path / "both.toml"
+    path.write_text(toml)
+    assert main(["run", "--config", str(path), "--dry-run"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("error: methods[0]: parameter 'beta' is set in both params and sweep; keep it in one (the sweep "
+                   "would silently replace the params value)")
+    path.write_text(toml.replace("alpha = 5.0, beta = 1.0", "alpha = 5.0"))   # the same without the clash runs
+    assert main(["run", "--config", str(path), "--dry-run"]) == 0
+    assert "2 cells" in capsys.readouterr().out

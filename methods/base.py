@@ -105,7 +105,8 @@ class Param:
 
 
 #: The ``Reconstruction.info`` keys the suite reads, and what it does with them.  Every other key is the
-#: method's own fact: ``reconstruct`` prints it, a grid run keeps it in the cell's json.
+#: method's own fact: ``reconstruct`` prints it, a grid run keeps it in the cell's json (``row.method_info``)
+#: and the report lists it; it is not a results.csv column.
 INFO_KEYS: dict[str, str] = {
     "iterations": "int: iterations the method ran (results.csv column `iterations`)",
     "stop_reason": "str: why it stopped, e.g. converged | max_iter | line_search_floor | diverged "

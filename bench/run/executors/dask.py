@@ -13,7 +13,8 @@ HTML report — is shared, not reimplemented.
 * **Timeouts and crashes: the same as the local executor.**  On the worker the task runs the cell in its own
   child process through a one-job :class:`~bench.run.executors.local.LocalExecutor` (fork server preloaded once per
   worker): after ``timeout`` seconds *of the cell's own run on the worker* (queueing time does not count) the
-  child is killed and the cell becomes a ``timeout`` row; a method that kills its process (segfault, OOM
+  child is killed and the cell becomes a ``timeout`` row (the per-phase method / score limits of
+  :mod:`bench.run.limits` likewise); a method that kills its process (segfault, OOM
   kill) becomes a ``failed`` ``crash: ...`` row, and the worker lives on.
 * **Worker death.**  If a whole worker process (or machine) dies mid-cell, its cell processes exit with it
   (lifeline pipe) and the scheduler reschedules the task on another worker — Dask's own retry of tasks

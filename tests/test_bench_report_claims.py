@@ -79,3 +79,28 @@ def test_ellipsoid_curvature_claim_from_a_mesh_of_the_true_ellipsoid_and_of_a_sp
     big.apply_scale(2.5)                   # K = 0.16 everywhere: outside the range
     assert _verdicts([row], lambda c: {"vertices": big.vertices, "faces": big.faces})["ellipsoid_K"] \
         == "does not hold"
+
+
+def test_the_report_page_shows_every_claim_with_its_verdict_from_a_real_run(tmp_path):
+    from bench.config import config_from_dict
+    from bench.report import write_report
+    from bench.run import run_grid
+
+    cfg = config_from_dict({"name": "claims", "grid": {"phantoms": ["sphere"], "variants": ["sdf"], "n": 24,
+                                                        "seeds": [0], "noise": [{"kind": "none"}]},
+                            "methods": [{"name": "shape_gradient", "params": {"beta": 1.0, "max_iter": 40}},
+                                        {"name": "marching_cubes"}],
+                            "metrics": {"n_samples": 2000}})
+    out = tmp_path / "run"
+    run_grid(cfg, out, jobs=1, progress=False)
+    page = write_report(out).read_text(encoding="utf-8")
+    assert 'id="claims"' in page
+    for cid, _ in CLAIMS:
+        assert f'id="claim-{cid}"' in page
+    # one clean phantom, no noise, no β = 0 and no DistMesh: those claims are not measured; the others are
+    import re
+
+    verdicts = dict(re.findall(r'id="claim-(\w+)".*?class="verdict v-[\w-]+">([\w ]+)<', page, re.S))
+    assert verdicts["smoother"] == verdicts["robust_noise"] == verdicts["distmesh_unstable"] == "not measured"
+    assert verdicts["beats_mc"] in ("holds", "does not hold") and verdicts["diffeomorphic"] != "not measured"
+    assert verdicts["energy"] != "not measured"

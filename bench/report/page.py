@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..run.store import load_cells
 from .artifacts import Artifacts
+from .claims import check_claims
 from .cost import cost_section
 from .paper import gallery_tables, paper_layout, paper_tables
 from .tables import BEST_DIRECTION, summary_tables
@@ -57,6 +58,12 @@ def _sections(df, arts: Artifacts, config: dict) -> dict:
             "galleries": gallery_tables(df, arts, layout), "cost": cost_section(df)}
 
 
+def _claims(df, arts: Artifacts, config: dict) -> list:
+    rows = df.to_dict("records") if len(df) else []
+    extent = float(((config.get("grid") or {}).get("extent")) or 2.5)
+    return check_claims(rows, arts.get, extent=extent)
+
+
 def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
     config = meta.get("config") or {}
     return {
@@ -66,6 +73,7 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
         "n_rows": len(df), "n_total": (meta.get("cells") or {}).get("total", len(df)),
         "counts": df["status"].value_counts().to_dict() if len(df) else {},
         **_sections(df, arts, config),
+        "claims": _claims(df, arts, config),
         "failed": _failed(df, records),
         "meta": meta,
         "config_json": json.dumps(config, indent=1),

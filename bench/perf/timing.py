@@ -6,8 +6,9 @@ moves it much less than wall-clock time."""
 from __future__ import annotations
 
 import os
+import time
 
-__all__ = ["ENV_MODE", "ENV_ROUNDS", "perf_mode", "rounds", "process_tree_cpu", "CpuRecordingTimer"]
+__all__ = ["ENV_MODE", "ENV_ROUNDS", "ENV_SLOWDOWN", "slowdown_for", "perf_mode", "rounds", "process_tree_cpu", "CpuRecordingTimer"]
 
 ENV_MODE = "LSB_PERF_MODE"
 ENV_ROUNDS = "LSB_PERF_ROUNDS"
@@ -85,6 +86,31 @@ def process_tree_cpu(*, self_last: bool = True) -> float:
     return own + _descendants_cpu()
 
 
+#: test hook of the gate's detection measurement: ``NAME=FACTOR`` makes every benchmark whose name contains
+#: NAME run FACTOR times as long (a busy loop inside each timed round: CPU and wall time alike)
+ENV_SLOWDOWN = "LSB_PERF_SLOWDOWN"
+
+
+def slowdown_for(name: str) -> float:
+    """The injected slowdown factor of benchmark ``name`` (:data:`ENV_SLOWDOWN`; 1.0 = none)."""
+    spec = os.environ.get(ENV_SLOWDOWN, "").strip()
+    if not spec or "=" not in spec:
+        return 1.0
+    key, _, factor = spec.rpartition("=")
+    try:
+        f = float(factor)
+    except ValueError:
+        return 1.0
+    return f if key and key in name and f > 1.0 else 1.0
+
+
+def _spin(until_cpu: float) -> None:
+    x = 0
+    while time.process_time() < until_cpu:
+        for i in range(2000):
+            x += i
+
+
 class CpuRecordingTimer:
     """A pytest-benchmark timer: returns ``time.perf_counter()`` (the statistics stay wall-clock) and records
     the CPU time of the process tree over each timed interval in :attr:`cpu` (one entry per timed call,
@@ -93,12 +119,14 @@ class CpuRecordingTimer:
 
     __name__ = "perf_counter+cpu"
 
-    def __init__(self, before=None) -> None:
+    def __init__(self, before=None, slowdown: float = 1.0) -> None:
         import time
 
         self._clock = time.perf_counter
         self._before = before
         self._start: float | None = None
+        self._t0 = 0.0
+        self.slowdown = float(slowdown)
         self.cpu: list[float] = []
 
     def __call__(self) -> float:
@@ -106,7 +134,10 @@ class CpuRecordingTimer:
             if self._before is not None:
                 self._before()
             self._start = process_tree_cpu(self_last=True)
-            return self._clock()
+            self._t0 = self._clock()
+            return self._t0
+        if self.slowdown > 1.0:            # test hook: a real (factor − 1) × longer busy loop inside the interval
+            _spin(time.process_time() + (self.slowdown - 1.0) * (self._clock() - self._t0))
         t = self._clock()
         self.cpu.append(process_tree_cpu(self_last=False) - self._start)
         self._start = None

@@ -4,11 +4,14 @@ template's context from the report's sections and write the page atomically."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 from ..run.store import load_cells
 from .artifacts import Artifacts
+from .claims import check_claims
 from .cost import cost_section
+from .interactive import VIEW_FACES, pareto_figure, plotly_js, robustness_figures, viewer_payload
 from .paper import gallery_tables, paper_layout, paper_tables
 from .tables import BEST_DIRECTION, summary_tables
 
@@ -68,6 +71,41 @@ def _sections(df, arts: Artifacts, config: dict) -> dict:
             "galleries": gallery_tables(df, arts, layout), "cost": cost_section(df)}
 
 
+def _claims(df, arts: Artifacts, config: dict) -> list:
+    rows = df.to_dict("records") if len(df) else []
+    extent = float(((config.get("grid") or {}).get("extent")) or 2.5)
+    return check_claims(rows, arts.get, extent=extent)
+
+
+def _finite_only(obj):
+    """``obj`` with every NaN / infinity replaced by None (JSON has neither)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_only(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_only(v) for v in obj]
+    return obj
+
+
+def _json_in_html(obj) -> str:
+    """JSON safe inside a ``<script>`` element (no ``</`` that would end it)."""
+    return json.dumps(_finite_only(obj), separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+
+
+def _interactive(df, arts: Artifacts, config: dict) -> dict:
+    rows = df.to_dict("records") if len(df) else []
+    extent = float(((config.get("grid") or {}).get("extent")) or 2.5)
+    charts = robustness_figures(rows)
+    pareto = pareto_figure(rows)
+    if pareto is not None:
+        charts.append(pareto)
+    meshes = viewer_payload(rows, arts.get, extent=extent) if rows else {"cells": {}, "ranges": {}}
+    return {"plotly_js": plotly_js(), "meshes_json": _json_in_html(meshes), "charts": charts,
+            "charts_json": _json_in_html(charts), "page_js": (TEMPLATE_DIR / "report.js").read_text("utf-8"),
+            "view_faces": VIEW_FACES}
+
+
 def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
     config = meta.get("config") or {}
     return {
@@ -77,6 +115,8 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
         "n_rows": len(df), "n_total": (meta.get("cells") or {}).get("total", len(df)),
         "counts": df["status"].value_counts().to_dict() if len(df) else {},
         **_sections(df, arts, config),
+        "claims": _claims(df, arts, config),
+        **_interactive(df, arts, config),
         "failed": _failed(df, records),
         "facts": _facts(df, records),
         "meta": meta,

@@ -168,7 +168,8 @@ def _marked_html(t, metrics: list[str], genus: int) -> str:
 
 
 def summary_tables(df) -> list[dict]:
-    """One table per phantom × noise (× variant × N): ``[{"title", "phantom", "noise", "html", "n_methods"}]``."""
+    """One table per phantom × noise (× variant × N): ``[{"title", "phantom", "noise", "html", "n_methods",
+    "cells"}]`` (``cells``: method label → the cell id its row's mesh viewer shows, the first seed's)."""
     metrics = _metric_columns(df)
     keys = ["phantom", "noise", "snr_requested", "variant", "N"]
     d = df.copy()
@@ -183,6 +184,9 @@ def summary_tables(df) -> list[dict]:
         title = f"{phantom} — {noise_title(noise, snr)}"
         if multi_variant:
             title += f" — {variant}, N = {n}"
+        sub = d.loc[idx]
+        cells = {str(lab): str(g["cell_id"].iloc[0]) for lab, g in sub.groupby("label", sort=False)}
         tables.append({"title": title, "phantom": phantom, "noise": noise,
-                       "html": _marked_html(t, metrics, _genus(phantom)), "n_methods": len(t)})
+                       "html": _marked_html(t, metrics, _genus(phantom)), "n_methods": len(t),
+                       "cells": cells})
     return tables

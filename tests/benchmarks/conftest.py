@@ -48,7 +48,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.perf import CpuRecordingTimer, perf_mode, process_tree_cpu
+from bench.perf.timing import CpuRecordingTimer, perf_mode, process_tree_cpu, slowdown_for
 
 HERE = Path(__file__).resolve().parent
 
@@ -190,7 +190,8 @@ def _ratio_to_reference(request):
     local = ref.sample(REF_TOPUP)
     timer = None
     if hasattr(bm, "_timer"):  # pytest-benchmark internals: a wall-clock timer that also records CPU time
-        timer = bm._timer = CpuRecordingTimer(before=lambda: local.extend(ref.sample(1)))
+        timer = bm._timer = CpuRecordingTimer(before=lambda: local.extend(ref.sample(1)),
+                                              slowdown=slowdown_for(request.node.name))
     yield
     stats = getattr(bm, "stats", None)
     if stats is None or getattr(bm, "disabled", False):   # --benchmark-disable, or the test never timed
@@ -202,6 +203,8 @@ def _ratio_to_reference(request):
         per = max(1, int(getattr(stats, "iterations", 1) or 1))
         cpu = [c / per for c in timer.cpu[-n:]]      # the timed rounds (warm-up rounds come first)
     ref.record(bm.extra_info, float(stats.stats.median), float(stats.stats.min), cpu, local)
+    if timer is not None and timer.slowdown > 1.0:
+        bm.extra_info["injected_slowdown"] = timer.slowdown
 
 
 def pytest_configure(config):

@@ -1,0 +1,266 @@
+"""The quality gate: the metric values of a small fixed set of grid cells against a committed baseline.
+
+The time gate (:mod:`.gate`) catches a change that makes the suite slower; this one catches a change that makes a
+result *worse*.  :func:`run_quality` runs the grids of :data:`QUALITY_CONFIGS` — the quick grid (two phantoms ×
+clean / paper noise × three methods at N = 48) and ``quality_real`` (the bunny at N = 48, clean, the shape
+gradient and marching cubes) — and keeps per cell its status, its flags and the metrics of :data:`TOLERANCES`.
+:func:`quality_gate` (pure) compares two such summaries; a cell **fails** when
+
+* its status was ``ok`` and is not (``invalid``, ``failed``, ``timeout``), or it gained a flag
+  (``self_intersecting``, ``topology_mismatch``, …), or it is missing from the run;
+* a metric got worse than the baseline beyond its tolerance (:data:`TOLERANCES`): distances and errors
+  *relative* (``rel``: 5 % on the distances in units of h, plus an absolute floor ``abs`` so a value near zero
+  cannot fail on round-off), scores *absolute* (normal consistency, F-score), counts exactly (one more
+  self-intersection fails), the Euler characteristic and component count by moving away from the truth's, and
+  ``watertight`` by turning false.
+
+Better than the baseline never fails (the row says ``better``: refresh the baseline to keep the gate sharp).
+The grids are seeded: on one machine a rerun gives the same values bit for bit, so the tolerances only absorb
+differences of floating-point libraries between machines.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import re
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from phantoms import InputError
+
+__all__ = ["QUALITY_FORMAT", "QUALITY_BASELINE", "QUALITY_CONFIGS", "TOLERANCES", "Tolerance", "run_quality",
+           "cells_from_rows", "load_quality", "save_quality", "quality_gate", "QualityResult",
+           "format_quality"]
+
+QUALITY_FORMAT = "levelset-bench-quality/1"
+#: the committed quality baseline the CI gate compares with (package data)
+QUALITY_BASELINE = Path(__file__).resolve().parent / "quality.json"
+#: built-in grid configurations (bench/configs/<name>.toml) the quality gate runs
+QUALITY_CONFIGS = ("quick", "quality_real")
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """How much worse a metric may get: ``better`` is ``"min"``, ``"max"``, ``"count"`` (an integer to keep
+    as low: any increase fails), ``"target"`` (distance to the truth's value may not grow) or ``"true"`` (may
+    not turn false); the allowed worsening is ``rel · |baseline| + abs``."""
+
+    better: str
+    rel: float = 0.0
+    abs: float = 0.0
+
+
+#: the gated metrics (results.csv columns) and their tolerances
+TOLERANCES: dict[str, Tolerance] = {
+    "hausdorff_h": Tolerance("min", 0.05, 0.01),
+    "hausdorff_95_h": Tolerance("min", 0.05, 0.005),
+    "mean_dist_h": Tolerance("min", 0.05, 0.002),
+    "rms_dist_h": Tolerance("min", 0.05, 0.002),
+    "normal_consistency": Tolerance("max", 0.0, 0.002),
+    "fscore@h": Tolerance("max", 0.0, 0.01),
+    "H_rms_err": Tolerance("min", 0.10, 0.01),
+    "K_rms_err": Tolerance("min", 0.10, 0.01),
+    "roughness_deg": Tolerance("min", 0.10, 0.1),
+    "min_angle_deg": Tolerance("max", 0.10, 0.1),
+    "pct_angle_lt_10": Tolerance("min", 0.10, 0.5),
+    "self_intersections": Tolerance("count"),
+    "euler": Tolerance("target"),
+    "components": Tolerance("target"),
+    "watertight": Tolerance("true"),
+}
+
+
+def _finite(v) -> float | None:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def _truthy(v) -> bool | None:
+    if isinstance(v, bool):
+        return v
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return None
+    return str(v).strip().lower() in ("true", "1", "1.0", "yes")
+
+
+def _flags(v) -> list[str]:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return []
+    return sorted(f for f in str(v).split(";") if f.strip())
+
+
+def _stable_id(cell_id: str) -> str:
+    """The cell id without its parameter hash: a new method parameter (which changes every hash) must not turn
+    the whole baseline into "missing" cells; the label, phantom, N, noise and seed still name the cell."""
+    return re.sub(r"_[0-9a-f]{8}$", "", cell_id)
+
+
+def cells_from_rows(rows: list[dict], prefix: str) -> dict[str, dict]:
+    """The quality record of each results.csv row: ``{prefix/cell: {status, flags, metrics}}`` (cell: the cell id
+    without its parameter hash)."""
+    out = {}
+    for r in rows:
+        metrics = {}
+        for name, tol in TOLERANCES.items():
+            if name not in r:
+                continue
+            metrics[name] = _truthy(r[name]) if tol.better == "true" else _finite(r[name])
+        key = f"{prefix}/{_stable_id(str(r['cell_id']))}"
+        out[key] = {"status": str(r.get("status") or "?"), "flags": _flags(r.get("flags")), "metrics": metrics}
+    return out
+
+
+def _commit() -> dict:
+    from ..run.provenance import git_commit
+
+    try:
+        return git_commit() or {}
+    except Exception:  # noqa: BLE001 — provenance is information only
+        return {}
+
+
+def run_quality(configs=None, *, jobs: int | None = 2, progress: bool = False) -> dict:
+    """Run each grid of ``configs`` (built-in names or paths of .toml files) in a temporary folder and return
+    the quality summary (``"format": "levelset-bench-quality/1"``)."""
+    import pandas as pd
+
+    from ..config import CONFIG_DIR, load_config
+    from ..run import run_grid
+
+    cells: dict[str, dict] = {}
+    names = []
+    for c in (QUALITY_CONFIGS if configs is None else configs):
+        cfg = load_config(c if str(c).endswith(".toml") else CONFIG_DIR / f"{c}.toml")
+        names.append(cfg.name)
+        with tempfile.TemporaryDirectory(prefix="lsb-quality-") as tmp:
+            run_grid(cfg, Path(tmp) / "run", jobs=jobs, progress=progress, argv=["perf", "--quality"])
+            df = pd.read_csv(Path(tmp) / "run" / "results.csv", keep_default_na=True)
+        rows = df.astype(object).where(df.notna(), None).to_dict("records")
+        cells.update(cells_from_rows(rows, cfg.name))
+    return {"format": QUALITY_FORMAT, "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "commit": _commit(), "configs": names, "cells": cells}
+
+
+def load_quality(path: str | Path) -> dict:
+    p = Path(path)
+    try:
+        raw = json.loads(p.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError(f"cannot read {str(p)!r}: {exc.strerror or exc}") from None
+    except ValueError as exc:
+        raise InputError(f"{str(p)!r} is not JSON: {exc}") from None
+    if not isinstance(raw, dict) or raw.get("format") != QUALITY_FORMAT or not isinstance(raw.get("cells"), dict):
+        raise InputError(f"{str(p)!r}: not a quality summary (format {QUALITY_FORMAT})")
+    return raw
+
+
+def save_quality(summary: dict, path: str | Path) -> Path:
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tmp = p.with_name(p.name + ".tmp")
+    tmp.write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
+    tmp.replace(p)
+    return p
+
+
+@dataclass
+class QualityResult:
+    """Rows ``{cell, metric, baseline, value, limit, status, failed}`` (one per compared value, plus one per cell
+    for its status / flags / absence) and the verdict."""
+
+    rows: list[dict] = field(default_factory=list)
+
+    @property
+    def failures(self) -> list[dict]:
+        return [r for r in self.rows if r["failed"]]
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures
+
+
+def _target(metric: str, cell: dict, base_value) -> float:
+    # the truth's value: 2 − 2g for euler is not in the results; the baseline's own value when the baseline
+    # had no topology flag, else the sphere's (2 / 1) — the gated cells are genus 0
+    if "topology_mismatch" not in cell.get("flags", []) and base_value is not None:
+        return float(base_value)
+    return 2.0 if metric == "euler" else 1.0
+
+
+def _compare(metric: str, tol: Tolerance, base, cur, cell: dict) -> tuple[str, bool, float | None]:
+    """(status, failed, limit) of one value."""
+    if base is None:
+        return "no baseline", False, None
+    if cur is None:
+        return "missing value", True, None
+    if tol.better == "true":
+        return ("ok", False, None) if (cur or not base) else ("worse", True, None)
+    if tol.better == "count":
+        return ("worse", True, base) if cur > base else (("better" if cur < base else "ok"), False, base)
+    if tol.better == "target":
+        t = _target(metric, cell, base)
+        d0, d1 = abs(base - t), abs(cur - t)
+        return ("worse", True, base) if d1 > d0 else (("better" if d1 < d0 else "ok"), False, base)
+    slack = tol.rel * abs(base) + tol.abs
+    if tol.better == "min":
+        limit = base + slack
+        return ("worse", True, limit) if cur > limit else (("better" if cur < base - slack else "ok"), False, limit)
+    limit = base - slack
+    return ("worse", True, limit) if cur < limit else (("better" if cur > base + slack else "ok"), False, limit)
+
+
+def quality_gate(baseline: dict, current: dict, tolerances: dict[str, Tolerance] | None = None) -> QualityResult:
+    """Compare the cells of ``current`` with those of ``baseline`` (quality summaries).  Pure: no I/O."""
+    tolerances = TOLERANCES if tolerances is None else tolerances
+    rows = []
+    cur_cells = current.get("cells", {})
+    for key, b in sorted(baseline.get("cells", {}).items()):
+        c = cur_cells.get(key)
+        if c is None:
+            rows.append({"cell": key, "metric": "(cell)", "baseline": b["status"], "value": None, "limit": None,
+                         "status": "missing", "failed": True})
+            continue
+        if b["status"] == "ok" and c["status"] != "ok":
+            rows.append({"cell": key, "metric": "status", "baseline": "ok", "value": c["status"], "limit": None,
+                         "status": "worse", "failed": True})
+        new_flags = sorted(set(c.get("flags", [])) - set(b.get("flags", [])))
+        if new_flags:
+            rows.append({"cell": key, "metric": "flags", "baseline": ";".join(b.get("flags", [])),
+                         "value": ";".join(c.get("flags", [])), "limit": None, "status": "worse", "failed": True})
+        for metric, tol in tolerances.items():
+            base, cur = b["metrics"].get(metric), c.get("metrics", {}).get(metric)
+            if metric not in b["metrics"]:
+                continue
+            status, failed, limit = _compare(metric, tol, base, cur, b)
+            rows.append({"cell": key, "metric": metric, "baseline": base, "value": cur, "limit": limit,
+                         "status": status, "failed": failed})
+    for key in sorted(set(cur_cells) - set(baseline.get("cells", {}))):
+        rows.append({"cell": key, "metric": "(cell)", "baseline": None, "value": cur_cells[key]["status"],
+                     "limit": None, "status": "new", "failed": False})
+    return QualityResult(rows=rows)
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def format_quality(result: QualityResult, *, all_rows: bool = False) -> str:
+    """The failing (and ``better`` / ``new``) rows of a quality comparison, one line each, plus a count line."""
+    shown = [r for r in result.rows if all_rows or r["status"] not in ("ok", "no baseline")]
+    lines = [f"  {'FAIL' if r['failed'] else r['status']:<8} {r['cell']}  {r['metric']}: {_fmt(r['value'])} "
+             f"(baseline {_fmt(r['baseline'])}" + (f", limit {_fmt(r['limit'])}" if r["limit"] is not None else "")
+             + ")" for r in shown]
+    n_cells = len({r["cell"] for r in result.rows})
+    lines.append(f"quality: {len(result.rows)} values of {n_cells} cells compared, {len(result.failures)} worse "
+                 f"than the baseline beyond tolerance")
+    return "\n".join(lines)

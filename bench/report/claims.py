@@ -1,0 +1,237 @@
+"""The paper's claims, checked against this run's own cells.
+
+Each claim of the paper (``docs``: README "The paper's claims") gets a verdict computed here from the results
+table and, where needed, the cells' arrays — ``holds``, ``partly``, ``does not hold`` or ``not measured`` (the
+run has no cells that can test it) — with the numbers behind it and the cells used.  Nothing is decided in
+advance: a run without noisy cells cannot say anything about noise, and says so.
+
+The paper's method is every ``shape_gradient`` cell with β > 0 ("SG"); its β = 0 cells are the ablation.  A
+result counts only when it is valid and unflagged (status ``ok``, no flags) — a method's own "converged" is not
+evidence.  Definitions (the thresholds are part of the claim's test and are printed with it):
+
+* ``smoother`` — the β-term makes the surface smoother: in every (phantom, N, noise, seed) with both an SG cell
+  and a β = 0 cell, SG's ``roughness_deg`` is lower.
+* ``robust_noise`` — robust to noise: every noisy SG cell valid, unflagged, ``hausdorff_h`` ≤ 1.
+* ``beats_mc`` — more accurate than marching cubes: SG's ``mean_dist_h`` below marching cubes' in every shared
+  setting, SG valid and unflagged.
+* ``noise_vs_mc_distmesh`` — handles noise better than marching cubes and DistMesh: in every noisy setting SG's
+  ``hausdorff_h`` below both (a peer that is invalid or flagged loses that comparison).
+* ``energy`` — the energy decreases smoothly to zero: every SG energy history (as the cell stored it) never
+  rises by more than 1e-6 of its start from one entry to the next and ends below 5 % of its start.
+* ``diffeomorphic`` — no self-intersection during the evolution: every SG cell's final mesh has
+  ``self_intersections`` = 0 and no ``self_intersecting`` flag (the snapshots are checked by the method's guard;
+  the final mesh by the suite).
+* ``distmesh_unstable`` — DistMesh is unstable under noise: every noisy DistMesh cell is invalid, flagged, failed,
+  or more than twice as far (``hausdorff_h``) as its clean cell.
+* ``ellipsoid_K`` — the reconstructed ellipsoid's Gaussian curvature stays within [1/4, 4] (the true range):
+  at least 99 % of the vertices of every clean SG ellipsoid within the range (``partly`` from 90 %).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+__all__ = ["Claim", "CLAIMS", "check_claims"]
+
+HOLDS, PARTLY, NO, UNMEASURED = "holds", "partly", "does not hold", "not measured"
+
+#: (id, the claim as the paper makes it)
+CLAIMS = (
+    ("smoother", "The β-term (curvature regularisation) makes the reconstructed surface smoother."),
+    ("robust_noise", "The method is robust to noise."),
+    ("beats_mc", "The method is more accurate than marching cubes."),
+    ("noise_vs_mc_distmesh", "The method handles noise better than marching cubes and DistMesh."),
+    ("energy", "The energy decreases smoothly to zero."),
+    ("diffeomorphic", "The evolution is diffeomorphic: the surface never intersects itself."),
+    ("distmesh_unstable", "DistMesh is unstable under noise."),
+    ("ellipsoid_K", "The reconstructed ellipsoid's Gaussian curvature stays within [1/4, 4]."),
+)
+
+
+@dataclass
+class Claim:
+    id: str
+    text: str
+    verdict: str = UNMEASURED
+    numbers: str = ""
+    cells: list[str] = field(default_factory=list)
+
+
+def _beta(params) -> float | None:
+    try:
+        p = json.loads(params) if isinstance(params, str) else dict(params or {})
+        return float(p.get("beta"))
+    except (TypeError, ValueError, AttributeError):
+        return None
+
+
+def _clean(r: dict) -> bool:
+    flags = r.get("flags")
+    unflagged = flags is None or (isinstance(flags, float) and math.isnan(flags)) or not str(flags).strip()
+    return r.get("status") == "ok" and unflagged
+
+
+def _num(r: dict | None, col: str) -> float:
+    try:
+        v = float((r or {}).get(col))
+    except (TypeError, ValueError):
+        return math.nan
+    return v
+
+
+def _key(r: dict) -> tuple:
+    return (r.get("phantom"), r.get("variant"), r.get("N"), r.get("noise"), r.get("seed"))
+
+
+def _verdict(good: int, total: int, partial: int | None = None) -> str:
+    """All good: holds; some good (or, where the claim has a weaker level, some at that level): partly."""
+    if total == 0:
+        return UNMEASURED
+    return HOLDS if good == total else (PARTLY if good or partial else NO)
+
+
+def _groups(rows: list[dict]) -> dict[str, list[dict]]:
+    sg = [r for r in rows if r.get("method") == "shape_gradient"]
+    return {"sg": [r for r in sg if (_beta(r.get("parameters")) or 0.0) > 0],
+            "sg0": [r for r in sg if _beta(r.get("parameters")) == 0.0],
+            "mc": [r for r in rows if r.get("method") == "marching_cubes"],
+            "dm": [r for r in rows if r.get("method") == "distmesh"]}
+
+
+def _pairs(a: list[dict], b: list[dict]) -> list[tuple[dict, dict]]:
+    by = {}
+    for r in b:
+        by.setdefault(_key(r), r)
+    return [(r, by[_key(r)]) for r in a if _key(r) in by]
+
+
+def _smoother(g) -> tuple:
+    pairs = _pairs(g["sg"], g["sg0"])
+    good = [p for p in pairs if _num(p[0], "roughness_deg") < _num(p[1], "roughness_deg")]
+    nums = "; ".join(f"{p[0]['phantom']}/{p[0]['noise']}: {_num(p[0], 'roughness_deg'):.2f}° vs "
+                     f"{_num(p[1], 'roughness_deg'):.2f}° (β = 0)" for p in pairs)
+    return len(good), len(pairs), nums, [c["cell_id"] for p in pairs for c in p]
+
+
+def _robust(g) -> tuple:
+    noisy = [r for r in g["sg"] if r.get("noise") not in (None, "none")]
+    good = [r for r in noisy if _clean(r) and _num(r, "hausdorff_h") <= 1.0]
+    nums = "; ".join(f"{r['phantom']}/{r['noise']}: {_num(r, 'hausdorff_h'):.2f} h, {r.get('status')}"
+                     + (f" ⚑{r['flags']}" if not _clean(r) and r.get("status") == "ok" else "") for r in noisy)
+    return len(good), len(noisy), nums, [r["cell_id"] for r in noisy]
+
+
+def _beats_mc(g) -> tuple:
+    pairs = _pairs(g["sg"], g["mc"])
+    good = [p for p in pairs if _clean(p[0]) and _num(p[0], "mean_dist_h") < _num(p[1], "mean_dist_h")]
+    nums = "; ".join(f"{p[0]['phantom']}/{p[0]['noise']}: {_num(p[0], 'mean_dist_h'):.3f} h vs "
+                     f"{_num(p[1], 'mean_dist_h'):.3f} h" for p in pairs)
+    return len(good), len(pairs), nums, [c["cell_id"] for p in pairs for c in p]
+
+
+def _noise_vs(g) -> tuple:
+    noisy = [r for r in g["sg"] if r.get("noise") not in (None, "none")]
+    mc, dm = {_key(r): r for r in g["mc"]}, {_key(r): r for r in g["dm"]}
+    trios = [(r, mc[_key(r)], dm[_key(r)]) for r in noisy if _key(r) in mc and _key(r) in dm]
+
+    def wins(s, o):
+        return _clean(s) and (not _clean(o) or _num(s, "hausdorff_h") < _num(o, "hausdorff_h"))
+
+    good = [t for t in trios if wins(t[0], t[1]) and wins(t[0], t[2])]
+    nums = "; ".join(f"{t[0]['phantom']}/{t[0]['noise']}: SG {_num(t[0], 'hausdorff_h'):.2f} h, MC "
+                     f"{_num(t[1], 'hausdorff_h'):.2f} h, DistMesh {_num(t[2], 'hausdorff_h'):.2f} h"
+                     + ("" if _clean(t[2]) else f" ({t[2].get('status')} {t[2].get('flags') or ''})".rstrip())
+                     for t in trios)
+    return len(good), len(trios), nums, [c["cell_id"] for t in trios for c in t]
+
+
+def _energy(g, arrays) -> tuple:
+    good, total, parts, cells = 0, 0, [], []
+    for r in g["sg"]:
+        e = np.asarray((arrays(r["cell_id"]) or {}).get("energy_history", []), dtype=float)
+        if e.size < 2 or not np.isfinite(e).all() or e[0] <= 0:
+            continue
+        total += 1
+        cells.append(r["cell_id"])
+        rises = int((np.diff(e) > 1e-6 * e[0]).sum())
+        ratio = e[-1] / e[0]
+        good += rises == 0 and ratio < 0.05
+        parts.append(f"{r['phantom']}/{r['noise']}: end/start {ratio:.2g}, {rises} rise(s) in {e.size - 1} steps")
+    return good, total, "; ".join(parts), cells
+
+
+def _diffeo(g) -> tuple:
+    rows = g["sg"] + g["sg0"]
+    good = [r for r in rows if _num(r, "self_intersections") == 0 and "self_intersecting" not in str(r.get("flags"))]
+    bad = [r for r in rows if r not in good]
+    nums = f"{len(good)} of {len(rows)} shape-gradient meshes free of self-intersections" + (
+        "; intersecting: " + ", ".join(f"{r['phantom']}/{r['noise']} ({_num(r, 'self_intersections'):.0f} pairs)"
+                                       for r in bad) if bad else "")
+    return len(good), len(rows), nums, [r["cell_id"] for r in rows]
+
+
+def _distmesh(g) -> tuple:
+    clean = {(r["phantom"], r.get("N"), r.get("seed")): r for r in g["dm"] if r.get("noise") == "none"}
+    noisy = [r for r in g["dm"] if r.get("noise") not in (None, "none")]
+
+    def unstable(r):
+        c = clean.get((r["phantom"], r.get("N"), r.get("seed")))
+        worse = c is not None and _num(r, "hausdorff_h") > 2 * _num(c, "hausdorff_h")
+        return not _clean(r) or worse
+
+    good = [r for r in noisy if unstable(r)]
+    nums = "; ".join(f"{r['phantom']}/{r['noise']}: {r.get('status')}"
+                     + (f" ⚑{r['flags']}" if r.get("flags") and str(r.get("flags")) != "nan" else "")
+                     + f", {_num(r, 'hausdorff_h'):.2f} h" for r in noisy)
+    return len(good), len(noisy), nums, [r["cell_id"] for r in noisy]
+
+
+def _ellipsoid_K(g, arrays, extent: float) -> tuple:
+    from ..metrics.curvature import vertex_curvature
+
+    good, partial, total, parts, cells = 0, 0, 0, [], []
+    for r in g["sg"]:
+        if r.get("phantom") != "ellipsoid" or r.get("noise") != "none":
+            continue
+        a = arrays(r["cell_id"]) or {}
+        if "vertices" not in a or "faces" not in a:
+            continue
+        try:
+            h = 2.0 * extent / (float(r["N"]) - 1)          # the grid spacing of a cubic ±extent grid
+        except (TypeError, ValueError, ZeroDivisionError):
+            continue
+        _, K, _ = vertex_curvature(np.asarray(a["vertices"], float), np.asarray(a["faces"], np.int64), h)
+        K = K[np.isfinite(K)]
+        if K.size == 0:
+            continue
+        total += 1
+        cells.append(r["cell_id"])
+        share = float(((K >= 0.25) & (K <= 4.0)).mean())
+        good += share >= 0.99
+        partial += share >= 0.90
+        parts.append(f"N = {r['N']}: {100 * share:.1f} % of vertices with K in [1/4, 4] (1st–99th percentile "
+                     f"{np.percentile(K, 1):.3f}–{np.percentile(K, 99):.3f})")
+    return good, total, "; ".join(parts), cells, partial
+
+
+def check_claims(rows: list[dict], arrays: Callable[[str], dict | None] = lambda cell_id: None, *,
+                 extent: float = 2.5) -> list[Claim]:
+    """The verdict of every claim of :data:`CLAIMS` from the results rows (results.csv as dicts),
+    ``arrays(cell_id)`` (the cell's ``.npz`` contents, or None) and the grid's half-width ``extent``."""
+    g = _groups(rows)
+    checks = {"smoother": lambda: _smoother(g), "robust_noise": lambda: _robust(g),
+              "beats_mc": lambda: _beats_mc(g), "noise_vs_mc_distmesh": lambda: _noise_vs(g),
+              "energy": lambda: _energy(g, arrays), "diffeomorphic": lambda: _diffeo(g),
+              "distmesh_unstable": lambda: _distmesh(g), "ellipsoid_K": lambda: _ellipsoid_K(g, arrays, extent)}
+    out = []
+    for cid, text in CLAIMS:
+        good, total, numbers, cells, *partial = checks[cid]()
+        verdict = _verdict(good, total, *partial)
+        out.append(Claim(cid, text, verdict, f"{good} of {total} — {numbers}" if total else
+                         "the run has no cells that can test this claim", cells))
+    return out

@@ -1,0 +1,106 @@
+"""The paper's claims checked from a run's cells (bench.report.claims): each verdict from hand-made rows."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from bench.report.claims import CLAIMS, check_claims
+
+
+def _row(method, phantom, noise, beta=None, status="ok", flags=None, **metrics):
+    params = json.dumps({"beta": beta}) if beta is not None else "{}"
+    label = method if beta is None else f"{method}_b{beta}"
+    return {"cell_id": f"{phantom}_{noise}_{label}", "method": method, "label": label, "phantom": phantom,
+            "variant": "sdf", "N": 48, "noise": noise, "seed": 0, "parameters": params, "status": status,
+            "flags": flags, **metrics}
+
+
+def _verdicts(rows, arrays=lambda c: None) -> dict:
+    return {c.id: c.verdict for c in check_claims(rows, arrays)}
+
+
+def test_every_claim_is_not_measured_without_cells():
+    v = _verdicts([])
+    assert list(v) == [cid for cid, _ in CLAIMS] and set(v.values()) == {"not measured"}
+
+
+def test_smoothness_verdicts_follow_the_roughness_of_the_pairs():
+    rows = [_row("shape_gradient", "sphere", "none", 1.0, roughness_deg=2.0),
+            _row("shape_gradient", "sphere", "none", 0.0, roughness_deg=3.0),
+            _row("shape_gradient", "cube", "none", 1.0, roughness_deg=4.0),
+            _row("shape_gradient", "cube", "none", 0.0, roughness_deg=3.0)]
+    assert _verdicts(rows)["smoother"] == "partly"
+    assert _verdicts(rows[:2])["smoother"] == "holds"
+    assert _verdicts(rows[2:])["smoother"] == "does not hold"
+
+
+def test_noise_claims_use_only_valid_unflagged_results():
+    sg = _row("shape_gradient", "sphere", "gaussian", 1.0, hausdorff_h=0.5, mean_dist_h=0.1)
+    mc = _row("marching_cubes", "sphere", "gaussian", hausdorff_h=0.8, mean_dist_h=0.2)
+    dm = _row("distmesh", "sphere", "gaussian", hausdorff_h=0.3, status="ok", flags="not_converged")
+    dm_clean = _row("distmesh", "sphere", "none", hausdorff_h=0.2)
+    v = _verdicts([sg, mc, dm, dm_clean])
+    assert v["robust_noise"] == "holds" and v["beats_mc"] == "holds"
+    # DistMesh's 0.3 h is flagged: it loses the comparison, and counts as unstable
+    assert v["noise_vs_mc_distmesh"] == "holds" and v["distmesh_unstable"] == "holds"
+    flagged = dict(sg, flags="self_intersecting")
+    v = _verdicts([flagged, mc, dm, dm_clean])
+    assert v["robust_noise"] == "does not hold" and v["noise_vs_mc_distmesh"] == "does not hold"
+    assert v["diffeomorphic"] == "does not hold"
+    stable_dm = dict(dm, flags=None, hausdorff_h=0.25)
+    assert _verdicts([sg, mc, stable_dm, dm_clean])["distmesh_unstable"] == "does not hold"
+
+
+def test_energy_verdict_reads_the_stored_history():
+    rows = [_row("shape_gradient", "sphere", "none", 1.0), _row("shape_gradient", "torus", "none", 1.0)]
+    hist = {rows[0]["cell_id"]: np.geomspace(1.0, 1e-4, 30),               # smooth, to ~zero
+            rows[1]["cell_id"]: np.r_[np.geomspace(1.0, 0.2, 10), 0.3, 0.25]}  # a rise, and ends at 25 %
+    v = check_claims(rows, lambda c: {"energy_history": hist[c]})
+    energy = {c.id: c for c in v}["energy"]
+    assert energy.verdict == "partly" and "1 rise(s)" in energy.numbers and energy.cells == [r["cell_id"]
+                                                                                            for r in rows]
+    assert _verdicts(rows[:1], lambda c: {"energy_history": hist[c]})["energy"] == "holds"
+
+
+def test_ellipsoid_curvature_claim_from_a_mesh_of_the_true_ellipsoid_and_of_a_sphere():
+    import trimesh
+
+    row = _row("shape_gradient", "ellipsoid", "none", 1.0)
+    row["N"] = 96
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=1.0)
+    ell = sphere.copy()
+    ell.apply_scale([1.0, 2.0, 1.0])      # the phantom's semi-axes (1, 2, 1): K in [1/4, 4]
+    got = check_claims([row], lambda c: {"vertices": ell.vertices, "faces": ell.faces})
+    assert got[-1].id == "ellipsoid_K" and got[-1].verdict == "holds", got[-1].numbers
+    big = sphere.copy()
+    big.apply_scale(2.5)                   # K = 0.16 everywhere: outside the range
+    assert _verdicts([row], lambda c: {"vertices": big.vertices, "faces": big.faces})["ellipsoid_K"] \
+        == "does not hold"
+
+
+def test_the_report_page_shows_every_claim_with_its_verdict_from_a_real_run(tmp_path):
+    from bench.config import config_from_dict
+    from bench.report import write_report
+    from bench.run import run_grid
+
+    cfg = config_from_dict({"name": "claims", "grid": {"phantoms": ["sphere"], "variants": ["sdf"], "n": 24,
+                                                        "seeds": [0], "noise": [{"kind": "none"}]},
+                            "methods": [{"name": "shape_gradient", "params": {"beta": 1.0, "max_iter": 40}},
+                                        {"name": "marching_cubes"}],
+                            "metrics": {"n_samples": 2000}})
+    out = tmp_path / "run"
+    run_grid(cfg, out, jobs=1, progress=False)
+    page = write_report(out).read_text(encoding="utf-8")
+    assert 'id="claims"' in page
+    for cid, _ in CLAIMS:
+        assert f'id="claim-{cid}"' in page
+    # one clean phantom, no noise, no β = 0 and no DistMesh: those claims are not measured; the others are
+    import re
+
+    verdicts = dict(re.findall(r'id="claim-(\w+)".*?class="verdict v-[\w-]+">([\w ]+)<', page, re.S))
+    assert verdicts["smoother"] == verdicts["robust_noise"] == verdicts["distmesh_unstable"] == "not measured"
+    assert verdicts["beats_mc"] in ("holds", "does not hold") and verdicts["diffeomorphic"] != "not measured"
+    assert verdicts["energy"] != "not measured"

@@ -3,9 +3,12 @@
   "use strict";
   var KEY = ["method", "hausdorff_h", "hausdorff_95_h", "hausdorff_90_h", "mean_dist_h", "normal_consistency",
              "fscore@h", "roughness_deg", "self_intersections", "euler", "components", "iou", "wall_s", "status"];
-  var meshes = JSON.parse(document.getElementById("lsb-meshes").textContent || "{}");
-  var charts = JSON.parse(document.getElementById("lsb-charts").textContent || "[]");
-  window.lsbDrawn = {charts: 0, viewers: 0, errors: []};
+  var meshesCache = null;
+  function allMeshes() {   // parsed on the first click, not while the page loads
+    if (meshesCache === null) meshesCache = JSON.parse(document.getElementById("lsb-meshes").textContent || "{}");
+    return meshesCache;
+  }
+  window.lsbDrawn = {charts: 0, viewers: 0, chartsDoneMs: null};
 
   function cellValue(td) {
     var t = td.textContent.trim().replace(/[−]/g, "-");
@@ -76,7 +79,7 @@
   }
   var colourBy = document.getElementById("viewer-colour"), current = null;
   function drawViewer(cid, group, title) {
-    var m = meshes.cells ? meshes.cells[cid] : null;
+    var meshes = allMeshes(), m = meshes.cells ? meshes.cells[cid] : null;
     var panel = document.getElementById("viewer-panel");
     if (!m) { panel.hidden = false; document.getElementById("viewer-title").textContent =
         title + ": no mesh stored for this cell"; Plotly.purge("viewer"); return; }
@@ -126,8 +129,15 @@
     Array.prototype.forEach.call(document.querySelectorAll("table.summary"), function (t) { fold(t, folded); });
     unfold.textContent = folded ? "show all columns" : "key columns only";
   });
-  charts.forEach(function (fig, i) {
-    Plotly.newPlot("chart-" + (i + 1), fig.data, fig.layout, {responsive: true})
-      .then(function () { window.lsbDrawn.charts += 1; });
-  });
+  function drawCharts() {   // after the load event: the tables are usable first, the charts follow at once
+    var charts = JSON.parse(document.getElementById("lsb-charts").textContent || "[]");
+    charts.forEach(function (fig, i) {
+      Plotly.newPlot("chart-" + (i + 1), fig.data, fig.layout, {responsive: true}).then(function () {
+        window.lsbDrawn.charts += 1;
+        if (window.lsbDrawn.charts === charts.length) window.lsbDrawn.chartsDoneMs = performance.now();
+      });
+    });
+  }
+  if (document.readyState === "complete") drawCharts();
+  else window.addEventListener("load", function () { setTimeout(drawCharts, 0); });
 })();

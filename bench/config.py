@@ -11,6 +11,7 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
     n = 96                                  # grid points per axis; a number or a list
     extent = 2.5                            # the grid covers [-extent, extent]^3
     seeds = [0]                             # noise (and metric sampling) seeds
+    vary = "all"                            # or "one_at_a_time": noise list at n[0], n list at noise[0]
     noise = [                               # kind none | gaussian | uniform;
       { kind = "none" },                    # snr = "paper" (the phantom's paper SNR), a number
       { kind = "gaussian", snr = "paper" }, # or a list of numbers (dB)
@@ -56,6 +57,9 @@ from typing import Any
 
 from phantoms import NOISE_KINDS, VARIANTS, InputError, get_phantom, is_phantom_name, phantom_names
 
+from .textspec import parse_value as _parse_value
+from .textspec import split_top as _split_top
+
 __all__ = ["NoiseSpec", "MethodSpec", "RunConfig", "load_config", "config_from_dict", "builtin_config",
            "parse_method_spec", "parse_noise_spec", "BUILTIN_CONFIGS"]
 
@@ -65,7 +69,10 @@ CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 BUILTIN_CONFIGS = ("paper", "quick")
 
 _TOP_KEYS = {"name", "description", "grid", "methods", "metrics", "run", "report"}
-_GRID_KEYS = {"phantoms", "variants", "n", "extent", "seeds", "noise"}
+_GRID_KEYS = {"phantoms", "variants", "n", "extent", "seeds", "noise", "vary"}
+#: grid.vary: "all" (the full product) or "one_at_a_time" (the noise list at the first N, the N list at the first
+#: noise setting — a robustness sweep without the product's cost)
+VARY = ("all", "one_at_a_time")
 _NOISE_KEYS = {"kind", "snr"}
 _METHOD_KEYS = {"name", "label", "params", "sweep", "phantom_params"}
 _METRICS_KEYS = {"n_samples"}
@@ -184,6 +191,7 @@ class RunConfig:
     extent: float = 2.5
     seeds: list[int] = field(default_factory=lambda: [0])
     noise: list[NoiseSpec] = field(default_factory=lambda: [NoiseSpec("none")])
+    vary: str = "all"
     methods: list[MethodSpec] = field(default_factory=list)
     n_samples: int = 100_000
     timeout: float | None = None
@@ -202,7 +210,7 @@ class RunConfig:
             "grid": {
                 "phantoms": list(self.phantoms), "variants": list(self.variants), "n": list(self.n),
                 "extent": self.extent, "seeds": list(self.seeds),
-                "noise": [s.to_dict() for s in self.noise],
+                "noise": [s.to_dict() for s in self.noise], **({"vary": self.vary} if self.vary != "all" else {}),
             },
             "methods": [m.to_dict() for m in self.methods],
             "metrics": {"n_samples": self.n_samples},
@@ -301,6 +309,9 @@ def config_from_dict(data: dict, source: str = "") -> RunConfig:
         cfg.n = [_int(v, "grid.n", 8) for v in _as_list(grid["n"], "grid.n")]
     if "extent" in grid:
         cfg.extent = _float(grid["extent"], "grid.extent")
+    if grid.get("vary", "all") not in VARY:
+        raise InputError(f"grid.vary: {grid['vary']!r} is not one of {', '.join(VARY)}")
+    cfg.vary = grid.get("vary", "all")
     if "seeds" in grid:
         cfg.seeds = [_int(v, "grid.seeds", 0) for v in _as_list(grid["seeds"], "grid.seeds")]
     if "noise" in grid:
@@ -424,14 +435,6 @@ def builtin_config(name: str) -> RunConfig:
 
 
 # ---------------------------------------------------------------------- command-line specs
-def _parse_value(text: str) -> Any:
-    """A command-line value: TOML syntax if it parses (numbers, booleans, arrays, quoted strings), else text."""
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-
-
 def parse_method_spec(text: str) -> MethodSpec:
     """``[LABEL=]NAME[:key=value,key=value...]`` → :class:`MethodSpec` (values in TOML syntax or plain text).
 
@@ -457,24 +460,6 @@ def parse_method_spec(text: str) -> MethodSpec:
     if label is None:
         label = name if not params else f"{name}[{','.join(f'{k}={_fmt_value(v)}' for k, v in params.items())}]"
     return MethodSpec(name=name, label=label, params=params)
-
-
-def _split_top(text: str) -> list[str]:
-    """Split on commas not inside brackets (so ``snapshots=[1,50]`` stays one item)."""
-    out, depth, cur = [], 0, ""
-    for ch in text:
-        if ch in "[{":
-            depth += 1
-        elif ch in "]}":
-            depth -= 1
-        if ch == "," and depth == 0:
-            out.append(cur)
-            cur = ""
-        else:
-            cur += ch
-    if cur.strip():
-        out.append(cur)
-    return [s.strip() for s in out if s.strip()]
 
 
 def parse_noise_spec(text: str) -> list[NoiseSpec]:

@@ -5,7 +5,10 @@ from __future__ import annotations
 import json
 
 from bench.config import CONFIG_DIR, builtin_config, config_from_dict, load_config
+import pytest
+
 from bench.run.grid import cell_id, expand_grid
+from phantoms import InputError
 
 
 def test_grid_expansion_sweeps_overrides_and_stable_ids():
@@ -56,3 +59,20 @@ def test_cell_id_names_the_cell_and_hashes_every_parameter():
     assert cid.startswith("sphere_sdf_n48_none_s0_shape_gradient_")
     other = dict(cell, params={**cell["params"], "alpha": 4.0})
     assert cell_id(other) != cid and cell_id(other).rsplit("_", 1)[0] == cid.rsplit("_", 1)[0]
+
+
+def test_vary_one_at_a_time_sweeps_noise_at_the_first_n_and_n_at_the_first_noise():
+    from bench.config import config_from_dict
+
+    grid = {"phantoms": ["sphere"], "n": [64, 32, 48], "noise": ["none", "gaussian@40", "gaussian@20"]}
+    full = config_from_dict({"grid": grid, "methods": [{"name": "marching_cubes"}]})
+    one = config_from_dict({"grid": dict(grid, vary="one_at_a_time"), "methods": [{"name": "marching_cubes"}]})
+    pairs = [(c["n"], c["noise"], c["snr_requested"]) for c in expand_grid(one)]
+    assert pairs == [(64, "none", None), (64, "gaussian", 40.0), (64, "gaussian", 20.0), (32, "none", None),
+                     (48, "none", None)]
+    assert len(expand_grid(full)) == 9
+    # the cells of the sweep are cells of the full product (same ids): results are comparable across configs
+    assert {c["cell_id"] for c in expand_grid(one)} <= {c["cell_id"] for c in expand_grid(full)}
+    assert config_from_dict(one.to_dict()).vary == "one_at_a_time"
+    with pytest.raises(InputError, match="grid.vary"):
+        config_from_dict({"grid": dict(grid, vary="sometimes"), "methods": [{"name": "marching_cubes"}]})

@@ -45,13 +45,17 @@ def expand_grid(cfg) -> list[dict]:
     seed → method.
 
     Clean cells (noise ``none``) are run for the first seed only: without noise the seed changes nothing
-    but the metric sampling.
+    but the metric sampling.  With ``grid.vary = "one_at_a_time"`` only the (N, noise) pairs that keep one of
+    them at its first value are run: every noise setting at the first N, every N with the first noise setting.
     """
     cells = []
+    one = getattr(cfg, "vary", "all") == "one_at_a_time"
     for phantom in cfg.phantoms:
         for variant in cfg.variants:
             for n in cfg.n:
-                for noise in cfg.noise:
+                for k, noise in enumerate(cfg.noise):
+                    if one and n != cfg.n[0] and k != 0:
+                        continue
                     snr = noise.snr_for(phantom)
                     seeds = cfg.seeds[:1] if noise.kind == "none" else cfg.seeds
                     for seed in seeds:

@@ -104,3 +104,12 @@ def test_the_report_page_shows_every_claim_with_its_verdict_from_a_real_run(tmp_
     assert verdicts["smoother"] == verdicts["robust_noise"] == verdicts["distmesh_unstable"] == "not measured"
     assert verdicts["beats_mc"] in ("holds", "does not hold") and verdicts["diffeomorphic"] != "not measured"
     assert verdicts["energy"] != "not measured"
+
+
+def test_cells_are_compared_only_at_the_same_snr_and_n():
+    sg40 = dict(_row("shape_gradient", "sphere", "gaussian", 1.0, mean_dist_h=0.1), snr_requested=40.0)
+    mc20 = dict(_row("marching_cubes", "sphere", "gaussian", mean_dist_h=0.5), snr_requested=20.0)
+    assert _verdicts([sg40, mc20])["beats_mc"] == "not measured"
+    mc40 = dict(mc20, snr_requested=40.0, cell_id="mc40")
+    got = {c.id: c for c in check_claims([sg40, mc20, mc40])}["beats_mc"]
+    assert got.verdict == "holds" and "40 dB" in got.numbers and got.cells == [sg40["cell_id"], "mc40"]

@@ -84,8 +84,19 @@ def _num(r: dict | None, col: str) -> float:
     return v
 
 
+def _snr(r: dict) -> float | None:
+    v = _num(r, "snr_requested")
+    return None if math.isnan(v) else v
+
+
 def _key(r: dict) -> tuple:
-    return (r.get("phantom"), r.get("variant"), r.get("N"), r.get("noise"), r.get("seed"))
+    return (r.get("phantom"), r.get("variant"), r.get("N"), r.get("noise"), _snr(r), r.get("seed"))
+
+
+def _where(r: dict) -> str:
+    """``phantom/noise[ SNR dB] N`` — how a cell is named in the numbers."""
+    snr = _snr(r)
+    return f"{r.get('phantom')}/{r.get('noise')}" + (f" {snr:g} dB" if snr is not None else "") + f" N={r.get('N')}"
 
 
 def _verdict(good: int, total: int, partial: int | None = None) -> str:
@@ -113,7 +124,7 @@ def _pairs(a: list[dict], b: list[dict]) -> list[tuple[dict, dict]]:
 def _smoother(g) -> tuple:
     pairs = _pairs(g["sg"], g["sg0"])
     good = [p for p in pairs if _num(p[0], "roughness_deg") < _num(p[1], "roughness_deg")]
-    nums = "; ".join(f"{p[0]['phantom']}/{p[0]['noise']}: {_num(p[0], 'roughness_deg'):.2f}° vs "
+    nums = "; ".join(f"{_where(p[0])}: {_num(p[0], 'roughness_deg'):.2f}° vs "
                      f"{_num(p[1], 'roughness_deg'):.2f}° (β = 0)" for p in pairs)
     return len(good), len(pairs), nums, [c["cell_id"] for p in pairs for c in p]
 
@@ -121,7 +132,7 @@ def _smoother(g) -> tuple:
 def _robust(g) -> tuple:
     noisy = [r for r in g["sg"] if r.get("noise") not in (None, "none")]
     good = [r for r in noisy if _clean(r) and _num(r, "hausdorff_h") <= 1.0]
-    nums = "; ".join(f"{r['phantom']}/{r['noise']}: {_num(r, 'hausdorff_h'):.2f} h, {r.get('status')}"
+    nums = "; ".join(f"{_where(r)}: {_num(r, 'hausdorff_h'):.2f} h, {r.get('status')}"
                      + (f" ⚑{r['flags']}" if not _clean(r) and r.get("status") == "ok" else "") for r in noisy)
     return len(good), len(noisy), nums, [r["cell_id"] for r in noisy]
 
@@ -129,7 +140,7 @@ def _robust(g) -> tuple:
 def _beats_mc(g) -> tuple:
     pairs = _pairs(g["sg"], g["mc"])
     good = [p for p in pairs if _clean(p[0]) and _num(p[0], "mean_dist_h") < _num(p[1], "mean_dist_h")]
-    nums = "; ".join(f"{p[0]['phantom']}/{p[0]['noise']}: {_num(p[0], 'mean_dist_h'):.3f} h vs "
+    nums = "; ".join(f"{_where(p[0])}: {_num(p[0], 'mean_dist_h'):.3f} h vs "
                      f"{_num(p[1], 'mean_dist_h'):.3f} h" for p in pairs)
     return len(good), len(pairs), nums, [c["cell_id"] for p in pairs for c in p]
 
@@ -143,7 +154,7 @@ def _noise_vs(g) -> tuple:
         return _clean(s) and (not _clean(o) or _num(s, "hausdorff_h") < _num(o, "hausdorff_h"))
 
     good = [t for t in trios if wins(t[0], t[1]) and wins(t[0], t[2])]
-    nums = "; ".join(f"{t[0]['phantom']}/{t[0]['noise']}: SG {_num(t[0], 'hausdorff_h'):.2f} h, MC "
+    nums = "; ".join(f"{_where(t[0])}: SG {_num(t[0], 'hausdorff_h'):.2f} h, MC "
                      f"{_num(t[1], 'hausdorff_h'):.2f} h, DistMesh {_num(t[2], 'hausdorff_h'):.2f} h"
                      + ("" if _clean(t[2]) else f" ({t[2].get('status')} {t[2].get('flags') or ''})".rstrip())
                      for t in trios)
@@ -161,7 +172,7 @@ def _energy(g, arrays) -> tuple:
         rises = int((np.diff(e) > 1e-6 * e[0]).sum())
         ratio = e[-1] / e[0]
         good += rises == 0 and ratio < 0.05
-        parts.append(f"{r['phantom']}/{r['noise']}: end/start {ratio:.2g}, {rises} rise(s) in {e.size - 1} steps")
+        parts.append(f"{_where(r)}: end/start {ratio:.2g}, {rises} rise(s) in {e.size - 1} steps")
     return good, total, "; ".join(parts), cells
 
 
@@ -170,7 +181,7 @@ def _diffeo(g) -> tuple:
     good = [r for r in rows if _num(r, "self_intersections") == 0 and "self_intersecting" not in str(r.get("flags"))]
     bad = [r for r in rows if r not in good]
     nums = f"{len(good)} of {len(rows)} shape-gradient meshes free of self-intersections" + (
-        "; intersecting: " + ", ".join(f"{r['phantom']}/{r['noise']} ({_num(r, 'self_intersections'):.0f} pairs)"
+        "; intersecting: " + ", ".join(f"{_where(r)} ({_num(r, 'self_intersections'):.0f} pairs)"
                                        for r in bad) if bad else "")
     return len(good), len(rows), nums, [r["cell_id"] for r in rows]
 
@@ -185,7 +196,7 @@ def _distmesh(g) -> tuple:
         return not _clean(r) or worse
 
     good = [r for r in noisy if unstable(r)]
-    nums = "; ".join(f"{r['phantom']}/{r['noise']}: {r.get('status')}"
+    nums = "; ".join(f"{_where(r)}: {r.get('status')}"
                      + (f" ⚑{r['flags']}" if r.get("flags") and str(r.get("flags")) != "nan" else "")
                      + f", {_num(r, 'hausdorff_h'):.2f} h" for r in noisy)
     return len(good), len(noisy), nums, [r["cell_id"] for r in noisy]

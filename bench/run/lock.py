@@ -129,6 +129,8 @@ class RunLock:
             return  # released meanwhile: try again
         if info and lock_owner_alive(info):
             self.check()
+        if read_lock(self.out) != info:
+            return  # replaced meanwhile (another run took it over first): look again
         self.took_over = info
         if not self.quiet:
             print(f"note: {self.path} was left by a run that is no longer running "

@@ -89,7 +89,7 @@ def _fault_injection(tmp_path: Path, grid_args: list[str], seed: int) -> dict:
     for _ in range(10):
         resume = ["--resume"] if (out / "config.json").exists() else []  # killed before the config: start over
         # a random moment within the time the remaining cells would take (so most kills hit a running grid)
-        left = 1.0 - len(list((out / "cells").glob("*.json"))) / len(expected) if resume else 1.0
+        left = 1.0 - len([p for p in (out / "cells").glob("[!.]*.json")]) / len(expected) if resume else 1.0
         live_kills += _killed_at([*grid_args, *resume, "--out", str(out)], rng.uniform(0.1, t_ref * max(left, 0.2)))
     final = subprocess.run(_cmd(*grid_args, "--resume", "--out", str(out)), cwd=REPO, env=_env(),
                            capture_output=True, text=True, timeout=600)

@@ -91,7 +91,7 @@ def check_output_dir(out: Path, resume: bool) -> None:
     from .lock import RunLock
 
     RunLock(out).check()  # another live run owns the folder: say whose, before anything else
-    if not resume and any((out / CELLS_DIR).glob("*.json")):
+    if not resume and any((out / CELLS_DIR).glob("[!.]*.json")):  # (not the hidden temp files)
         raise InputError(f"output folder {str(out)!r} already holds a run; use --resume to complete it or "
                          "choose another --out")
 

@@ -142,3 +142,15 @@ def test_write_errors_name_the_path_and_leave_no_temp_file(tmp_path, monkeypatch
         write_atomic(target, "x")
     monkeypatch.undo()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cells.json"]
+
+
+def test_resume_over_a_run_json_that_is_a_list_rewrites_it(tmp_path, capsys):
+    from bench.cli import main
+
+    out = tmp_path / "run"
+    grid = ["--quick", "--phantoms", "sphere", "--noise", "none", "--n", "16", "--n-samples", "2000",
+            "--method", "marching_cubes", "--jobs", "1", "--no-report", "--out", str(out)]
+    assert main(["run", *grid]) == 0
+    (out / "run.json").write_text("[1, 2]")
+    assert main(["run", *grid, "--resume"]) == 0
+    assert json.loads((out / "run.json").read_text())["cells"]["finished"] == 1

@@ -73,7 +73,8 @@ class RunLog:
         self.cfg = cfg
         self.n_cells = n_cells
         self.session = session
-        self.previous = (read_json(self.path, {}) if resume and self.path.exists() else {}) or {}
+        previous = read_json(self.path, {}) if resume and self.path.exists() else {}
+        self.previous = previous if isinstance(previous, dict) else {}  # a damaged run.json: start it again
         self.started = time.time()
         self.mixed_code: dict = {}
 

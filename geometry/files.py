@@ -89,6 +89,11 @@ def check_writable(path: str | Path) -> Path:
     path = Path(path)
     if path.is_dir():
         raise WriteError(path, "it is a directory")
+    for folder in path.parents:  # the nearest existing ancestor must be a folder
+        if folder.exists():
+            if not folder.is_dir():
+                raise WriteError(path, f"{str(folder)!r} is a file, not a folder")
+            break
     probe = path.with_name(f".{path.stem}.{os.getpid()}.tmp.probe")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -13,7 +13,7 @@ Modules: ``volume`` (the grid type) < ``base`` (the phantom interface) < ``analy
 from geometry.errors import InputError
 
 from .base import VARIANTS, Phantom, Truth, grid_volume
-from .io import load_volume, mask_to_sdf, save_volume
+from .io import check_volume_output, load_volume, mask_to_sdf, save_volume
 from .mesh import MeshPhantom
 from .noise import NOISE_KINDS, add_noise, snr_db
 from .registry import PHANTOMS, REAL_PHANTOMS, get_phantom, is_phantom_name, phantom_names
@@ -22,5 +22,5 @@ from .volume import Sample, Volume
 __all__ = [
     "InputError", "Volume", "Sample", "Phantom", "Truth", "PHANTOMS", "VARIANTS", "NOISE_KINDS",
     "get_phantom", "phantom_names", "grid_volume", "add_noise", "snr_db",
-    "load_volume", "save_volume", "mask_to_sdf", "REAL_PHANTOMS", "is_phantom_name", "MeshPhantom",
+    "load_volume", "save_volume", "check_volume_output", "mask_to_sdf", "REAL_PHANTOMS", "is_phantom_name", "MeshPhantom",
 ]

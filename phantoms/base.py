@@ -25,7 +25,7 @@ import numpy as np
 
 from geometry.errors import InputError
 
-from .volume import Volume
+from .volume import Volume, check_memory
 
 __all__ = [
     "Truth", "Phantom", "DEFAULT_N", "DEFAULT_EXTENT", "VARIANTS", "grid_volume",
@@ -34,6 +34,8 @@ __all__ = [
 
 DEFAULT_N = 96
 DEFAULT_EXTENT = 2.5
+#: float64 arrays per grid point :func:`grid_volume` holds at least (grid points, values): the memory check
+GRID_CHANNELS = 8
 VARIANTS = ("sdf", "paper")
 
 
@@ -72,6 +74,8 @@ def grid_volume(fn, n: int = DEFAULT_N, extent: float = DEFAULT_EXTENT) -> Volum
     """Sample ``fn`` (points (P, 3) → values (P,)) on an n³ grid over [-extent, extent]³."""
     n = check_n(n)
     extent = check_extent(extent)
+    # the grid's points (meshgrid + stack: 6 arrays), the values and a copy: at least 8 float64 per point
+    check_memory((n, n, n), GRID_CHANNELS, what=f"an N = {n} volume")
     spacing = 2.0 * extent / (n - 1)
     axis = -extent + spacing * np.arange(n)
     grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)

@@ -21,9 +21,10 @@ import numpy as np
 from scipy import ndimage
 
 from geometry.errors import InputError
+from geometry.files import atomic_path, check_writable
 from .volume import Volume
 
-__all__ = ["load_volume", "save_volume", "mask_to_sdf", "is_mask"]
+__all__ = ["load_volume", "save_volume", "check_volume_output", "mask_to_sdf", "is_mask"]
 
 SUFFIXES = (".npz", ".npy", ".nii", ".nii.gz")
 
@@ -118,19 +119,33 @@ def load_volume(path, mask: bool | None = None) -> Volume:
             raise InputError(f"{path}: unsupported file type {suffix!r}; supported: {', '.join(SUFFIXES)}")
     except InputError:
         raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+    except OSError as exc:
+        if exc.errno is not None:  # the file cannot be read at all (permission, I/O error): not a format problem
+            raise InputError(f"{path}: cannot read the file: {exc.strerror or exc}") from None
+        raise InputError(f"{path}: cannot read the file (truncated or not a {suffix} volume?): {exc}") from None
+    except ValueError as exc:
+        if "Object arrays" in str(exc):
+            raise InputError(f"{path}: the file holds Python objects (dtype object or pickled data), not "
+                             "numbers; a volume must be an array of real numbers") from None
+        raise InputError(f"{path}: cannot read the file (truncated or not a {suffix} volume?): {exc}") from None
+    except (EOFError, zipfile.BadZipFile, KeyError) as exc:
         raise InputError(f"{path}: cannot read the file (truncated or not a {suffix} volume?): {exc}") from None
     except Exception as exc:  # nibabel raises its own types (ImageFileError, ...)
         raise InputError(f"{path}: cannot read the file: {type(exc).__name__}: {exc}") from None
     values = np.asarray(values)
+    if np.issubdtype(values.dtype, np.complexfloating) or not (np.issubdtype(values.dtype, np.number)
+                                                               or values.dtype == bool):
+        raise InputError(f"{path}: volume values must be real numbers; got dtype {values.dtype}"
+                         + (" (the imaginary part would be lost)" if values.dtype.kind == "c" else ""))
     if values.ndim != 3:
         raise InputError(f"{path}: a volume must be a 3-D array; got shape {values.shape}")
-    looks_like_mask = is_mask(values)
-    if mask is True and not looks_like_mask:
-        raise InputError(f"{path}: asked to read a binary mask but the values are not all 0/1")
-    if looks_like_mask and mask is not False:
-        return mask_to_sdf(values, origin, spacing)
     try:
+        Volume(np.zeros((2, 2, 2)), origin, spacing)  # origin/spacing: length and type, before any work
+        looks_like_mask = is_mask(values)
+        if mask is True and not looks_like_mask:
+            raise InputError("asked to read a binary mask but the values are not all 0/1")
+        if looks_like_mask and mask is not False:
+            return mask_to_sdf(values, origin, spacing)
         return Volume(values, origin, spacing)
     except InputError as exc:
         raise InputError(f"{path}: {exc}") from None
@@ -138,9 +153,16 @@ def load_volume(path, mask: bool | None = None) -> Volume:
 
 def save_volume(path, volume: Volume) -> Path:
     """Write ``volume`` as ``.npz`` (keys values, origin, spacing)."""
+    path = check_volume_output(path)
+    with atomic_path(path) as tmp:
+        np.savez_compressed(tmp, values=volume.values, origin=volume.origin, spacing=volume.spacing)
+    return path
+
+
+def check_volume_output(path) -> Path:
+    """``path`` as a volume output: an ``.npz`` name in a writable place (checked before any work is done;
+    :class:`geometry.files.WriteError` naming the cause otherwise)."""
     path = Path(path)
     if _suffix(path) != ".npz":
         raise InputError(f"volumes are written as .npz; got {path.name!r}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, values=volume.values, origin=volume.origin, spacing=volume.spacing)
-    return path
+    return check_writable(path)

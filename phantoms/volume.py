@@ -21,7 +21,39 @@ import numpy as np
 from geometry import kernels
 from geometry.errors import InputError
 
-__all__ = ["Volume", "Sample", "VolumeSampler", "trilinear_channels"]
+__all__ = ["Volume", "Sample", "VolumeSampler", "trilinear_channels", "check_memory", "available_memory"]
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available for new allocations (``MemAvailable`` of /proc/meminfo), None if unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def check_memory(shape, channels: int, itemsize: int = 8, what: str = "the volume") -> None:
+    """Refuse, before allocating, a grid of ``shape`` that needs ``channels`` arrays of ``itemsize`` bytes per
+    point (N³ × channels × itemsize) when that exceeds the available memory: an :class:`InputError` that
+    gives the need and the largest N (N³ grid) that fits, instead of a MemoryError after seconds of work."""
+    avail = available_memory()
+    points = float(np.prod([float(s) for s in shape]))
+    need = points * channels * itemsize
+    if avail is None or need <= avail:
+        return
+    n_max = int((avail / (channels * itemsize)) ** (1 / 3))
+    while (n_max + 1) ** 3 * channels * itemsize <= avail:
+        n_max += 1
+    while n_max > 1 and n_max ** 3 * channels * itemsize > avail:
+        n_max -= 1
+    dims = "×".join(str(int(s)) for s in shape)
+    raise InputError(f"{what} on a {dims} grid needs about {need / 2**30:.1f} GiB ({channels} arrays of "
+                     f"{itemsize}-byte values per grid point) but {avail / 2**30:.1f} GiB of memory are "
+                     f"available; the largest N³ grid that fits is N = {n_max}")
 
 
 @dataclass(frozen=True)
@@ -92,6 +124,21 @@ def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, reference:
     return out
 
 
+def _real_vector(value, name: str, allow_scalar: bool) -> np.ndarray:
+    """``value`` as 3 float64 numbers (a scalar spacing applies to every axis); InputError naming ``name``
+    for another length, a non-numeric or complex type."""
+    arr = np.asarray(value)
+    if arr.dtype == object or not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
+        raise InputError(f"volume {name} must be {'a number or ' if allow_scalar else ''}3 real numbers; got "
+                         f"{value!r} (dtype {arr.dtype})")
+    if allow_scalar and arr.size == 1:
+        return np.full(3, float(arr.reshape(-1)[0]))
+    if arr.size != 3:
+        raise InputError(f"volume {name} must be {'a number or ' if allow_scalar else ''}3 numbers (x, y, z); "
+                         f"got {arr.size} values: {arr.reshape(-1).tolist()!r}")
+    return arr.astype(np.float64).reshape(3)
+
+
 @dataclass(eq=False)
 class Volume:
     """A scalar field on a regular grid with world-space ``origin`` and per-axis ``spacing``.
@@ -117,7 +164,10 @@ class Volume:
         if min(values.shape) < 2:
             raise InputError(f"a volume needs at least 2 samples per axis; got shape {values.shape}")
         if not np.issubdtype(values.dtype, np.number) and values.dtype != bool:
-            raise InputError(f"volume values must be numeric; got dtype {values.dtype}")
+            raise InputError(f"volume values must be real numbers; got dtype {values.dtype}")
+        if np.issubdtype(values.dtype, np.complexfloating):
+            raise InputError(f"volume values must be real numbers; got complex dtype {values.dtype} (take the "
+                             "real part or the modulus yourself: the imaginary part would be lost silently)")
         values = np.ascontiguousarray(values, dtype=np.float64)
         bad = ~np.isfinite(values)
         if bad.any():
@@ -126,10 +176,10 @@ class Volume:
                 f"volume contains non-finite values ({n_nan} NaN, {int(bad.sum()) - n_nan} inf) "
                 f"out of {values.size}; first at index {tuple(int(i) for i in np.argwhere(bad)[0])}"
             )
-        origin = np.asarray(self.origin, dtype=np.float64).reshape(-1)
-        if origin.shape != (3,) or not np.isfinite(origin).all():
+        origin = _real_vector(self.origin, "origin", allow_scalar=False)
+        if not np.isfinite(origin).all():
             raise InputError(f"volume origin must be 3 finite numbers; got {self.origin!r}")
-        spacing = np.broadcast_to(np.asarray(self.spacing, dtype=np.float64), (3,)).copy()
+        spacing = _real_vector(self.spacing, "spacing", allow_scalar=True)
         if not (np.isfinite(spacing).all() and (spacing > 0).all()):
             raise InputError(f"volume spacing must be positive and finite; got {self.spacing!r}")
         self.values, self.origin, self.spacing = values, origin, spacing
@@ -199,6 +249,8 @@ class Volume:
         shared with the volume's cache: treat it as read-only (or copy it).
         """
         if order not in self._channels:
+            n_chan = {0: 1, 1: 4}.get(order, 10)
+            check_memory(self.shape, 2 * n_chan, what=f"the interpolation grids (order {order})")
             chans = [self.values]
             if order >= 1:
                 grads = np.gradient(self.values, *self.spacing, edge_order=2)

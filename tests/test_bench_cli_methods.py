@@ -122,3 +122,61 @@ def test_reconstruct_reads_a_mask(tmp_path, capsys):
     out = tmp_path / "mask.ply"
     assert main(["reconstruct", str(mask_path), "-m", "marching_cubes", "--mask", "-o", str(out)]) == 0
     assert "watertight:   yes" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------------------------------------- issue 16
+@pytest.fixture
+def counted_runs(monkeypatch):
+    """Counts reconstructions of marching_cubes (to show an output path is checked before the method runs)."""
+    from methods.marching_cubes import MarchingCubes
+
+    calls = []
+    real = MarchingCubes.reconstruct
+    monkeypatch.setattr(MarchingCubes, "reconstruct", lambda self, v: calls.append(1) or real(self, v))
+    return calls
+
+
+@pytest.mark.parametrize("which", ["-o", "--info-json"])
+def test_reconstruct_output_paths_are_checked_before_the_method_runs(sphere_file, tmp_path, capsys, counted_runs,
+                                                                      which):
+    blocked = tmp_path / ("m.ply" if which == "-o" else "i.json")
+    blocked.mkdir()                                            # a directory in the way
+    args = ["-o", str(tmp_path / "m.ply"), "--info-json", str(tmp_path / "i.json")]
+    assert main(["reconstruct", str(sphere_file), "-m", "marching_cubes", *args]) == 2
+    assert capsys.readouterr().err.strip() == f"error: cannot write '{blocked}': it is a directory"
+    assert counted_runs == []                                  # the method never ran
+
+
+def test_reconstruct_disk_full_is_one_line_and_leaves_no_temp_file(sphere_file, tmp_path, capsys, monkeypatch):
+    from _fs import small_tmpfs
+
+    with small_tmpfs(tmp_path / "disk", size="16k") as disk:
+        if disk is None:  # not root: simulate ENOSPC for the mesh write
+            import errno
+
+            import trimesh
+
+            disk = tmp_path / "disk"
+
+            def full(self, file_obj=None, **kw):
+                open(file_obj, "wb").close()
+                raise OSError(errno.ENOSPC, "No space left on device")
+
+            monkeypatch.setattr(trimesh.Trimesh, "export", full)
+        assert main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(disk / "m.ply")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err == [f"error: cannot write '{disk / 'm.ply'}': No space left on device"]
+        assert sorted(p.name for p in disk.iterdir()) == []    # neither the mesh nor a temp file
+
+
+def test_reconstruct_refuses_a_diverged_mesh_instead_of_writing_inf(sphere_file, tmp_path, capsys):
+    """mc_taubin with λ = μ = 1 for 3000 passes blows the sphere up to ~1e97: beyond float32, so a PLY would
+    hold only inf (main wrote it, 'watertight: yes').  It is a failed reconstruction: exit 1, nothing written."""
+    out = tmp_path / "m.ply"
+    with np.errstate(all="ignore"):
+        rc = main(["reconstruct", str(sphere_file), "-m", "mc_taubin", "--set", "lamb=1", "--set", "mu=1",
+                   "--set", "iterations=3000", "-o", str(out)])
+    assert rc == 1
+    err = capsys.readouterr().err
+    assert "returned non-finite vertex coordinates" in err and "nothing written" in err
+    assert not out.exists()

@@ -83,3 +83,58 @@ def test_info_bad_files_exit_2(tmp_path):
         r = run("info", str(tmp_path / name))
         assert r.returncode == 2, name
         assert msg in r.stderr and "Traceback" not in r.stderr
+
+
+# ---------------------------------------------------------------------------------------------- issue 16
+def test_volume_too_large_for_memory_is_one_line_with_the_largest_n(tmp_path, capsys):
+    assert main(["volume", "sphere", "--n", "3000", "-o", str(tmp_path / "big.npz")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "N = 3000 volume" in err[0] and "the largest N³ grid that fits is N = " in err[0]
+    assert not (tmp_path / "big.npz").exists()
+
+
+def test_volume_output_is_checked_before_the_volume_is_computed(tmp_path, capsys, monkeypatch):
+    import phantoms.base as base
+
+    computed = []
+    real = base.grid_volume
+    monkeypatch.setattr(base, "grid_volume", lambda *a, **k: computed.append(1) or real(*a, **k))
+    (tmp_path / "dir.npz").mkdir()
+    assert main(["volume", "sphere", "--n", "16", "-o", str(tmp_path / "dir.npz")]) == 2
+    assert capsys.readouterr().err.strip() == f"error: cannot write '{tmp_path / 'dir.npz'}': it is a directory"
+    assert computed == []
+    assert main(["volume", "sphere", "--n", "16", "-o", str(tmp_path / "ok.npz")]) == 0 and computed == [1]
+
+
+def test_volume_on_a_read_only_file_system_is_one_line(tmp_path, capsys, monkeypatch):
+    from _fs import small_tmpfs
+
+    with small_tmpfs(tmp_path / "ro", read_only=True) as ro:
+        if ro is None:  # not root: simulate EROFS at the probe write
+            import errno
+            import pathlib
+
+            def erofs(self, data):
+                raise OSError(errno.EROFS, "Read-only file system")
+
+            ro = tmp_path / "ro"
+            monkeypatch.setattr(pathlib.Path, "write_bytes", erofs)
+        assert main(["volume", "sphere", "--n", "16", "-o", str(ro / "v.npz")]) == 2
+    assert capsys.readouterr().err.strip() == f"error: cannot write '{ro / 'v.npz'}': Read-only file system"
+
+
+def test_info_into_a_closed_pipe_exits_quietly(tmp_path):
+    """``info f | head``: the reader went away before the output: no BrokenPipeError traceback."""
+    import os
+
+    from phantoms import get_phantom, save_volume
+
+    path = save_volume(tmp_path / "v.npz", get_phantom("sphere").volume(n=16))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    proc = subprocess.Popen([sys.executable, "-m", "bench", "info", str(path)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=env)
+    proc.stdout.close()                                       # the reader is gone before anything is written
+    err = proc.stderr.read().decode()
+    proc.wait(timeout=120)
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err
+    assert proc.returncode == 141

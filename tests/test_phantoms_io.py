@@ -117,3 +117,79 @@ def test_volume_file_is_deterministic(tmp_path):
     a, _ = add_noise(ph.volume(n=32), "uniform", 42, seed=1)
     b, _ = add_noise(ph.volume(n=32), "uniform", 42, seed=1)
     assert hashlib.sha256(a.values.tobytes()).hexdigest() == hashlib.sha256(b.values.tobytes()).hexdigest()
+
+
+# ---------------------------------------------------------------------------------------------- checked inputs
+@pytest.mark.parametrize("origin, spacing, message", [
+    (np.zeros(3), np.ones(2), "spacing must be a number or 3 numbers (x, y, z); got 2 values"),
+    (np.zeros(3), np.array(["a", "b", "c"]), "spacing must be a number or 3 real numbers"),
+    (np.zeros(3), np.ones(3) * (1 + 1j), "spacing must be a number or 3 real numbers"),
+    (np.zeros(4), np.ones(3), "origin must be 3 numbers (x, y, z); got 4 values"),
+    (np.zeros((3, 3)), np.ones(3), "origin must be 3 numbers"),
+    (np.array("left"), np.ones(3), "origin must be 3 real numbers"),
+])
+def test_npz_origin_and_spacing_of_the_wrong_length_or_type_name_the_file(tmp_path, origin, spacing, message):
+    path = tmp_path / "v.npz"
+    np.savez(path, values=get_phantom("sphere").volume(n=16).values, origin=origin, spacing=spacing)
+    with pytest.raises(InputError) as err:
+        load_volume(path)
+    assert str(err.value).startswith(f"{path}: volume ") and message in str(err.value)
+
+
+def test_a_mask_with_a_bad_spacing_is_named_too(tmp_path):
+    path = tmp_path / "m.npz"
+    np.savez(path, values=(get_phantom("sphere").volume(n=16).values < 0), spacing=np.ones(4))
+    with pytest.raises(InputError, match=f"^{path}: volume spacing .* got 4 values"):
+        load_volume(path)
+
+
+@pytest.mark.parametrize("values, message", [
+    (np.ones((4, 4, 4)) * (1 + 2j), "real numbers; got dtype complex128 (the imaginary part would be lost)"),
+    (np.full((4, 4, 4), "x"), "real numbers; got dtype <U1"),
+])
+def test_complex_and_text_values_are_rejected(tmp_path, values, message):
+    path = tmp_path / "v.npy"
+    np.save(path, values)
+    with pytest.raises(InputError, match=f"^{path}: volume values must be " + message.replace("(", r"\(")
+                       .replace(")", r"\)")):
+        load_volume(path)
+    with pytest.raises(InputError, match="real numbers"):
+        Volume(values)                                         # the Volume itself refuses too
+
+
+def test_object_arrays_are_named_as_such_not_as_truncated(tmp_path):
+    path = tmp_path / "obj.npy"
+    np.save(path, np.empty((4, 4, 4), dtype=object), allow_pickle=True)
+    with pytest.raises(InputError) as err:
+        load_volume(path)
+    assert "Python objects" in str(err.value) and "truncated" not in str(err.value)
+
+
+def test_an_unreadable_file_is_not_called_truncated(tmp_path, monkeypatch):
+    import errno
+
+    path = save_volume(tmp_path / "v.npz", get_phantom("sphere").volume(n=16))
+
+    def denied(*a, **k):
+        raise PermissionError(errno.EACCES, "Permission denied", str(path))
+
+    monkeypatch.setattr(np, "load", denied)
+    with pytest.raises(InputError) as err:
+        load_volume(path)
+    assert str(err.value) == f"{path}: cannot read the file: Permission denied"
+
+
+def test_mask_errors_name_the_file(tmp_path):
+    np.save(tmp_path / "empty.npy", np.zeros((4, 4, 4), bool))
+    with pytest.raises(InputError, match=f"^{tmp_path / 'empty.npy'}: the mask has no inside voxels"):
+        load_volume(tmp_path / "empty.npy")
+
+
+def test_save_volume_is_atomic_and_a_write_error_names_the_path(tmp_path):
+    from geometry.files import WriteError
+
+    (tmp_path / "d.npz").mkdir()
+    with pytest.raises(WriteError, match="d.npz': it is a directory"):
+        save_volume(tmp_path / "d.npz", get_phantom("sphere").volume(n=16))
+    save_volume(tmp_path / "ok.npz", get_phantom("sphere").volume(n=16))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.npz", "ok.npz"]

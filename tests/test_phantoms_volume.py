@@ -140,3 +140,24 @@ def test_sampler_is_sample_with_clamp_without_the_checks():
     assert np.allclose(s.phi, ref.phi, rtol=0, atol=1e-12) and np.allclose(s.grad, ref.grad, rtol=0, atol=1e-12)
     assert s.grad.flags.c_contiguous and vol.sampler(0)(p).grad is None
     assert vol.channels(1).shape == (20, 20, 20, 4) and vol.channels(1) is vol.channels(1)
+
+
+# ---------------------------------------------------------------------------------------------- memory estimate
+def test_a_volume_too_large_for_memory_is_refused_before_allocating_with_the_largest_n(monkeypatch):
+    """With 100³ × 8 arrays × 8 bytes available, N = 100 is the largest grid that fits: an analytic answer."""
+    import phantoms.volume as pv
+
+    avail = 100 ** 3 * 8 * 8
+    monkeypatch.setattr(pv, "available_memory", lambda: avail)
+    pv.check_memory((100, 100, 100), 8)                       # fits exactly
+    with pytest.raises(InputError, match=r"largest N³ grid that fits is N = 100$"):
+        pv.check_memory((101, 101, 101), 8)
+    monkeypatch.setattr(pv, "available_memory", lambda: 10 * 2 ** 20)  # 10 MiB
+    with pytest.raises(InputError, match=r"N = 3000 volume on a 3000×3000×3000 grid needs about 1609\.3 GiB"):
+        get_phantom("sphere").volume(n=3000)                   # refused at once, nothing allocated
+    vol = get_phantom("sphere").volume(n=40)                  # 40³ × 8 × 8 B = 4 MB: fits
+    monkeypatch.setattr(pv, "available_memory", lambda: 40 ** 3 * 8 * 3)
+    with pytest.raises(InputError, match=r"interpolation grids \(order 1\)"):
+        vol.channels(1)                                       # 4 channels (+ the stack) do not
+    monkeypatch.setattr(pv, "available_memory", lambda: None)  # unknown: no check
+    pv.check_memory((10 ** 4,) * 3, 8)

@@ -19,7 +19,10 @@ import numpy as np
 
 from phantoms import InputError, load_volume
 
+from geometry.files import atomic_write
+
 from ..metrics.validity import check_mesh
+from .outputs import check_outputs, refuse_non_finite, write_mesh
 
 MESH_SUFFIXES = {".ply": "ply", ".obj": "obj", ".stl": "stl"}
 
@@ -116,15 +119,16 @@ def _cmd_reconstruct(args) -> int:
     import_modules(args)
     method = get_method(args.method, **parse_assignments(args.set))  # bad names/params fail before I/O
     volume = load_volume(args.input, mask=True if args.mask else None)
+    check_outputs(out, args.info_json)  # a bad output path fails before the method runs
     t0 = time.perf_counter()
     rec = as_reconstruction(method.reconstruct(volume), args.method)  # wrong type: one line, exit 1
     wall = time.perf_counter() - t0
     mesh = rec.mesh
     if len(mesh.faces) == 0:
         raise InputError(f"method {args.method!r} returned an empty mesh")
+    refuse_non_finite(mesh, args.method)
     invalid = check_mesh(mesh, volume)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    mesh.export(out, file_type=MESH_SUFFIXES[suffix])
+    write_mesh(mesh, out, MESH_SUFFIXES[suffix])
     facts = mesh_facts(mesh)
     settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())
     print(f"method:       {method.name} ({settings})")
@@ -145,7 +149,7 @@ def _cmd_reconstruct(args) -> int:
     for key, value in scalars.items():
         print(f"  {key + ':':<22}{_fmt(value)}")
     if args.info_json:
-        Path(args.info_json).write_text(json.dumps(
+        atomic_write(args.info_json, json.dumps(
             {"method": args.method, "params": method.config, "wall_s": wall, "mesh": facts,
              "valid": not invalid, "invalid_reasons": invalid,
              "info": {k: (v.item() if isinstance(v, np.generic) else v) for k, v in scalars.items()}},

@@ -9,6 +9,7 @@ import os
 import sys
 from pathlib import Path
 
+from geometry.files import WriteError, atomic_write
 from phantoms import InputError
 
 from ..config import (RunConfig, builtin_config, config_from_dict, load_config, parse_method_spec,
@@ -60,6 +61,9 @@ def register(subparsers) -> None:
     p.add_argument("--resume", action="store_true",
                    help="skip the cells already finished in --out (with neither --config nor --quick, "
                         "the folder's own config is used)")
+    p.add_argument("--allow-mixed-code", action="store_true",
+                   help="with --resume: accept cells computed by another version of the suite (run.json and "
+                        "the report then say so)")
     p.add_argument("--retry-failed", action="store_true", help="with --resume: rerun failed and timed-out cells")
     p.add_argument("--timeout", type=_nonneg_float, default=None, metavar="S",
                    help="seconds per cell before it is killed and recorded as timeout (0 = none; "
@@ -108,8 +112,11 @@ def _resolve_config(args) -> RunConfig:
         cfg = load_config(args.config)
     elif args.quick:
         cfg = builtin_config("quick")
-    elif args.resume and args.out and (Path(args.out) / "config.json").exists():
+    elif args.resume and args.out:
         path = Path(args.out) / "config.json"
+        if not path.exists():
+            raise InputError(f"--resume: {str(args.out)!r} holds no run to resume (no config.json there); check "
+                             "--out, or run without --resume")
         try:
             data = json.loads(path.read_text())
         except (OSError, ValueError) as exc:
@@ -172,6 +179,8 @@ def _cmd_run(args) -> int:
     _check_executor_args(args)
     if args.retry_failed and not args.resume:
         raise InputError("--retry-failed needs --resume")
+    if args.allow_mixed_code and not args.resume:
+        raise InputError("--allow-mixed-code needs --resume")
     if args.resume and not args.out:
         raise InputError("--resume needs --out DIR (the folder of the run to complete)")
     cfg = _resolve_config(args)
@@ -200,7 +209,11 @@ def _cmd_run(args) -> int:
         summary = run_grid(cfg, out, jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
                            timeout=args.timeout, save_meshes=args.save_meshes, argv=sys.argv[1:],
                            executor=executor, method_timeout=args.method_timeout,
-                           score_timeout=args.score_timeout)
+                           score_timeout=args.score_timeout, allow_mixed_code=args.allow_mixed_code)
+    except WriteError as exc:
+        raise InputError(f"{exc}; the finished cells are saved in {str(out)!r}; free space (or fix the "
+                         f"permissions) and complete the run with `python -m bench run --resume --out {out}`") \
+            from None
     except KeyboardInterrupt:
         print(f"interrupted: the finished cells are in {out}; complete the run with "
               f"`python -m bench run --resume --out {out}`", file=sys.stderr)
@@ -235,7 +248,10 @@ def _report_after_run(out: Path, summary) -> None:
         summary.report = write_report(out)
     except Exception as exc:
         summary.report_error = error_text(exc)
-        (out / "report_error.txt").write_text(traceback.format_exc())
+        try:
+            atomic_write(out / "report_error.txt", traceback.format_exc())
+        except WriteError:
+            pass
 
 
 def _cmd_report(args) -> int:

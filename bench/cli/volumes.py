@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import math
 
-from phantoms import NOISE_KINDS, PHANTOMS, VARIANTS, InputError, add_noise, get_phantom, load_volume, save_volume
+from phantoms import (NOISE_KINDS, PHANTOMS, VARIANTS, InputError, add_noise, check_volume_output, get_phantom,
+                      load_volume, save_volume)
 
 
 def _cmd_phantoms(args) -> int:
@@ -28,6 +29,7 @@ def _cmd_phantoms(args) -> int:
 
 def _cmd_volume(args) -> int:
     ph = get_phantom(args.phantom)
+    check_volume_output(args.output)  # a bad output path fails before the volume is computed
     vol = ph.volume(n=args.n, extent=args.extent, variant=args.variant)
     snr = args.snr
     if args.noise != "none" and snr is None:

@@ -15,19 +15,24 @@ __all__ = ["Artifacts"]
 class Artifacts:
     """Lazy, cached access to the ``cells/<cell_id>.npz`` arrays of a run folder."""
 
-    def __init__(self, out: Path) -> None:
+    def __init__(self, out: Path, warn=None) -> None:
         self.dir = Path(out) / CELLS_DIR
         self._cache: dict[str, dict | None] = {}
+        self.warn = warn
 
     def get(self, cid: str) -> dict | None:
         """Every array of the cell (None when it stored none or the file is unreadable)."""
         if cid not in self._cache:
             p = self.dir / f"{cid}.npz"
             try:
-                with np.load(p) as z:
+                with np.load(p, allow_pickle=False) as z:
                     self._cache[cid] = {k: z[k] for k in z.files}
-            except (OSError, ValueError):
+            except FileNotFoundError:
                 self._cache[cid] = None
+            except Exception as exc:  # a truncated or corrupt archive: BadZipFile, zlib.error, EOFError, ...
+                self._cache[cid] = None
+                if self.warn is not None:
+                    self.warn(f"{p} does not load ({type(exc).__name__}); the report draws no picture of the cell")
         return self._cache[cid]
 
     def has_snapshots(self, cid: str) -> bool:
@@ -38,7 +43,7 @@ class Artifacts:
         try:
             with zipfile.ZipFile(self.dir / f"{cid}.npz") as z:
                 return "snapshot_iterations.npy" in z.namelist()
-        except (OSError, zipfile.BadZipFile):
+        except Exception:  # missing, truncated or corrupt: no snapshots
             return False
 
     def snapshot_iterations(self, cid: str) -> list[int]:

@@ -5,9 +5,13 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 
-from ..run.store import load_cells
+from geometry.files import atomic_write
+from phantoms import InputError
+
+from ..run.store import scan_cells
 from .artifacts import Artifacts
 from .claims import check_claims
 from .cost import cost_section
@@ -23,10 +27,25 @@ _TEXT_COLUMNS = ("error", "label", "method", "noise", "phantom", "variant", "sta
                  "flags")
 
 
+def warn(message: str) -> None:
+    """A problem the report works around (an unreadable cell, a broken run.json), on stderr."""
+    print(f"warning: {message}", file=sys.stderr)
+
+
 def _load_results(out: Path):
     import pandas as pd
 
-    df = pd.read_csv(out / "results.csv", keep_default_na=True)
+    path = out / "results.csv"
+    try:
+        df = pd.read_csv(path, keep_default_na=True)
+    except (OSError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise InputError(f"{str(path)!r} is not a readable results table ({type(exc).__name__}: "
+                         f"{str(exc).strip().splitlines()[0] if str(exc).strip() else 'empty'}); rerun the grid "
+                         "with --resume to rewrite it") from None
+    missing = [c for c in ("cell_id", "status", "label") if c not in df.columns]
+    if missing:
+        raise InputError(f"{str(path)!r} is not a results table of levelset-bench (no column "
+                         f"{', '.join(missing)}); rerun the grid with --resume to rewrite it")
     for col in _TEXT_COLUMNS:
         if col in df.columns:
             df[col] = df[col].astype(object).where(df[col].notna(), "").astype(str)
@@ -34,12 +53,18 @@ def _load_results(out: Path):
 
 
 def _load_meta(out: Path) -> dict:
-    if not (out / "run.json").exists():
+    path = out / "run.json"
+    if not path.exists():
         return {}
     try:
-        return json.loads((out / "run.json").read_text())
-    except ValueError:
+        meta = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        warn(f"{path} is unreadable ({type(exc).__name__}); the report omits the run's metadata")
         return {}
+    if not isinstance(meta, dict):
+        warn(f"{path} holds a {type(meta).__name__}, not the run's metadata; the report omits it")
+        return {}
+    return meta
 
 
 def _failed(df, records: dict) -> list[dict]:
@@ -123,7 +148,8 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
         "config_json": json.dumps(config, indent=1),
         "deps": (meta.get("dependencies") or {}),
         "git": meta.get("git"), "machine": meta.get("machine") or {},
-        "sessions": meta.get("sessions") or [],
+        "sessions": [x for x in (meta.get("sessions") or []) if isinstance(x, dict)],
+        "mixed_code": meta.get("mixed_code") or {},
         "best_rules": {k: (v if isinstance(v, str) else f"closest to {v[1]}") for k, v in BEST_DIRECTION.items()},
     }
 
@@ -137,11 +163,10 @@ def write_report(out: str | Path) -> Path:
 
     out = Path(out)
     df = _load_results(out)
-    context = _context(df, _load_meta(out), load_cells(out), Artifacts(out))
+    records, problems = scan_cells(out)
+    for msg in problems:
+        warn(f"{msg}; the report leaves the cell's details out")
+    context = _context(df, _load_meta(out), records, Artifacts(out, warn=warn))
     env = Environment(loader=FileSystemLoader(str(TEMPLATE_DIR)), autoescape=select_autoescape(["html"]))
     page = env.get_template("report.html").render(**context)
-    path = out / "index.html"
-    tmp = out / ".index.html.tmp"
-    tmp.write_text(page, encoding="utf-8")
-    tmp.replace(path)
-    return path
+    return atomic_write(out / "index.html", page)

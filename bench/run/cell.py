@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from geometry.files import WriteError
 from methods import as_reconstruction, get_method, import_plugins
 from phantoms import Volume, add_noise, get_phantom
 
@@ -57,7 +58,7 @@ def build_volume(cell: dict, cache_dir: str | None = None):
             path.parent.mkdir(parents=True, exist_ok=True)
             save_npz(path, {"values": vol.values, "origin": vol.origin, "spacing": vol.spacing},
                      compressed=False)
-        except OSError:  # the cache is an optimisation; a full disk must not fail the cell
+        except (OSError, WriteError):  # the cache is an optimisation; a full disk must not fail the cell
             pass
     return ph, vol
 

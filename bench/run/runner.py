@@ -18,11 +18,17 @@ from pathlib import Path
 
 import numpy as np
 
+from geometry.files import WriteError
+from phantoms import InputError
+
 from .executors.local import LocalExecutor
 from .grid import expand_grid
 from .limits import TimeLimits
 from .provenance import environment
-from .store import CACHE_DIR, check_output_dir, load_cells, read_json, save_cell, write_json, write_results_csv
+from .identity import MixedCodeError, check_same_config, config_fingerprint, code_identity, mixed_code
+from .lock import RunLock
+from .store import (CACHE_DIR, check_output_dir, clean_temp_files, read_json, save_cell, scan_cells, write_json,
+                    write_results_csv)
 
 __all__ = ["run_grid", "RunSummary", "time_limits"]
 
@@ -68,8 +74,10 @@ class RunLog:
         self.cfg = cfg
         self.n_cells = n_cells
         self.session = session
-        self.previous = (read_json(self.path, {}) if resume and self.path.exists() else {}) or {}
+        previous = read_json(self.path, {}) if resume and self.path.exists() else {}
+        self.previous = previous if isinstance(previous, dict) else {}  # a damaged run.json: start it again
         self.started = time.time()
+        self.mixed_code: dict = {}
 
     def write(self, records: dict[str, dict], end: bool, cells_run: int = 0) -> None:
         sessions = list(self.previous.get("sessions", []))
@@ -96,6 +104,8 @@ class RunLog:
             "timings": {"cells_s_sum": round(sum(float(r.get("cell_s") or 0.0) for r in rows), 3),
                         "method_wall_s_mean": {k: round(float(np.mean(v)), 4) for k, v in by_method.items()}},
             "sessions": sessions,
+            "config_fingerprint": config_fingerprint(self.cfg.to_dict()),
+            **({"mixed_code": self.mixed_code} if self.mixed_code else {}),
             **environment(),
         }
         write_json(self.path, meta)
@@ -133,57 +143,104 @@ def time_limits(cfg, timeout: float | None = None, method_timeout: float | None 
                       pick(score_timeout, getattr(cfg, "score_timeout", None)))
 
 
+def _load_done(out: Path, cells: list[dict], cfg, resume: bool, retry_failed: bool,
+               allow_mixed_code: bool) -> tuple[dict, dict]:
+    """The finished cells to keep (verified: a cell whose json or npz does not load is rerun, with a warning)
+    and ``{code: cells}`` when several versions of the code are (or would be) mixed."""
+    if not resume:
+        return {}, {}
+    stored = read_json(out / "config.json")
+    if not isinstance(stored, dict):
+        raise InputError(f"--resume: {str(out / 'config.json')!r} is missing or unreadable, so {str(out)!r} holds "
+                         "no run to resume; check --out, or run without --resume")
+    check_same_config(stored, cfg.to_dict(), str(out))
+    ids = {c["cell_id"] for c in cells}
+    found, problems = scan_cells(out, verify_artifacts=True)
+    for msg in problems:
+        print(f"warning: {msg}; the cell will be rerun", file=sys.stderr)
+    records = {k: v for k, v in found.items() if k in ids}
+    if retry_failed:
+        records = {k: v for k, v in records.items() if v["row"].get("status") == "ok"}
+    # the current code counts when it will compute cells (a complete run's report can be re-rendered)
+    mixed = mixed_code(records, code_identity() if len(records) < len(cells) else None) if records else {}
+    if mixed and not allow_mixed_code:
+        raise MixedCodeError(f"--resume: the cells in {str(out)!r} were computed by other code than this "
+                             f"({'; '.join(f'{k}: {n} cells' for k, n in mixed.items())}); rerun into a new "
+                             "--out, or pass --allow-mixed-code to mix them (run.json and the report say so)")
+    return records, mixed
+
+
 def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = False, retry_failed: bool = False,
              timeout: float | None = None, save_meshes: bool = False, progress: bool | None = None,
              argv: list[str] | None = None, executor=None, method_timeout: float | None = None,
-             score_timeout: float | None = None) -> RunSummary:
+             score_timeout: float | None = None, allow_mixed_code: bool = False) -> RunSummary:
     """Run every cell of the validated config ``cfg`` into the folder ``out``.
 
-    ``resume`` skips the cells already finished there (``retry_failed``: except failed / timed-out ones);
-    ``timeout`` is per cell, ``method_timeout`` per method run and ``score_timeout`` per scoring, in seconds
-    (None: the config's, 0: none; see :mod:`bench.run.limits`); ``executor`` is any object with
-    ``run(cells, on_start, on_result)`` (default: a :class:`LocalExecutor` of ``jobs`` processes).
+    ``resume`` skips the cells already finished there (``retry_failed``: except failed / timed-out ones); the
+    folder's config must give the same grid and its cells must come from the same code (unless
+    ``allow_mixed_code``); ``timeout`` is per cell, ``method_timeout`` per method run and ``score_timeout`` per
+    scoring, in seconds (None: the config's, 0: none; see :mod:`bench.run.limits`); ``executor`` is any object
+    with ``run(cells, on_start, on_result)`` (default: a :class:`LocalExecutor` of ``jobs`` processes).  The
+    folder is locked for the run (:mod:`bench.run.lock`); a write error (disk full, ...) raises
+    :class:`geometry.files.WriteError` after the finished cells are saved.
     """
     out = Path(out)
     check_output_dir(out, resume)
+    with RunLock(out):
+        clean_temp_files(out)
+        return _run_locked(cfg, out, jobs=jobs, resume=resume, retry_failed=retry_failed, timeout=timeout,
+                           save_meshes=save_meshes, progress=progress, argv=argv, executor=executor,
+                           allow_mixed_code=allow_mixed_code, method_timeout=method_timeout,
+                           score_timeout=score_timeout)
+
+
+def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_meshes, progress, argv, executor,
+                allow_mixed_code, method_timeout=None, score_timeout=None) -> RunSummary:
     cells = expand_grid(cfg)
     limits = time_limits(cfg, timeout, method_timeout, score_timeout)
     jobs = jobs or os.cpu_count() or 1
+    records, mixed = _load_done(out, cells, cfg, resume, retry_failed, allow_mixed_code)
     write_json(out / "config.json", cfg.to_dict())
-
-    ids = {c["cell_id"] for c in cells}
-    records = {k: v for k, v in (load_cells(out) if resume else {}).items() if k in ids}
-    if retry_failed:
-        records = {k: v for k, v in records.items() if v["row"].get("status") == "ok"}
+    code = code_identity()
     todo = [c for c in cells if c["cell_id"] not in records]
     summary = RunSummary(out=out, total=len(cells), skipped=len(cells) - len(todo))
     session = {"start": _now(), "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
                **limits.to_dict(), "cells_to_run": len(todo), "resumed_from": len(cells) - len(todo),
+               "code": code, "allow_mixed_code": bool(allow_mixed_code),
                "executor": (executor.describe() if hasattr(executor, "describe") else {"executor": "local"})}
     log = RunLog(out, cfg, len(cells), session, resume)
+    log.mixed_code = mixed
     log.write(records, end=False)
     bar = _Progress(len(cells), summary.skipped, sys.stderr.isatty() if progress is None else progress)
 
     def on_result(cell: dict, result: dict) -> None:
-        save_cell(out, cell, result, save_meshes)
-        records[cell["cell_id"]] = {"row": result["row"], "cell": cell}
+        save_cell(out, cell, result, save_meshes, code=code)
+        records[cell["cell_id"]] = {"row": result["row"], "cell": cell, "code": code}
         write_results_csv(out, cells, records)
         summary.ran += 1
         bar.finish(cell, result["row"])
 
     if executor is None:
         executor = LocalExecutor(jobs, limits, cache_dir=str(out / CACHE_DIR), preload=list(cfg.imports))
+    error = None
     try:
         executor.run(todo, bar.start, on_result)
+    except BaseException as exc:
+        error = exc
+        raise
     finally:
         bar.close()
-        write_results_csv(out, cells, records)
         for r in records.values():
             st = r["row"].get("status")
             if st in STATUSES:
                 setattr(summary, st, getattr(summary, st) + 1)
         summary.seconds = time.time() - log.started
-        log.write(records, end=True, cells_run=summary.ran)
+        try:  # after a write error these may fail too: the first error is the one to report
+            write_results_csv(out, cells, records)
+            log.write(records, end=True, cells_run=summary.ran)
+        except WriteError:
+            if error is None:
+                raise
     if len(records) == len(cells):  # complete: the volume cache is only needed to resume
         shutil.rmtree(out / CACHE_DIR, ignore_errors=True)
     return summary

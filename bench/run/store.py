@@ -22,12 +22,12 @@ import datetime as _dt
 import json
 import math
 import os
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
+from geometry.files import TMP_GLOB, WriteError, atomic_path, atomic_write, remove_temp_files
 from phantoms import InputError
 
 from .values import plain
@@ -35,7 +35,7 @@ from .values import plain
 __all__ = [
     "CELLS_DIR", "MESHES_DIR", "CACHE_DIR", "ID_COLUMNS", "RUNNER_COLUMNS", "TAIL_COLUMNS",
     "atomic_path", "write_atomic", "save_cell", "load_cells", "result_columns", "write_results_csv",
-    "check_output_dir", "write_json", "read_json",
+    "check_output_dir", "write_json", "read_json", "scan_cells", "clean_temp_files", "TMP_GLOB",
 ]
 
 CELLS_DIR = "cells"
@@ -53,25 +53,9 @@ _NOT_IN_CSV = ("cell_s", "artifact_error", "method_info")
 
 
 # ---------------------------------------------------------------------------------------------- atomic writes
-@contextmanager
-def atomic_path(path: str | Path) -> Iterator[Path]:
-    """A temporary path beside ``path`` (same suffix) that replaces ``path`` when the block succeeds and is
-    removed when it fails."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def write_atomic(path: str | Path, data: bytes | str) -> Path:
-    """Write ``data`` (bytes, or text as UTF-8) to ``path`` atomically."""
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(data.encode("utf-8") if isinstance(data, str) else data)
-    return Path(path)
+    """Write ``data`` (bytes, or text as UTF-8) to ``path`` atomically (fsynced: run-folder files are small)."""
+    return atomic_write(path, data, fsync=True)
 
 
 def write_json(path: str | Path, obj: Any) -> Path:
@@ -89,7 +73,7 @@ def read_json(path: str | Path, default: Any = None) -> Any:
 
 def save_npz(path: str | Path, arrays: dict, compressed: bool = True) -> Path:
     """Arrays as an ``.npz`` file, written atomically."""
-    with atomic_path(path) as tmp:
+    with atomic_path(path, fsync=compressed) as tmp:
         (np.savez_compressed if compressed else np.savez)(tmp, **arrays)
     return Path(path)
 
@@ -104,15 +88,26 @@ def check_output_dir(out: Path, resume: bool) -> None:
         probe.unlink()
     except OSError as exc:
         raise InputError(f"output folder {str(out)!r} is not writable: {exc.strerror or exc}") from None
-    if not resume and any((out / CELLS_DIR).glob("*.json")):
+    from .lock import RunLock
+
+    RunLock(out).check()  # another live run owns the folder: say whose, before anything else
+    if not resume and any((out / CELLS_DIR).glob("[!.]*.json")):  # (not the hidden temp files)
         raise InputError(f"output folder {str(out)!r} already holds a run; use --resume to complete it or "
                          "choose another --out")
 
 
-def save_cell(out: Path, cell: dict, result: dict, save_meshes: bool = False) -> None:
-    """Write one finished cell: artifacts (``.npz``) first, then the row (``.json``, which marks it done)."""
-    cells_dir = Path(out) / CELLS_DIR
-    cells_dir.mkdir(parents=True, exist_ok=True)
+def _mkdir(folder: Path) -> Path:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise WriteError(folder, exc.strerror or str(exc)) from None
+    return folder
+
+
+def save_cell(out: Path, cell: dict, result: dict, save_meshes: bool = False, code: dict | None = None) -> None:
+    """Write one finished cell: artifacts (``.npz``) first, then the row (``.json``, which marks it done and
+    lists the arrays the ``.npz`` must hold, and the suite ``code`` that computed it)."""
+    cells_dir = _mkdir(Path(out) / CELLS_DIR)
     cid = cell["cell_id"]
     art = result.get("artifacts") or {}
     if art:
@@ -120,29 +115,71 @@ def save_cell(out: Path, cell: dict, result: dict, save_meshes: bool = False) ->
         if save_meshes and "vertices" in art:
             import trimesh
 
-            (Path(out) / MESHES_DIR).mkdir(exist_ok=True)
+            _mkdir(Path(out) / MESHES_DIR)
             mesh = trimesh.Trimesh(np.asarray(art["vertices"], float), np.asarray(art["faces"]), process=False)
             write_atomic(Path(out) / MESHES_DIR / f"{cid}.ply", mesh.export(file_type="ply"))
     record = {"row": result["row"], "cell": cell, "traceback": result.get("traceback"),
+              "artifacts": sorted(art), "code": code,
               "finished": _dt.datetime.now().astimezone().isoformat(timespec="seconds")}
     write_json(cells_dir / f"{cid}.json", record)
 
 
-def load_cells(out: Path) -> dict[str, dict]:
-    """``{cell_id: record}`` of every finished cell in ``out/cells`` (unreadable files are skipped)."""
-    records = {}
+def scan_cells(out: Path, verify_artifacts: bool = False) -> tuple[dict[str, dict], list[str]]:
+    """``({cell_id: record}, problems)`` of the finished cells in ``out/cells``.
+
+    A record that does not load, or (``verify_artifacts``) whose ``.npz`` is missing or does not load with
+    every array the record lists, is left out and described in ``problems`` — such a cell is not done.
+    """
+    records: dict[str, dict] = {}
+    problems: list[str] = []
     cells_dir = Path(out) / CELLS_DIR
     if not cells_dir.is_dir():
-        return records
+        return records, problems
     for p in sorted(cells_dir.glob("*.json")):
         if p.name.startswith("."):
             continue
         try:
             rec = json.loads(p.read_text())
-            records[rec["row"]["cell_id"]] = rec
-        except (OSError, ValueError, KeyError, TypeError):
+            cid = rec["row"]["cell_id"]
+            if not isinstance(rec["row"], dict) or not isinstance(cid, str):
+                raise TypeError("not a cell record")
+        except (OSError, ValueError, KeyError, TypeError, IndexError) as exc:
+            problems.append(f"{p} is unreadable ({type(exc).__name__}: {exc})")
             continue
-    return records
+        if verify_artifacts:
+            err = _artifact_problem(cells_dir / f"{cid}.npz", rec.get("artifacts"))
+            if err:
+                problems.append(f"{cells_dir / (cid + '.npz')} {err}")
+                continue
+        records[cid] = rec
+    return records, problems
+
+
+def _artifact_problem(path: Path, expected: list | None) -> str | None:
+    """Why the cell's ``.npz`` is not what its record says (None: fine).  ``expected`` None: an older record
+    that does not list its arrays — then an existing file must still load."""
+    if not path.exists():
+        return "is missing" if expected else None
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            for k in z.files:  # reading every array checks each member's CRC
+                z[k]
+            missing = sorted(set(expected or ()) - set(z.files))
+    except Exception as exc:  # BadZipFile, zlib.error, EOFError, OSError, ValueError ...
+        return f"does not load ({type(exc).__name__}: {exc})"
+    return f"lacks arrays {missing}" if missing else None
+
+
+def load_cells(out: Path) -> dict[str, dict]:
+    """``{cell_id: record}`` of every finished cell in ``out/cells`` (unreadable files are skipped)."""
+    return scan_cells(out)[0]
+
+
+def clean_temp_files(out: Path) -> list[Path]:
+    """Remove temporary files left by killed writers in the run folder and its ``cells``, ``cache`` and
+    ``meshes`` (call it holding the folder's lock)."""
+    out = Path(out)
+    return [p for d in (out, out / CELLS_DIR, out / CACHE_DIR, out / MESHES_DIR) for p in remove_temp_files(d)]
 
 
 # ---------------------------------------------------------------------------------------------- results.csv
@@ -179,7 +216,7 @@ def write_results_csv(out: Path, cells: list[dict], records: dict[str, dict]) ->
     rows = [records[c["cell_id"]]["row"] for c in cells if c["cell_id"] in records]
     cols = result_columns(rows)
     path = Path(out) / "results.csv"
-    with atomic_path(path) as tmp:
+    with atomic_path(path, fsync=True) as tmp:
         with open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(cols)

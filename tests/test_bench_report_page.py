@@ -1,0 +1,60 @@
+"""bench.report.page: ``report`` on a damaged run folder renders what it can, or says in one line why not."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from bench.cli import main
+
+GRID = ["--quick", "--phantoms", "sphere", "--noise", "none", "--n", "16", "--n-samples", "2000",
+        "--method", "marching_cubes", "--add-method", "mc_taubin", "--jobs", "2", "--no-report"]
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("page") / "run"
+    assert main(["run", *GRID, "--out", str(out)]) == 0
+    return out
+
+
+@pytest.fixture
+def damaged(run_dir, tmp_path):
+    import shutil
+
+    copy = tmp_path / "run"
+    shutil.copytree(run_dir, copy)
+    return copy
+
+
+def test_report_skips_unreadable_cells_with_a_warning_and_renders_the_rest(damaged, capsys):
+    cells = sorted((damaged / "cells").glob("*.npz"))
+    cells[0].write_bytes(cells[0].read_bytes()[:200])                       # truncated archive
+    bad_json = cells[1].with_suffix(".json")
+    bad_json.write_text("{")                                                # half a record
+    assert main(["report", str(damaged)]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {cells[0]} does not load (BadZipFile)" in err
+    assert f"warning: {bad_json} is unreadable" in err and "Traceback" not in err
+    page = (damaged / "index.html").read_text()
+    assert "marching_cubes" in page and "mc_taubin" in page                # both rows still rendered
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"", "is not a readable results table (EmptyDataError"),
+    (b"\x00\x01garbage\n1,2,3\n4\n", "is not a results table of levelset-bench"),
+    (b'a,b\n"unclosed,1\n', "is not a"),
+])
+def test_report_on_an_empty_or_malformed_results_csv_is_one_line_exit_2(damaged, capsys, content, message):
+    (damaged / "results.csv").write_bytes(content)
+    assert main(["report", str(damaged)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and message in err[0] and "results.csv" in err[0]
+
+
+def test_report_with_a_run_json_that_is_a_list_warns_and_renders(damaged, capsys):
+    (damaged / "run.json").write_text(json.dumps([1, 2, 3]))
+    assert main(["report", str(damaged)]) == 0
+    assert "run.json holds a list, not the run's metadata" in capsys.readouterr().err
+    assert (damaged / "index.html").stat().st_size > 0

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import math
 import os
 import signal
@@ -142,7 +143,11 @@ def test_index_html_has_a_summary_table_per_phantom_and_noise_and_pictures(quick
     assert page.best >= 4  # a best value marked in every summary table
     html = (out / "index.html").read_text(encoding="utf-8")
     assert "deliberate failure" in html  # the failed-cells section
-    assert "http://" not in html and "https://" not in html  # self-contained: nothing to fetch
+    # self-contained: nothing to fetch — no script, style or image from elsewhere (plotly.js, embedded, mentions
+    # URLs in its own code: the markup outside the scripts must not)
+    outside_scripts = re.sub(r"<script[^>]*>.*?</script>", "", html, flags=re.S)
+    assert "http://" not in outside_scripts and "https://" not in outside_scripts
+    assert not re.search(r"<script[^>]*\bsrc=", html) and "@import" not in html
 
 
 def test_run_json_records_config_versions_machine_and_time(quick_run):

@@ -8,7 +8,7 @@ import numpy as np
 
 from geometry.errors import InputError
 
-from .base import Phantom, Truth, as_points, check_sample_count, unit
+from .base import Phantom, Truth, arc_positions, as_points, check_sample_count, unit
 
 __all__ = ["Sphere", "Ellipsoid", "FusedSpheres", "Cylinder", "Torus"]
 
@@ -66,6 +66,10 @@ class Ellipsoid(Phantom):
     def paper(self, points):
         p = as_points(points)
         return (p ** 2 / self.axes ** 2).sum(1) - 1.0
+
+    def inside(self, points):
+        """Exact and fast: the implicit equation Σ (x_i / a_i)² < 1 (the exact sdf needs a root find)."""
+        return self.paper(points) < 0
 
     def closest_point(self, points) -> np.ndarray:
         """Closest point on the ellipsoid by a robust 1-D root find on the Lagrange multiplier.
@@ -173,6 +177,15 @@ class FusedSpheres(Phantom):
     def params(self):
         return {"radius": self.radius, "offset": self.offset}
 
+    @property
+    def crease_length(self):
+        return 2 * np.pi * self.crease_radius
+
+    def crease_samples(self, n):
+        """Evenly spaced points on the crease circle (radius √(r² − offset²) at z = 0)."""
+        t = 2 * np.pi * (np.arange(n) + 0.5) / n
+        return np.column_stack([self.crease_radius * np.cos(t), self.crease_radius * np.sin(t), np.zeros(n)])
+
     def paper(self, points):
         p = as_points(points)
         return np.minimum(((p - self.centres[0]) ** 2).sum(1), ((p - self.centres[1]) ** 2).sum(1)) \
@@ -248,6 +261,17 @@ class Cylinder(Phantom):
     @property
     def params(self):
         return {"radius": self.radius, "half_height": self.half_height}
+
+    @property
+    def crease_length(self):
+        return 4 * np.pi * self.radius
+
+    def crease_samples(self, n):
+        """Evenly spaced points on the two rim circles (radius r at z = ±half_height), by arc length."""
+        k, frac = arc_positions([2 * np.pi * self.radius] * 2, n)
+        t = 2 * np.pi * frac
+        return np.column_stack([self.radius * np.cos(t), self.radius * np.sin(t),
+                                np.where(k == 0, -self.half_height, self.half_height)])
 
     def paper(self, points):
         p = as_points(points)

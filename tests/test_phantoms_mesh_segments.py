@@ -85,7 +85,7 @@ def test_perforated_plate_is_a_closed_mesh_of_the_expected_genus():
     v, f = perforated_plate(k=4, refine=2, tab=1.0)
     tabbed = MeshPhantom(v, f)
     lengths = tabbed.edge_lengths[tabbed.dihedral_deg > 60]
-    assert tabbed.genus == 16 and lengths.max() > 10 * np.median(lengths)      # long tab creases beside short ones
+    assert tabbed.genus == 16 and lengths.max() > 5 * np.median(lengths)      # long tab creases beside short ones
     # every crease is a 90° voxel edge: the total length counts them (in units of the scaled voxel)
     assert ph.has_creases and np.allclose(ph.dihedral_deg[ph.dihedral_deg > 1], 90.0)
     s = ph.crease_samples(5000)

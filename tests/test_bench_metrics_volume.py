@@ -28,13 +28,13 @@ def _iou(mesh, phantom, seed=0):
 def test_fine_sphere_mesh_has_iou_one_to_its_discretisation():
     """An inscribed icosphere (20,480 faces) bounds V_p < V_s; its exact IoU with the ball is V_p / V_s =
     1 − 5.4e-4.  Only sample points inside the thin shell between the two count against it: about
-    (V_s − V_p) / cell volume = 2.3e-3 / (2.2/64)³ ≈ 56 of the ~103k in the ball (Poisson σ ≈ 7.5), so the
-    estimate is within ± 4σ ≈ ± 30 points = ± 3e-4 of V_p / V_s."""
+    (V_s − V_p) / cell volume = 2.3e-3 / (2.2/48)³ ≈ 23 of the ~43.5k in the ball (Poisson σ ≈ 4.8), so the
+    estimate is within ± 4σ ≈ ± 19 points = ± 4.5e-4 of V_p / V_s."""
     mesh = _sphere_mesh(5)
     exact = mesh.volume / (4 / 3 * math.pi)
     assert 1 - exact == pytest.approx(5.4e-4, rel=0.02)
     for seed in (0, 1):
-        assert _iou(mesh, Sphere(1.0), seed) == pytest.approx(exact, abs=3e-4)
+        assert _iou(mesh, Sphere(1.0), seed) == pytest.approx(exact, abs=4.5e-4)
 
 
 def test_two_offset_spheres_give_the_lens_formula():
@@ -46,7 +46,8 @@ def test_two_offset_spheres_give_the_lens_formula():
     lens = math.pi * (4 + d) * (2 - d) ** 2 / 12
     expected = lens / (2 * V - lens)                         # 0.4418...
     # discretisation: the icosphere is 5.4e-4 smaller than the ball (≈ 2e-4 on this ratio); sampling: the
-    # ~16k cells the two surfaces cut decide ± √16k ≈ 130 points of the ~105k in the union (± 1.2e-3)
+    # ~8k cells the two surfaces cut decide at most ± √8k ≈ 90 points of the ~51k in the union (± 1.8e-3;
+    # jittered sampling does better: within 1e-3 over seeds 0-5)
     assert _iou(mesh, Sphere(1.0)) == pytest.approx(expected, abs=3e-3)
     # disjoint balls: nothing in common
     far = _sphere_mesh(3)

@@ -1,7 +1,7 @@
 """``iou``: volumetric intersection over union of the inside regions of the mesh and of the truth (docs/METRICS.md).
 
 IoU = |A ∩ B| / |A ∪ B|, A the solid the mesh bounds, B the true solid, estimated on one point per cell of a
-64³ grid of cells (stratified, "jittered" sampling: a seeded uniform point in each cell) over the box
+48³ grid of cells (stratified, "jittered" sampling: a seeded uniform point in each cell) over the box
 [lo − 2h, hi + 2h], lo/hi the bounds of the mesh vertices and of the truth's surface samples.
 
 * inside the mesh: |generalised winding number| ≥ ½ (gpytoolbox ``fast_winding_number``, Barnes–Hut; exact to
@@ -23,7 +23,7 @@ import numpy as np
 __all__ = ["iou", "IOU_CELLS"]
 
 #: cells per axis of the stratified sample grid
-IOU_CELLS = 64
+IOU_CELLS = 48
 
 
 def _jittered(lo: np.ndarray, hi: np.ndarray, m: int, seed) -> np.ndarray:

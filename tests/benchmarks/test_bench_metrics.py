@@ -39,11 +39,11 @@ def ellipsoid_mesh():
 
 @pytest.fixture(scope="module")
 def cylinder_mesh():
-    """Marching cubes of the cylinder (exact sdf) on a 150³ grid over [−1.3, 1.3]³: ~100k faces."""
+    """Marching cubes of the cylinder (exact sdf) on a 216³ grid over [−1.3, 1.3]³: ~100k faces."""
     from skimage.measure import marching_cubes
 
     ph = get_phantom("cylinder")
-    vol = ph.volume(n=150, extent=1.3)
+    vol = ph.volume(n=216, extent=1.3)
     v, f, _, _ = marching_cubes(vol.values, 0.0, spacing=tuple(vol.spacing))
     mesh = trimesh.Trimesh(v + vol.origin, f)
     assert 85_000 <= len(mesh.faces) <= 120_000

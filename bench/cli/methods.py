@@ -105,9 +105,12 @@ def _cmd_reconstruct(args) -> int:
     rec = method.reconstruct(volume)
     wall = time.perf_counter() - t0
     mesh = getattr(rec, "mesh", None)
-    if mesh is None or len(mesh.faces) == 0:
-        raise InputError(f"method {args.method!r} returned an empty mesh")
+    if mesh is None:
+        raise InputError(f"method {args.method!r} returned no mesh")
     invalid = check_mesh(mesh, volume)
+    if len(mesh.faces) == 0 or len(mesh.vertices) == 0:      # an empty mesh is invalid too; nothing to write
+        print(f"error: method {args.method!r} returned an invalid mesh: {'; '.join(invalid)}", file=sys.stderr)
+        return 1
     out.parent.mkdir(parents=True, exist_ok=True)
     mesh.export(out, file_type=MESH_SUFFIXES[suffix])
     facts = mesh_facts(mesh)

@@ -111,7 +111,6 @@ _SCRIPT = textwrap.dedent("""
 """)
 
 
-@pytest.mark.slow
 def test_scoring_a_genus_144_plate_with_8k_creases_stays_under_2_gb():
     from pathlib import Path
 
@@ -121,4 +120,4 @@ def test_scoring_a_genus_144_plate_with_8k_creases_stays_under_2_gb():
     res = json.loads(out.stdout.strip().splitlines()[-1])
     print(res)
     assert res["genus"] >= 50 and res["creases"] >= 8000
-    assert res["peak_rss_mb"] < 2048
+    assert res["peak_rss_mb"] < 2048      # measured 0.69 GB (1.1 GB with 3M pairs per chunk; main: > 5 GB)

@@ -217,7 +217,7 @@ class MeshPhantom(Phantom):
                 "scale": round(float(self.scale), 8)}
 
     # ------------------------------------------------------------------ exact queries
-    def closest(self, points, chunk: int = 20000, max_pairs: int = 3_000_000):
+    def closest(self, points, chunk: int = 20000, max_pairs: int = 1_000_000):
         """Exact closest point on the mesh: ``(closest (P,3), distance (P,), face (P,), bary (P,3),
         feature (P,))`` (certified candidate search, :meth:`phantoms.mesh.index.TriangleIndex.closest`)."""
         return self.index.closest(points, chunk=chunk, max_pairs=max_pairs)

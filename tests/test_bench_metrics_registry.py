@@ -54,3 +54,14 @@ def test_entries_are_frozen():
     with pytest.raises(dataclasses.FrozenInstanceError):
         METRICS["hausdorff"].best = "max"  # type: ignore[misc]
     assert [f.name for f in dataclasses.fields(Metric)] == ["name", "best", "dtype", "meaning", "unit", "kind"]
+
+
+def test_every_metric_is_defined_in_the_repository_docs():
+    """docs/METRICS.md holds the definition of every column the suite reports (a `name` in backticks)."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "METRICS.md").read_text()
+    missing = [k for k in METRICS if f"`{k}`" not in doc and not (k.endswith("_h") and f"`{k[:-2]}`" in doc)]
+    assert not missing, missing
+    for col in ("status", "error", "flags"):
+        assert f"`{col}`" in doc

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial import cKDTree
 
 from bench.metrics import evaluate
 from bench.metrics.features import edge_samples, truth_edge_samples
@@ -52,10 +53,11 @@ def test_truth_edge_samples_lie_on_the_exact_creases_and_are_dense(name):
     t = truth_edge_samples(ph, H)
     assert len(t) >= 40 * ph.crease_length / H
     assert np.all(ph.truth(t).crease_distance < 1e-12)       # on a rim / the crease circle
-    # evenly spaced by arc length: nearest-neighbour gaps all equal L / n
-    gaps, _ = __import__("scipy.spatial", fromlist=["cKDTree"]).cKDTree(t).query(t, k=2)
-    np.testing.assert_allclose(gaps[:, 1], 2 * np.sin(np.pi / (len(t) / (2 if name == "cylinder" else 1)))
-                               * (R if name == "cylinder" else ph.crease_radius), rtol=1e-9)
+    # evenly spaced by arc length: every nearest-neighbour gap is the chord of one step along its circle
+    circles = 2 if name == "cylinder" else 1
+    radius = R if name == "cylinder" else ph.crease_radius
+    gaps, _ = cKDTree(t).query(t, k=2)
+    np.testing.assert_allclose(gaps[:, 1], 2 * radius * np.sin(np.pi * circles / len(t)), rtol=1e-9)
 
 
 def test_smooth_phantom_has_no_edge_metrics():

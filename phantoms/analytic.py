@@ -8,7 +8,7 @@ import numpy as np
 
 from geometry.errors import InputError
 
-from .base import Phantom, Truth, as_points, check_sample_count, unit
+from .base import Phantom, Truth, arc_positions, as_points, check_sample_count, unit
 
 __all__ = ["Sphere", "Ellipsoid", "FusedSpheres", "Cylinder", "Torus"]
 
@@ -67,12 +67,50 @@ class Ellipsoid(Phantom):
         p = as_points(points)
         return (p ** 2 / self.axes ** 2).sum(1) - 1.0
 
+    def inside(self, points):
+        """Exact and fast: the implicit equation Σ (x_i / a_i)² < 1 (the exact sdf needs a root find)."""
+        return self.paper(points) < 0
+
+    @staticmethod
+    def _root(ey, e2, lo, hi, max_iter: int = 200):
+        """Root of F(t) = Σ (ey_i / (e2_i + t))² − 1 in [lo, hi] (F(lo) > 0 ≥ F(hi)), per row.
+
+        Newton steps (F is convex and decreasing, so after one step every iterate approaches the root from
+        the left) inside the bracket, a bisection step whenever Newton would leave it; each evaluation
+        shrinks the bracket.  A row stops when the step or the bracket is within 4 ulp; about 6–10 rounds
+        instead of ~50 of plain bisection.
+        """
+        eps4 = 4 * np.finfo(float).eps
+        t = hi.copy()
+        act = np.arange(len(t))
+        for _ in range(max_iter):
+            if not len(act):
+                break
+            ta = t[act]
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                q = ey[act] / (e2 + ta[:, None])
+                q = np.where(np.isfinite(q), q, 0.0)
+                f = (q * q).sum(1) - 1.0
+                fp = -2.0 * (q * q / (e2 + ta[:, None])).sum(1)
+                newton = ta - f / fp
+            pos = f > 0
+            lo[act] = np.where(pos, ta, lo[act])
+            hi[act] = np.where(pos, hi[act], ta)
+            la, ha = lo[act], hi[act]
+            ok = (newton > la) & (newton < ha) & np.isfinite(newton)
+            nxt = np.where(ok, newton, 0.5 * (la + ha))
+            tol = eps4 * np.maximum(1.0, np.abs(nxt))
+            done = (ok & (np.abs(nxt - ta) <= tol)) | (ha - la <= tol) | (f == 0)
+            t[act] = np.where(f == 0, ta, nxt)
+            act = act[~done]
+        return t
+
     def closest_point(self, points) -> np.ndarray:
         """Closest point on the ellipsoid by a robust 1-D root find on the Lagrange multiplier.
 
         x_i = e_i² y_i / (e_i² + t) with t the root of F(t) = Σ (e_i y_i / (e_i² + t))² − 1 on
-        (−min e², ∞), where F is strictly decreasing.  Bisection (bracket always valid) to machine
-        precision, then a Newton polish.  The degenerate case (the query lies on the plane(s) of the
+        (−min e², ∞), where F is strictly decreasing and convex: safeguarded Newton in a bracket that always
+        holds the root (:meth:`_root`); the point is on the ellipsoid to ~1e-13 (bisection gave ~1e-14, 5× slower).  The degenerate case (the query lies on the plane(s) of the
         smallest semi-axis, inside, where the root sits at the end of the bracket) is handled in closed form.
         """
         p = as_points(points)
@@ -83,24 +121,10 @@ class Ellipsoid(Phantom):
         deg = np.isclose(e2, m, rtol=0, atol=1e-15)
         ey = e * y
 
-        def F(t):
-            with np.errstate(invalid="ignore", divide="ignore"):
-                q = ey / (e2 + t[:, None])
-            return (np.where(np.isfinite(q), q, 0.0) ** 2).sum(1) - 1.0
-
         lo = np.full(len(p), -m)
         hi = np.maximum(e.max() * np.linalg.norm(y, axis=1) - m, 0.0)
         hi = np.maximum(hi, lo + 1e-12)
-        # bisection: F(lo) > 0 (or the degenerate case), F(hi) <= 0
-        for _ in range(200):
-            mid = 0.5 * (lo + hi)
-            f = F(mid)
-            pos = f > 0
-            lo = np.where(pos, mid, lo)
-            hi = np.where(pos, hi, mid)
-            if np.all(hi - lo <= 4 * np.finfo(float).eps * np.maximum(1.0, np.abs(lo))):
-                break
-        t = 0.5 * (lo + hi)
+        t = self._root(ey, e2, lo, hi)
         with np.errstate(invalid="ignore", divide="ignore"):
             x = e2 * y / (e2 + t[:, None])
         x = np.where(np.isfinite(x), x, 0.0)  # 0/0 on a degenerate axis: fixed just below
@@ -172,6 +196,15 @@ class FusedSpheres(Phantom):
     @property
     def params(self):
         return {"radius": self.radius, "offset": self.offset}
+
+    @property
+    def crease_length(self):
+        return 2 * np.pi * self.crease_radius
+
+    def crease_samples(self, n):
+        """Evenly spaced points on the crease circle (radius √(r² − offset²) at z = 0)."""
+        t = 2 * np.pi * (np.arange(n) + 0.5) / n
+        return np.column_stack([self.crease_radius * np.cos(t), self.crease_radius * np.sin(t), np.zeros(n)])
 
     def paper(self, points):
         p = as_points(points)
@@ -248,6 +281,17 @@ class Cylinder(Phantom):
     @property
     def params(self):
         return {"radius": self.radius, "half_height": self.half_height}
+
+    @property
+    def crease_length(self):
+        return 4 * np.pi * self.radius
+
+    def crease_samples(self, n):
+        """Evenly spaced points on the two rim circles (radius r at z = ±half_height), by arc length."""
+        k, frac = arc_positions([2 * np.pi * self.radius] * 2, n)
+        t = 2 * np.pi * frac
+        return np.column_stack([self.radius * np.cos(t), self.radius * np.sin(t),
+                                np.where(k == 0, -self.half_height, self.half_height)])
 
     def paper(self, points):
         p = as_points(points)

@@ -29,7 +29,7 @@ from .volume import Volume, check_memory
 
 __all__ = [
     "Truth", "Phantom", "DEFAULT_N", "DEFAULT_EXTENT", "VARIANTS", "grid_volume",
-    "as_points", "unit", "check_n", "check_extent", "check_sample_count",
+    "as_points", "unit", "arc_positions", "check_n", "check_extent", "check_sample_count",
 ]
 
 DEFAULT_N = 96
@@ -102,6 +102,16 @@ def check_extent(extent) -> float:
     return extent
 
 
+def arc_positions(lengths, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """For curves of the given lengths laid end to end: which curve and which fraction along it holds the
+    arc positions (i + ½)·L/n, i = 0..n−1 (evenly spaced samples; see :meth:`Phantom.crease_samples`)."""
+    lengths = np.asarray(lengths, float)
+    cum = np.concatenate([[0.0], np.cumsum(lengths)])
+    s = (np.arange(n) + 0.5) * cum[-1] / n
+    k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(lengths) - 1)
+    return k, (s - cum[k]) / np.where(lengths[k] > 0, lengths[k], 1.0)
+
+
 def check_sample_count(n) -> int:
     """The number of surface samples as an int; InputError below 1."""
     n = int(n)
@@ -139,6 +149,19 @@ class Phantom:
         raise NotImplementedError
 
     # ---- shared
+    #: total length of the true crease / rim curves (0 on smooth phantoms)
+    crease_length: float = 0.0
+
+    def crease_samples(self, n: int) -> np.ndarray:
+        """``n`` points evenly spaced by arc length on the true crease / rim curves, (n, 3); (0, 3) without
+        creases.  Point i sits at arc length (i + ½)·L/n of the concatenated curves, so every curve point is
+        within L/(2n) (along the curve) of a sample."""
+        return np.zeros((0, 3))
+
+    def inside(self, points) -> np.ndarray:
+        """Is each point inside the true solid (φ < 0)?  Exact: the sign of the exact signed distance."""
+        return self.sdf(points) < 0
+
     def distance(self, points) -> np.ndarray:
         """Exact unsigned distance to the true surface."""
         return np.abs(self.sdf(points))

@@ -56,3 +56,42 @@ class InwardMethod(Method):
         rec = get_method("marching_cubes").reconstruct(volume)
         rec.mesh.faces = rec.mesh.faces[:, ::-1]
         return Reconstruction(rec.mesh, {})
+
+
+#: each class of invalid output the suite must catch, and how ``broken`` makes it from a correct mesh
+BROKEN_KINDS = ("nonfinite", "empty", "open", "inward", "mixed", "index", "outside", "nonmanifold")
+
+
+@register_method
+class BrokenMethod(Method):
+    name = "broken"
+    description = "marching cubes, then broken on purpose in one way (validity tests): " + ", ".join(BROKEN_KINDS)
+    params = {"kind": Param("open", "how to break the mesh", str, choices=BROKEN_KINDS)}
+
+    def reconstruct(self, volume):
+        import numpy as np
+        import trimesh
+
+        from methods import Reconstruction, get_method
+
+        m = get_method("marching_cubes").reconstruct(volume).mesh
+        v, f = np.asarray(m.vertices, float).copy(), np.asarray(m.faces).copy()
+        kind = self.config["kind"]
+        if kind == "nonfinite":
+            v[0] = np.nan
+        elif kind == "empty":
+            v, f = np.zeros((0, 3)), np.zeros((0, 3), int)
+        elif kind == "open":
+            f = f[10:]
+        elif kind == "inward":
+            f = f[:, ::-1]
+        elif kind == "mixed":
+            f[: len(f) // 2] = f[: len(f) // 2, ::-1]
+        elif kind == "index":
+            v = volume.world_to_index(v)
+        elif kind == "outside":
+            v = v + 10.0 * (volume.upper - volume.lower)
+        elif kind == "nonmanifold":                      # a fin: a third face on one edge
+            v = np.vstack([v, v[f[0, 0]] + 3 * volume.h])
+            f = np.vstack([f, [[f[0, 0], f[0, 1], len(v) - 1]]])
+        return Reconstruction(trimesh.Trimesh(v, f, process=False), {})

@@ -31,16 +31,20 @@ def test_dropped_components_against_a_two_component_truth():
     assert result_flags({**row, "euler": 4, "components": 2}, TwoSpheres()) == []
 
 
-@pytest.mark.parametrize("method, params, flag", [
-    ("shape_gradient", {"max_iter": 40}, "topology_mismatch"),           # one genus-0 surface for a torus
-    ("distmesh", {"max_iter": 3}, "not_converged"),                     # stopped early: max_iter
+@pytest.mark.parametrize("method, params, flag, stop", [
+    ("shape_gradient", {"max_iter": 40}, "topology_mismatch", None),     # one genus-0 surface for a torus
+    ("distmesh", {"max_iter": 3}, "not_converged", "max_iter"),          # stopped early: max_iter
+    # Δt = 1 with Fscale = 3 blows the bars up at once: the divergence guard stops it (iteration 2)
+    ("distmesh", {"deltat": 1.0, "fscale": 3.0, "max_growth": 1.01}, "not_converged", "diverged"),
 ])
-def test_grid_rows_carry_their_flags(method, params, flag):
+def test_grid_rows_carry_their_flags(method, params, flag, stop):
     cfg = config_from_dict({"grid": {"phantoms": ["torus"], "n": 40}, "methods": [{"name": method, "params": params}],
                             "metrics": {"n_samples": 2000}})
     cfg.validate()
     row = run_cell(expand_grid(cfg)[0])["row"]
     assert flag in row["flags"].split(";"), (row["status"], row["error"], row["flags"])
+    if stop is not None:
+        assert row["stop_reason"] == stop
 
 
 def test_poisson_drops_the_inner_surface_of_nested_spheres(tmp_path):

@@ -43,7 +43,8 @@ def test_facts_are_well_formed():
 def test_facts_the_report_relies_on():
     assert METRICS["watertight"].dtype == "bool"
     assert {k for k, m in METRICS.items() if m.dtype == "int"} == {
-        "euler", "components", "self_intersections", "n_vertices", "n_faces", "iterations"}
+        "euler", "components", "self_intersections", "n_vertices", "n_faces", "iterations", "boundary_edges",
+        "nonmanifold_edges"}
     assert all(METRICS[f"{k}_h"].best == "min" for k in ("hausdorff", "hausdorff_95", "mean_dist", "rms_dist"))
     assert METRICS["euler"].best == ("target", 2) and METRICS["components"].best == ("target", 1)
     assert METRICS["n_vertices"].best is None and METRICS["wall_s"].best == "min"
@@ -53,3 +54,14 @@ def test_entries_are_frozen():
     with pytest.raises(dataclasses.FrozenInstanceError):
         METRICS["hausdorff"].best = "max"  # type: ignore[misc]
     assert [f.name for f in dataclasses.fields(Metric)] == ["name", "best", "dtype", "meaning", "unit", "kind"]
+
+
+def test_every_metric_is_defined_in_the_repository_docs():
+    """docs/METRICS.md holds the definition of every column the suite reports (a `name` in backticks)."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "METRICS.md").read_text()
+    missing = [k for k in METRICS if f"`{k}`" not in doc and not (k.endswith("_h") and f"`{k[:-2]}`" in doc)]
+    assert not missing, missing
+    for col in ("status", "error", "flags"):
+        assert f"`{col}`" in doc

@@ -121,3 +121,55 @@ def test_an_invalid_output_is_an_invalid_row_never_best_and_reconstruct_says_so(
     rec = subprocess.run([sys.executable, "-c", script], cwd=tests.parent, env=env, capture_output=True, text=True,
                          timeout=300)
     assert rec.returncode == 1 and "invalid mesh" in rec.stderr and "inward" in rec.stderr
+
+
+#: broken kind (tests/runner_plugins.py) -> the reason check_mesh must give
+_BROKEN_REASONS = {"nonfinite": "non-finite", "empty": "empty", "open": "open", "inward": "inward",
+                   "mixed": "inconsistently oriented", "index": "outside the volume", "outside": "outside the volume",
+                   "nonmanifold": "non-manifold"}
+
+
+def test_every_invalid_class_is_invalid_in_the_grid_never_best_and_in_reconstruct(tmp_path, monkeypatch, capsys):
+    """One grid run with a correct method and one broken plug-in per invalid class: each broken one is an
+    `invalid` row with its reason and is never marked best (its distances are often the best of the table);
+    `reconstruct` with each exits 1 and names the reason."""
+    import csv
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from bench.cli import main
+    from phantoms import save_volume
+
+    tests = Path(__file__).resolve().parent
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tests), str(tests.parent), os.environ.get("PYTHONPATH", "")]))
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "bench", "run", "--quick", "--phantoms", "sphere", "--noise", "none",
+           "--n", "32", "--n-samples", "2000", "--method", "marching_cubes", "--import", "runner_plugins",
+           "--out", str(out), "--jobs", "2"]
+    for kind in _BROKEN_REASONS:
+        cmd += ["--add-method", f"{kind}=broken:kind={kind}"]
+    proc = subprocess.run(cmd, cwd=tests.parent, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    rows = {r["label"]: r for r in csv.DictReader(open(out / "results.csv"))}
+    assert rows["marching_cubes"]["status"] == "ok"
+    page = (out / "index.html").read_text()
+    table = page[page.index("sphere — clean"):]
+    table = table[:table.index("</table>")]
+    for kind, reason in _BROKEN_REASONS.items():
+        assert rows[kind]["status"] == "invalid", (kind, rows[kind]["status"], rows[kind]["error"])
+        assert rows[kind]["error"].startswith("invalid: ") and reason in rows[kind]["error"], rows[kind]["error"]
+        row_html = table[table.index(f"<td>{kind}</td>"):].split("</tr>")[0]
+        assert 'class="best"' not in row_html and "badge-invalid" in row_html, (kind, row_html)
+        assert table.index("<td>marching_cubes</td>") < table.index(f"<td>{kind}</td>")      # validity first
+    # reconstruct: the same check, exit code 1 and the reason (in-process: the plug-in registers here too)
+    monkeypatch.syspath_prepend(str(tests))
+    __import__("runner_plugins")
+    vol = save_volume(tmp_path / "s.npz", get_phantom("sphere").volume(n=32))
+    for kind, reason in _BROKEN_REASONS.items():
+        capsys.readouterr()
+        code = main(["reconstruct", str(vol), "--method", "broken", "--set", f"kind={kind}",
+                     "-o", str(tmp_path / f"{kind}.ply")])
+        err = capsys.readouterr().err
+        assert code == 1 and "invalid mesh" in err and reason in err, (kind, code, err)

@@ -85,3 +85,20 @@ def test_seeds_are_averaged_over_ok_cells_and_the_status_says_so():
     t = summary_tables(pd.DataFrame(rows))[0]
     assert "<td>0.2</td>" in t["html"] and "50 % yes" in t["html"]
     assert "failed×1, ok×2 (mean of 2/3 seeds)" in t["html"]
+
+
+def test_flags_and_invalid_rows_are_badges_named_in_text():
+    from bench.report.tables import status_badges, summary_tables
+
+    rows = [_row("good", hausdorff=1.0), dict(_row("odd", hausdorff=0.5), flags="self_intersecting;not_converged"),
+            dict(_row("bad", hausdorff=0.1), status="invalid", error="invalid: inward")]
+    html = summary_tables(pd.DataFrame(rows))[0]["html"]
+    assert '<span class="badge badge-flag" title="some non-adjacent faces intersect">self_intersecting</span>' in html
+    assert ">not_converged</span>" in html and "⚑" not in html
+    assert '<span class="badge badge-invalid"' in html and ">invalid</span>" in html
+    # validity first: good (valid, unflagged), odd (valid, flagged), bad (invalid) — bad's 0.1 is never best
+    assert html.index("<td>good</td>") < html.index("<td>odd</td>") < html.index("<td>bad</td>")
+    bad_row = html[html.index("<td>bad</td>"):].split("</tr>")[0]
+    assert 'class="best"' not in bad_row
+    assert status_badges("failed", [], False).startswith('<span class="badge badge-failed"')
+    assert status_badges("ok", ["x<y"], True) == 'ok <span class="badge badge-flag" title="suspect result">x&lt;y</span>'

@@ -123,11 +123,14 @@ def _cmd_reconstruct(args) -> int:
     t0 = time.perf_counter()
     rec = as_reconstruction(method.reconstruct(volume), args.method)  # wrong type: one line, exit 1
     wall = time.perf_counter() - t0
-    mesh = rec.mesh
-    if len(mesh.faces) == 0:
-        raise InputError(f"method {args.method!r} returned an empty mesh")
-    refuse_non_finite(mesh, args.method)
+    mesh = getattr(rec, "mesh", None)
+    if mesh is None:
+        raise InputError(f"method {args.method!r} returned no mesh")
     invalid = check_mesh(mesh, volume)
+    if len(mesh.faces) == 0 or len(mesh.vertices) == 0:      # an empty mesh is invalid too; nothing to write
+        print(f"error: method {args.method!r} returned an invalid mesh: {'; '.join(invalid)}", file=sys.stderr)
+        return 1
+    refuse_non_finite(mesh, args.method)
     write_mesh(mesh, out, MESH_SUFFIXES[suffix])
     facts = mesh_facts(mesh)
     settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())

@@ -1,4 +1,4 @@
-"""Every number the suite reports about a reconstructed mesh (definitions: ``METRICS.md``).
+"""Every number the suite reports about a reconstructed mesh (definitions: ``docs/METRICS.md``).
 
 >>> from phantoms import get_phantom
 >>> from bench.metrics import evaluate, METRIC_NAMES
@@ -11,7 +11,9 @@ phantom's exact ground truth:
 * distances (``distance.py``): recon → truth exact via the phantom, truth → recon exact point-to-triangle
   via pymeshlab; maxima over all points, percentiles / means / F-score over seeded area-uniform samples;
 * curvature and smoothness (``curvature.py``): the shared paraboloid-fit estimator over a 2h neighbourhood;
-* topology, quality and self-intersections (``topology.py``).
+* topology, quality, self-intersections and SIF % (``topology.py``);
+* sharp-feature accuracy ``edge_chamfer`` / ``edge_fscore`` (``features.py``) and the volumetric ``iou``
+  (``volume.py``).
 
 The mesh is evaluated as given except that faces with a repeated vertex index (no area, no real edges)
 and unreferenced vertices are dropped first (``n_vertices`` / ``n_faces`` report the mesh as given).
@@ -48,12 +50,15 @@ from .distance import (
     point_mesh_distance,
     sample_mesh_surface,
 )
+from .features import edge_metrics
 from .registry import METRICS, Metric
+from .volume import iou
 from .topology import (
     compact,
     drop_degenerate_index_faces,
     quality_metrics,
     self_intersection_pairs,
+    sif_pct,
     topology_metrics,
     triangle_angles,
 )
@@ -183,6 +188,7 @@ def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.
     V, F, _ = compact(vertices, f_all)
     fn = face_normals(V, F)
     tri = V[F]
+    area = float(0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
     signed_volume = float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()) / 6.0
     outward = signed_volume >= 0
     if not outward:
@@ -199,7 +205,9 @@ def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.
     out.update(topology_metrics(V, F))
     out.update(quality_metrics(V, F))
     lap("topology_quality")
-    out["self_intersections"] = int(len(self_intersection_pairs(V, F)))
+    pairs = self_intersection_pairs(V, F)
+    out["self_intersections"] = int(len(pairs))
+    out["sif_pct"] = sif_pct(pairs, len(F))
     lap("self_intersections")
 
     H, K, _ = vertex_curvature(V, F, h, outward=outward)
@@ -225,4 +233,9 @@ def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.
     out.update(distance_metrics(ts.distance, float(max(tv.distance.max(), ts.distance.max())), d_tr, h,
                                 fn[fi], ts.normal))
     lap("distance_stats")
+    out.update(edge_metrics(pts, fn[fi], area, truth, h))
+    out["edge_chamfer_h"] = out["edge_chamfer"] / h
+    lap("edges")
+    out["iou"] = iou(V, F, truth, h, true_pts, seed=seed)
+    lap("iou")
     return {k: out[k] for k in METRIC_NAMES if k in out}

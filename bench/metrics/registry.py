@@ -1,4 +1,4 @@
-"""One place for what each metric column means and how to read it (definitions: ``METRICS.md``).
+"""One place for what each metric column means and how to read it (definitions: ``docs/METRICS.md``).
 
 The registry is the schema: :func:`bench.metrics.evaluate` returns these keys, results.csv has a column
 each in this order, and the report reads how to rank and show them from here.
@@ -33,8 +33,10 @@ class Metric:
 _DISTANCES = {
     "hausdorff": "symmetric Hausdorff distance between the mesh and the true surface",
     "hausdorff_95": "symmetric Hausdorff distance with the 95th percentile in place of each max",
+    "hausdorff_90": "symmetric Hausdorff distance with the 90th percentile in place of each max (HD90)",
     "mean_dist": "mean of both directed distance sets (Chamfer-L1 style)",
     "rms_dist": "RMS of both directed distance sets",
+    "edge_chamfer": "mean of both directed distances between reconstructed and true sharp-edge samples",
 }
 
 _ROWS = [
@@ -42,6 +44,8 @@ _ROWS = [
     *(Metric(f"{k}_h", "min", "float", f"{k} divided by the grid spacing h", "h", "distance_h") for k in _DISTANCES),
     Metric("normal_consistency", "max", "float", "mean |n_mesh · n_true| at the closest true point", ""),
     Metric("fscore@h", "max", "float", "F-score of the two sample sets at threshold h", ""),
+    Metric("edge_fscore", "max", "float", "F-score of the sharp-edge samples at threshold h", ""),
+    Metric("iou", "max", "float", "volumetric intersection over union of the inside regions", ""),
     Metric("H_rms_err", "min", "float", "RMS error of the vertex mean curvature away from creases", "1/world units"),
     Metric("H_max_err", "min", "float", "max error of the vertex mean curvature away from creases", "1/world units"),
     Metric("K_rms_err", "min", "float", "RMS error of the vertex Gaussian curvature away from creases",
@@ -53,9 +57,12 @@ _ROWS = [
     Metric("min_angle_deg", "max", "float", "smallest triangle angle", "°", "truth_free"),
     Metric("pct_angle_lt_10", "min", "float", "share of triangles with an angle below 10°", "%", "truth_free"),
     Metric("watertight", "max", "bool", "every edge in exactly two faces", "", "truth_free"),
+    Metric("boundary_edges", "min", "int", "edges in exactly one face", "", "truth_free"),
+    Metric("nonmanifold_edges", "min", "int", "edges in three or more faces", "", "truth_free"),
     Metric("euler", ("target", 2), "int", "Euler characteristic V − E + F", "", "truth_free"),
     Metric("components", ("target", 1), "int", "connected components", "", "truth_free"),
     Metric("self_intersections", "min", "int", "intersecting non-adjacent face pairs", "", "truth_free"),
+    Metric("sif_pct", "min", "float", "share of faces intersecting a non-adjacent face (SIF)", "%", "truth_free"),
     Metric("n_vertices", None, "int", "vertices of the mesh as given", "", "truth_free"),
     Metric("n_faces", None, "int", "faces of the mesh as given", "", "truth_free"),
     Metric("iterations", None, "int", "iterations of an iterative method", "", "runner"),

@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 
 from geometry.intersections import self_intersection_pairs
-from geometry.topology import connected_components, edge_face_counts, euler_characteristic, face_edge_keys, is_closed
+from geometry.topology import edge_face_counts, face_edge_keys
 
 __all__ = [
-    "drop_degenerate_index_faces", "compact", "edge_face_counts", "topology_metrics",
+    "drop_degenerate_index_faces", "compact", "edge_face_counts", "topology_metrics", "sif_pct",
     "triangle_angles", "quality_metrics", "self_intersection_pairs",
 ]
 
@@ -52,18 +52,33 @@ def edge_adjacent_face_pairs(faces: np.ndarray, n_vertices: int) -> tuple[np.nda
 
 
 def topology_metrics(vertices: np.ndarray, faces: np.ndarray) -> dict:
-    """``watertight`` (every edge in exactly two faces), ``euler`` (V − E + F), ``components``.
+    """``watertight`` (every edge in exactly two faces), ``boundary_edges`` (edges in one face),
+    ``nonmanifold_edges`` (edges in three or more), ``euler`` (V − E + F), ``components``.
 
     Expects a compacted mesh (every vertex referenced) without index-degenerate faces; components are
-    connected through shared vertices.
+    connected through shared vertices.  One sort of the edge keys serves every count.
     """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components as _cc
+
     nv = len(vertices)
-    watertight = is_closed(faces, nv)
-    euler = euler_characteristic(faces, nv)
-    if nv == 0:
-        return {"watertight": False, "euler": 0, "components": 0}
-    n_comp, _ = connected_components(faces, nv, by="vertex")
-    return {"watertight": watertight, "euler": euler, "components": int(n_comp)}
+    if nv == 0 or len(faces) == 0:
+        return {"watertight": False, "boundary_edges": 0, "nonmanifold_edges": 0, "euler": 0, "components": 0}
+    key = np.sort(face_edge_keys(faces, nv))
+    first = np.concatenate([[True], key[1:] != key[:-1]])
+    uniq = key[first]
+    counts = np.diff(np.append(np.flatnonzero(first), len(key)))
+    g = coo_matrix((np.ones(len(uniq)), (uniq // nv, uniq % nv)), shape=(nv, nv))
+    n_comp, _ = _cc(g, directed=False)
+    return {"watertight": bool(np.all(counts == 2)), "boundary_edges": int((counts == 1).sum()),
+            "nonmanifold_edges": int((counts > 2).sum()), "euler": int(nv - len(uniq) + len(faces)),
+            "components": int(n_comp)}
+
+
+def sif_pct(pairs: np.ndarray, n_faces: int) -> float:
+    """SIF %: share of the faces that intersect at least one non-adjacent face (``pairs`` from
+    :func:`self_intersection_pairs`), in percent."""
+    return float(100.0 * len(np.unique(pairs)) / n_faces) if n_faces else float("nan")
 
 
 # --------------------------------------------------------------------------- quality

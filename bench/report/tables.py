@@ -12,7 +12,7 @@ import numpy as np
 
 from bench.metrics.registry import METRICS
 
-__all__ = ["BEST_DIRECTION", "summary_tables", "fmt_value", "noise_title", "is_nan", "best_mask", "best_rule"]
+__all__ = ["BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables", "fmt_value", "noise_title", "is_nan", "best_mask", "best_rule"]
 
 #: how a metric's best value is chosen ("min", "max", ("target", value)); unranked metrics are absent
 BEST_DIRECTION: dict[str, Any] = {k: m.best for k, m in METRICS.items() if m.best is not None}
@@ -116,6 +116,28 @@ def _status_text(g, ok) -> str:
     return text
 
 
+#: what each flag means (the badge's tooltip); docs/METRICS.md has the definitions
+FLAG_TITLES = {
+    "topology_mismatch": "Euler characteristic or number of components differs from the truth's",
+    "dropped_components": "fewer components than the truth (a part was dropped)",
+    "self_intersecting": "some non-adjacent faces intersect",
+    "not_converged": "the method stopped on max_iter, line_search_floor or diverged",
+}
+
+
+def status_badges(status: str, flags, valid: bool) -> str:
+    """The status cell: the status text (a red ``invalid`` / grey ``failed`` badge when no seed gave a valid
+    result) followed by one amber badge per flag, named in text (the report's CSS colours ``.badge``)."""
+    text = html.escape(str(status))
+    if not valid:
+        kind = "invalid" if "invalid" in str(status) else "failed"
+        text = f'<span class="badge badge-{kind}" title="no valid result: never ranked best">{text}</span>'
+    for f in flags or ():
+        title = html.escape(FLAG_TITLES.get(f, "suspect result"))
+        text += f' <span class="badge badge-flag" title="{title}">{html.escape(f)}</span>'
+    return text
+
+
 def _method_rows(sub, metrics: list[str]):
     """One row per method label: the mean of each metric over its ok cells (over all when none is ok: such a row
     is shown, below the valid ones, and never marked best)."""
@@ -132,7 +154,8 @@ def _method_rows(sub, metrics: list[str]):
             rec[m] = float(vals.mean()) if vals.notna().any() else np.nan
         flags = sorted({f for v in (ok if len(ok) else g).get("flags", pd.Series(dtype=object))
                         if isinstance(v, str) for f in v.split(";") if f})
-        rec["status"] = _status_text(g, ok) + "".join(f" ⚑{f}" for f in flags)
+        rec["status"] = _status_text(g, ok)
+        rec["_flags"] = flags
         rec["_valid"] = len(ok) > 0
         rec["_unflagged"] = not flags
         rows.append(rec)
@@ -163,7 +186,7 @@ def _marked_html(t, metrics: list[str], genus: int) -> str:
         mask = best_mask(eligible, rule) if rule is not None else np.zeros(len(t), bool)
         shown[m] = [f'<span class="best" title="best">{fmt_value(v, m)}</span>' if b else fmt_value(v, m)
                     for v, b in zip(t[m], mask)]
-    shown["status"] = [html.escape(str(s)) for s in t["status"]]
+    shown["status"] = [status_badges(s, f, v) for s, f, v in zip(t["status"], t["_flags"], t["_valid"])]
     return shown.to_html(index=False, escape=False, classes="summary", border=0, na_rep="–")
 
 

@@ -35,17 +35,17 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from geometry.errors import InputError
 from geometry.topology import (connected_components, directed_edge_repeats, edge_face_counts, euler_characteristic,
                                genus, sample_surface)
 
-from ..base import DEFAULT_EXTENT, DEFAULT_N, Phantom, Truth, as_points, check_extent, check_n, check_sample_count
+from ..base import DEFAULT_EXTENT, DEFAULT_N, Phantom, Truth, arc_positions, as_points, check_extent, check_n, check_sample_count
 from ..volume import Volume
-from .closest import FACE, point_segment_distance
+from .closest import FACE
 from .grid_sdf import signed_distance_grid
 from .index import TriangleIndex
+from .segments import SegmentIndex
 
 __all__ = ["MeshPhantom", "load_mesh", "TARGET_RADIUS"]
 
@@ -207,10 +207,8 @@ class MeshPhantom(Phantom):
         self.has_creases = bool(crease.any())
         if self.has_creases:
             v = self.vertices
-            a, b = v[self.crease_edges[:, 0]], v[self.crease_edges[:, 1]]
-            self._crease_seg = (a, b)
-            self._crease_tree = cKDTree(0.5 * (a + b))
-            self._crease_half = 0.5 * np.linalg.norm(b - a, axis=1)
+            self._creases = SegmentIndex(v[self.crease_edges[:, 0]], v[self.crease_edges[:, 1]])
+        self.crease_length = float(self.edge_lengths[crease].sum())
 
     # ------------------------------------------------------------------ metadata
     @property
@@ -219,7 +217,7 @@ class MeshPhantom(Phantom):
                 "scale": round(float(self.scale), 8)}
 
     # ------------------------------------------------------------------ exact queries
-    def closest(self, points, chunk: int = 20000, max_pairs: int = 3_000_000):
+    def closest(self, points, chunk: int = 20000, max_pairs: int = 1_000_000):
         """Exact closest point on the mesh: ``(closest (P,3), distance (P,), face (P,), bary (P,3),
         feature (P,))`` (certified candidate search, :meth:`phantoms.mesh.index.TriangleIndex.closest`)."""
         return self.index.closest(points, chunk=chunk, max_pairs=max_pairs)
@@ -246,21 +244,27 @@ class MeshPhantom(Phantom):
         return self._HK
 
     def crease_distance_at(self, x) -> np.ndarray:
-        """Euclidean distance from surface points x to the nearest crease edge (inf without creases)."""
+        """Euclidean distance from surface points x to the nearest crease edge (inf without creases); exact,
+        chunked against a bucketed KD-tree (:class:`phantoms.mesh.segments.SegmentIndex`)."""
         x = as_points(x)
         if not self.has_creases:
             return np.full(len(x), np.inf)
-        a, b = self._crease_seg
-        dm, _ = self._crease_tree.query(x)                      # distance to a midpoint: an upper bound
-        hmax = float(self._crease_half.max())
-        lists = self._crease_tree.query_ball_point(x, dm * (1 + 1e-12) + hmax + 1e-12, return_sorted=False)
-        lens = np.fromiter((len(s) for s in lists), np.int64, len(lists))
-        seg = np.concatenate([np.asarray(s, np.int64) for s in lists])
-        rows = np.repeat(np.arange(len(x)), lens)
-        d = point_segment_distance(x[rows], a[seg], b[seg])
-        out = np.full(len(x), np.inf)
-        np.minimum.at(out, rows, d)
-        return out
+        return self._creases.distance(x)
+
+    def crease_samples(self, n: int) -> np.ndarray:
+        """``n`` points evenly spaced by arc length along the crease edges (dihedral > crease_angle_deg)."""
+        if not self.has_creases:
+            return np.zeros((0, 3))
+        a, b = self._creases.a, self._creases.b
+        k, frac = arc_positions(2 * self._creases.half, n)
+        return a[k] + frac[:, None] * (b[k] - a[k])
+
+    def inside(self, points) -> np.ndarray:
+        """Inside the mesh: fast winding number ≥ ½ (gpytoolbox; Barnes–Hut, exact near the surface)."""
+        from gpytoolbox import fast_winding_number
+
+        p = as_points(points)
+        return fast_winding_number(p, self.vertices, self.faces.astype(np.int32)) >= 0.5
 
     def truth(self, points) -> Truth:
         p = as_points(points)

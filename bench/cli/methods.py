@@ -127,10 +127,12 @@ def _cmd_reconstruct(args) -> int:
     if mesh is None:
         raise InputError(f"method {args.method!r} returned no mesh")
     invalid = check_mesh(mesh, volume)
-    if len(mesh.faces) == 0 or len(mesh.vertices) == 0:      # an empty mesh is invalid too; nothing to write
-        print(f"error: method {args.method!r} returned an invalid mesh: {'; '.join(invalid)}", file=sys.stderr)
+    # an empty mesh or one with NaN / infinite vertices is invalid too, and there is nothing sensible to write
+    if len(mesh.faces) == 0 or len(mesh.vertices) == 0 or not np.isfinite(np.asarray(mesh.vertices)).all():
+        print(f"error: method {args.method!r} returned an invalid mesh: {'; '.join(invalid)} — nothing written",
+              file=sys.stderr)
         return 1
-    refuse_non_finite(mesh, args.method)
+    refuse_non_finite(mesh, args.method)      # finite but beyond float32: inf once written as PLY / STL
     write_mesh(mesh, out, MESH_SUFFIXES[suffix])
     facts = mesh_facts(mesh)
     settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())

@@ -158,7 +158,7 @@ def _mesh_facts(mesh) -> dict:
         return {"vertices": len(mesh.vertices), "faces": len(mesh.faces)}
 
 
-def _judge(res: CaseResult, rec: Reconstruction, clean: Volume) -> None:
+def _judge(res: CaseResult, rec: Reconstruction, clean: Volume, given: Volume | None = None) -> None:
     mesh = rec.mesh
     res.facts = _mesh_facts(mesh)
     empty = len(mesh.vertices) == 0 or len(mesh.faces) == 0
@@ -169,7 +169,7 @@ def _judge(res: CaseResult, rec: Reconstruction, clean: Volume) -> None:
                                   "zero crossing")
         return
     res.outcome = "mesh"
-    res.violations += check_mesh(mesh, clean)
+    res.violations += check_mesh(mesh, clean, given=given)
     if res.case == "torus" and not res.violations and res.facts.get("euler") != 0:
         res.notes.append(f"Euler characteristic {res.facts.get('euler')} (the torus has 0): a grid run flags "
                          "this as topology_mismatch")
@@ -201,7 +201,7 @@ def run_case(method, case: str, volume: Volume, clean: Volume) -> CaseResult:
         return res
     res.info = {k: plain(v) for k, v in rec.info.items() if k not in ("snapshots", "energy_history")}
     res.notes += _info_notes(rec.info)
-    _judge(res, rec, clean)
+    _judge(res, rec, clean, None if volume is clean else volume)
     return res
 
 

@@ -197,7 +197,8 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
             artifacts = {}
             runner_values["artifact_error"] = error_text(exc)
         stage = "validity"
-        invalid = check_mesh(rec.mesh, clean)          # against the clean level set the grid knows
+        # against the clean level set the grid knows (and, with noise, the one the method was given)
+        invalid = check_mesh(rec.mesh, clean, given=None if vol is clean else vol)
         stage = "metrics"
         try:
             metrics = evaluate(rec.mesh, ph, vol.h, n_samples=cell["n_samples"], seed=cell["seed"])

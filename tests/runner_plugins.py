@@ -64,7 +64,7 @@ BROKEN_KINDS = ("nonfinite", "empty", "open", "inward", "mixed", "index", "outsi
 
 @register_method
 class BrokenMethod(Method):
-    name = "broken"
+    name = "broken_output"
     description = "marching cubes, then broken on purpose in one way (validity tests): " + ", ".join(BROKEN_KINDS)
     params = {"kind": Param("open", "how to break the mesh", str, choices=BROKEN_KINDS)}
 

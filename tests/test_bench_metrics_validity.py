@@ -149,7 +149,7 @@ def test_every_invalid_class_is_invalid_in_the_grid_never_best_and_in_reconstruc
            "--n", "32", "--n-samples", "2000", "--method", "marching_cubes", "--import", "runner_plugins",
            "--out", str(out), "--jobs", "2"]
     for kind in _BROKEN_REASONS:
-        cmd += ["--add-method", f"{kind}=broken:kind={kind}"]
+        cmd += ["--add-method", f"{kind}=broken_output:kind={kind}"]
     proc = subprocess.run(cmd, cwd=tests.parent, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     rows = {r["label"]: r for r in csv.DictReader(open(out / "results.csv"))}
@@ -169,7 +169,7 @@ def test_every_invalid_class_is_invalid_in_the_grid_never_best_and_in_reconstruc
     vol = save_volume(tmp_path / "s.npz", get_phantom("sphere").volume(n=32))
     for kind, reason in _BROKEN_REASONS.items():
         capsys.readouterr()
-        code = main(["reconstruct", str(vol), "--method", "broken", "--set", f"kind={kind}",
+        code = main(["reconstruct", str(vol), "--method", "broken_output", "--set", f"kind={kind}",
                      "-o", str(tmp_path / f"{kind}.ply")])
         err = capsys.readouterr().err
         assert code == 1 and "invalid mesh" in err and reason in err, (kind, code, err)

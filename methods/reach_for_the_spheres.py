@@ -1,0 +1,126 @@
+"""Peer: Reach for the Spheres (Sellán, Batty & Stein, "Reach For the Spheres: Tangency-Aware Surface
+Reconstruction of SDFs", SIGGRAPH Asia 2023) — ``gpytoolbox.reach_for_the_spheres``.
+
+Each grid sample u with value φ(u) defines a sphere of radius |φ(u)| that the surface must be tangent to (and
+not cross).  An initial mesh (an icosphere) is flowed towards tangency with every sphere, with Botsch–Kobbelt
+remeshing inside the loop; the target edge length is halved whenever progress stalls, down to a minimum.  It
+is the direct peer of the suite's shape-gradient method: a flow of a genus-0 surface driven by the SDF samples.
+
+The adapter runs gpytoolbox's own iteration (``reach_for_the_spheres_iteration``) so it can report
+
+* ``iterations`` – flow steps taken;
+* ``stop_reason`` – ``converged`` (every sphere tangent within the tolerance, or no progress at the
+  finest edge length), ``max_iter`` (the cap was hit) or ``diverged`` (a flow singularity — NaN, a
+  zero-area face or a non-manifold edge: the library returns the last mesh it had converged at a coarser
+  edge length, ``stop_message`` says so).
+
+Units.  The library's defaults are absolute lengths tuned for shapes in [-1, 1]³ (tangency tolerance 0.01,
+first target edge length 0.2).  The adapter maps the grid's box to [-1, 1]³ (centre at 0, one uniform
+scale: half the longest side → 1; SDF values scaled by the same factor), runs there and maps the mesh back,
+so the method behaves the same on a grid of any size.  ``edge_length`` is in grid spacings h (default 2 h,
+which is the library's own default, twice the mean sample spacing).
+
+Samples.  ``samples = "all"`` gives every grid sample (the paper's setting; ≈ N³ spheres, the cost of each
+step grows with them); ``"band"`` (default) only those with |φ| < ``band`` · h, which are the spheres that
+touch the surface's neighbourhood — about 2·band·(surface area)/h² samples instead of N³, several times faster at
+N = 48–96.  Far spheres only keep the surface out of empty space, which the near band already does for the
+suite's shapes; the band must be wide enough to contain the initial sphere's way in (the icosphere starts
+at the grid's inscribed sphere and moves inwards through samples with larger |φ|: those outside the band are
+not seen, so the flow is driven by the band alone once it gets there — the default 4 h is a compromise).
+
+Limits (the library's docstring and the paper): the result has the initial mesh's topology (genus 0); deep,
+narrow concavities (cortical sulci) are reached slowly and may self-intersect.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import trimesh
+
+from phantoms import InputError, Volume
+
+from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .marching_cubes import mesh_facts, orient_outward
+
+__all__ = ["ReachForTheSpheres", "grid_samples"]
+
+
+def grid_samples(volume: Volume, samples: str, band: float) -> tuple[np.ndarray, np.ndarray]:
+    """World positions (K, 3) and values (K,) of the grid samples the method gets ('all' or the |φ| band)."""
+    v = volume.values
+    if samples == "all":
+        mask = np.ones(v.shape, dtype=bool)
+    else:
+        mask = np.abs(v) < band * volume.h
+    idx = np.argwhere(mask)
+    return volume.origin + idx * volume.spacing, v[mask]
+
+
+class ReachForTheSpheres(Method):
+    name = "reach_for_the_spheres"
+    description = ("Reach for the Spheres (Sellán, Batty & Stein 2023, gpytoolbox): an icosphere flowed to "
+                   "tangency with the samples' spheres, remeshed; genus 0")
+    params = {
+        "init_subdivisions": Param(2, "the initial mesh: an icosphere with this many subdivisions (2 = 162 "
+                                      "vertices, the library's example)", type=int, min=0, max=6),
+        "init_radius": Param(0.9, "the icosphere's radius as a fraction of the grid box's half-size (centred "
+                                  "in the box; 1 = the inscribed sphere); it must enclose the shape",
+                             type=float, min=0.05, max=1.0),
+        "edge_length": Param(2.0, "the finest target edge length, in grid spacings h (the library's default "
+                                  "is twice the mean sample spacing, i.e. 2 h)", type=float, min=0.25, max=20.0),
+        "max_iter": Param(2000, "iteration cap (the library's default is 20000)", type=int, min=1,
+                          max=100000),
+        "tol": Param(0.01, "tangency tolerance, in units of the grid box's half-size (the library's 0.01 for "
+                           "shapes in [-1, 1]³)", type=float, min=1e-5, max=0.5),
+        "samples": Param("band", "which grid samples it gets: 'all' (the paper; cost grows with N³) or "
+                                 "'band' (|φ| < band·h)", type=str, choices=("all", "band")),
+        "band": Param(4.0, "half-width of the band in grid spacings h (with samples = 'band')", type=float,
+                      min=1.0, max=100.0),
+        "batch_size": Param(20000, "samples drawn at random per step (plus every inside sample), the "
+                                   "library's batching; 0 = all every step", type=int, min=0, max=10**8),
+    }
+
+    def reconstruct(self, volume: Volume) -> Reconstruction:
+        import gpytoolbox as gpy
+
+        check_volume(volume, self.name)
+        cfg = self.config
+        U, S = grid_samples(volume, cfg["samples"], cfg["band"])
+        if len(U) < 10:
+            raise InputError(f"method {self.name!r}: only {len(U)} grid samples in the band; widen 'band'")
+        # map the grid box to [-1, 1]^3 (uniform scale) where the library's defaults are meant to work
+        lo = volume.origin
+        hi = volume.origin + (np.asarray(volume.shape) - 1) * volume.spacing
+        centre, scale = 0.5 * (lo + hi), 0.5 * float((hi - lo).max())
+        Un, Sn = (U - centre) / scale, S / scale
+        V0, F0 = gpy.icosphere(cfg["init_subdivisions"])
+        half_min = 0.5 * float((hi - lo).min()) / scale
+        V0 = V0 * (cfg["init_radius"] * half_min)
+        min_h = cfg["edge_length"] * volume.h / scale
+        state = gpy.ReachForTheSpheresState(V=V0, F=F0, U=Un, S=Sn, sdf=None, h=max(0.2, min_h), min_h=min_h)
+        t0 = time.perf_counter()
+        done = False
+        try:
+            while not done:
+                done = gpy.reach_for_the_spheres_iteration(
+                    state, max_iter=cfg["max_iter"], tol=cfg["tol"], batch_size=cfg["batch_size"])
+        except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
+            raise ReconstructionFailed(f"method {self.name!r}: the flow failed at iteration {state.its} ({exc})")
+        wall = time.perf_counter() - t0
+        its = int(state.its)
+        if its >= cfg["max_iter"]:
+            stop, msg = "max_iter", f"the iteration cap {cfg['max_iter']} was reached"
+        elif state.V.shape == state.V_last_converged.shape and np.array_equal(state.V, state.V_last_converged):
+            stop, msg = "diverged", ("a flow singularity (NaN, zero-area face or non-manifold edge): the last "
+                                     "mesh converged at a coarser edge length was returned")
+        else:
+            stop, msg = "converged", "every sphere tangent within tol, or no progress at the finest edge length"
+        V = np.asarray(state.V, dtype=np.float64) * scale + centre
+        mesh = trimesh.Trimesh(V, np.asarray(state.F, dtype=np.int64), process=False)
+        orient_outward(mesh)
+        info = {"iterations": its, "stop_reason": stop, "stop_message": msg, "samples_used": int(len(U)),
+                "final_edge_target_h": float(state.h) * scale / volume.h, "wall_flow_s": wall}
+        info.update({f"mesh_{k}": v for k, v in mesh_facts(mesh).items()})
+        return Reconstruction(mesh, info)

@@ -33,15 +33,17 @@ def volume(phantom: str, n: int) -> Volume:
     return get_phantom(phantom).volume(n=n)
 
 
-def offcentre_sphere() -> Volume:
-    """φ = |x − CENTRE| − RADIUS on a grid from CENTRE − (1.0, 1.1, 1.2) with SPACING: shape ≈ (47, 38, 33)."""
+def offcentre_sphere(coarsen: float = 1.0) -> Volume:
+    """φ = |x − CENTRE| − RADIUS on a grid from CENTRE − (1.0, 1.1, 1.2) with SPACING · coarsen: shape
+    (47, 36, 33) at coarsen = 1."""
     lo = CENTRE - np.array([1.0, 1.1, 1.2])
     hi = CENTRE + np.array([1.05, 1.0, 1.25])
-    shape = np.floor((hi - lo) / SPACING).astype(int) + 1
+    spacing = SPACING * coarsen
+    shape = np.floor((hi - lo) / spacing).astype(int) + 1
     idx = np.indices(shape).reshape(3, -1).T
-    pts = lo + idx * SPACING
+    pts = lo + idx * spacing
     values = (np.linalg.norm(pts - CENTRE, axis=1) - RADIUS).reshape(shape)
-    return Volume(values, origin=lo, spacing=SPACING)
+    return Volume(values, origin=lo, spacing=spacing)
 
 
 def sphere_errors(mesh) -> tuple[float, np.ndarray]:

@@ -16,7 +16,7 @@ from _peers_common import (PAPER_PHANTOMS, RADIUS, check_closed_outward, hausdor
                            sphere_errors, volume)
 
 N = 24
-CASES = [p if p == "sphere" else pytest.param(p, marks=pytest.mark.slow) for p in PAPER_PHANTOMS]
+CASES = PAPER_PHANTOMS        # 3 outer iterations: 1–2 s each
 
 
 @pytest.mark.parametrize("phantom", CASES)
@@ -29,6 +29,18 @@ def test_closed_outward_and_close(phantom):
     assert len(rec.mesh.faces) == 2 * rec.info["quads"]
 
 
+def test_reversed_quads_are_flipped_back():
+    """After a few outer iterations the library returns some quads reversed (the cylinder at N = 24 after 3);
+    the adapter's mesh is consistently wound all the same, and says how many triangles it flipped."""
+    from bench.metrics.validity import check_mesh
+
+    vol = volume("cylinder", N)
+    rec = get_method("dual_contouring", iterations=3).reconstruct(vol)
+    assert rec.info["triangles_flipped"] > 0
+    assert check_mesh(rec.mesh, vol) == []
+    check_closed_outward(rec.mesh, "dual_contouring on the cylinder")
+
+
 def test_bunny_is_close_but_not_manifold():
     """One vertex per cell cannot carry two sheets: where a grid cell's inside samples touch only diagonally
     (the bunny's ears and other features thinner than a cell, at N = 24 and still at 48), dual contouring
@@ -37,7 +49,8 @@ def test_bunny_is_close_but_not_manifold():
     from bench.metrics.validity import check_mesh
 
     vol = volume("bunny", N)
-    rec = get_method("dual_contouring", iterations=1).reconstruct(vol)
+    # the default 10 iterations: the vertex error is not monotone in them (0: 1.3 h, 1: 2.1 h, 3: 1.3 h, 10: 0.8 h)
+    rec = get_method("dual_contouring").reconstruct(vol)
     assert hausdorff_h(rec.mesh, "bunny", vol.h) <= 1.5
     reasons = check_mesh(rec.mesh, vol)
     assert any(r.startswith("non-manifold") for r in reasons), reasons

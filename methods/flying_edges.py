@@ -26,7 +26,7 @@ import trimesh
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, check_volume
-from .marching_cubes import _nudge_zeros, mesh_facts, orient_outward
+from .marching_cubes import _nudge_zeros, orient_outward
 
 __all__ = ["FlyingEdges", "flying_edges_arrays", "VTK_MISSING"]
 
@@ -103,6 +103,7 @@ class FlyingEdges(Method):
             mesh.update_faces(keep)
             mesh.remove_unreferenced_vertices()
         orient_outward(mesh)
+        # no mesh_facts() here: its connected components cost ≈ 5× the extraction at N = 192 (94 ms vs 19 ms),
+        # and `reconstruct` / the grid compute watertightness, χ and components themselves
         info = {"iterations": 0, "stop_reason": "done", "wall_fe_s": time.perf_counter() - t0}
-        info.update({f"mesh_{k}": v for k, v in mesh_facts(mesh).items()})
         return Reconstruction(mesh, info)

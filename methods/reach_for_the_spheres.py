@@ -23,7 +23,7 @@ which is the library's own default, twice the mean sample spacing).
 Samples.  ``samples = "all"`` (default) gives every grid sample, the paper's setting: ≈ N³ spheres, of
 which each step uses ``batch_size`` random ones plus every inside one (the library's batching).  ``"band"``
 gives every inside sample (φ < 0) and the outside samples with φ < ``band`` · h: cheaper steps (bunny,
-N = 48: 20 s instead of 45 s on a loaded machine, 0.81 h instead of 0.82 h), but fragile — without the far
+N = 48, loaded machine: 20 s instead of 45 s, Hausdorff 0.81 h either way), but fragile — without the far
 outside spheres nothing stops the surface from crumpling outwards, and at N = 96 with band = 4 the bunny's
 and the cortex's meshes grow without bound (75,000 vertices, 8 h on the cortex; band = 8 recovers the bunny).
 A two-sided band |φ| < band·h is worse still (the bunny crumples at N = 48).  The initial icosphere is put
@@ -32,8 +32,9 @@ plus h.
 
 Noise.  The library stops when every sphere is tangent within ``tol``, or after 100 steps without progress
 at the finest edge length.  On a noisy volume the first never happens, so every noisy cell pays the 100
-stalled steps (the paper phantoms with Gaussian noise at N = 96: the sphere 124 s with tol = 0.01, 6 s with
-tol = 0.02); the paper and real grids use tol = 0.02 (≈ 1 h at N = 96).
+stalled steps: on the paper grid (N = 96, loaded 2-core machine) the clean cells take 2–23 s, the noisy
+ones 13–87 s.  ``tol = 0.02`` would cut the noisy sphere from 66–124 s to 6 s, but stops the clean sphere
+after 2 steps off the zero set (median |φ| 0.57 h at the vertices: invalid), so the grids keep 0.01.
 
 Limits (the library's docstring and the paper): the result has the initial mesh's topology (genus 0); deep,
 narrow concavities (cortical sulci) are reached slowly and may self-intersect.

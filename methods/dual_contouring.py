@@ -120,7 +120,8 @@ class DualContouring(Method):
         mesh = trimesh.Trimesh(V, split_quads(V, Q), process=False)
         flipped = _fix_winding(mesh)
         orient_outward(mesh)
-        info = {"iterations": int(cfg["iterations"]), "stop_reason": "done",   # a fixed count: the library has no stop test
+        # a fixed count of iterations: the library has no stop test
+        info = {"iterations": int(cfg["iterations"]), "stop_reason": "done",
                 "samples_used": int(S.size), "quads": int(len(Q)), "triangles_flipped": flipped, "wall_dc_s": wall}
         info.update({f"mesh_{k}": v for k, v in mesh_facts(mesh).items()})
         return Reconstruction(mesh, info)

@@ -3,8 +3,9 @@ Reconstruction of SDFs", SIGGRAPH Asia 2023) — ``gpytoolbox.reach_for_the_sphe
 
 Each grid sample u with value φ(u) defines a sphere of radius |φ(u)| that the surface must be tangent to (and
 not cross).  An initial mesh (an icosphere around the inside samples) is flowed towards tangency with every
-sphere, with Botsch–Kobbelt remeshing inside the loop; the target edge length is halved whenever progress stalls, down to a minimum.  It
-is the direct peer of the suite's shape-gradient method: a flow of a genus-0 surface driven by the SDF samples.
+sphere, with Botsch–Kobbelt remeshing inside the loop; the target edge length is halved whenever progress
+stalls, down to a minimum.  It is the direct peer of the suite's shape-gradient method: a flow of a genus-0
+surface driven by the SDF samples.
 
 The adapter runs gpytoolbox's own iteration (``reach_for_the_spheres_iteration``) so it can report
 

@@ -1,7 +1,7 @@
 """Dual contouring of signed distance data (gpytoolbox): closed, outward, χ = 2 and within 1.5 h (symmetric
-Hausdorff, the suite's metric code) on the four paper phantoms at N = 24 (the implementation is slow: ≈ 0.5 s per
-outer iteration at this size); on the bunny close but with non-manifold edges (a limit of one vertex per cell); world coordinates on an anisotropic, off-centre grid; the quad
-split; the band of samples."""
+Hausdorff, the suite's metric code) on the four paper phantoms at N = 24 (the implementation is slow: ≈ 0.5 s
+per outer iteration at this size); on the bunny close but with non-manifold edges (a limit of one vertex per
+cell); world coordinates on an anisotropic, off-centre grid; the quad split; reversed quads; the band."""
 
 from __future__ import annotations
 

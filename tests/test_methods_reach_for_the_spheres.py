@@ -65,3 +65,10 @@ def test_sample_selection():
         get_method("reach_for_the_spheres", samples="some")
     with pytest.raises(InputError, match="parameter 'edge_length'.*below the minimum"):
         get_method("reach_for_the_spheres", edge_length=0.0)
+
+
+def test_vertex_guard_stops_a_growing_mesh():
+    """The guard against a crumpling flow: past max_vertices the run stops as 'diverged' and says why."""
+    rec = get_method("reach_for_the_spheres", max_vertices=100).reconstruct(volume("sphere", 32))
+    assert rec.info["stop_reason"] == "diverged" and "max_vertices = 100" in rec.info["stop_message"]
+    assert rec.info["iterations"] == 1 and len(rec.mesh.vertices) > 100

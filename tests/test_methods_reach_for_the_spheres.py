@@ -71,4 +71,5 @@ def test_vertex_guard_stops_a_growing_mesh():
     """The guard against a crumpling flow: past max_vertices the run stops as 'diverged' and says why."""
     rec = get_method("reach_for_the_spheres", max_vertices=100).reconstruct(volume("sphere", 32))
     assert rec.info["stop_reason"] == "diverged" and "max_vertices = 100" in rec.info["stop_message"]
-    assert rec.info["iterations"] == 1 and len(rec.mesh.vertices) > 100
+    # the remesher first coarsens the 162-vertex icosphere, then refines past 100 as the edge target halves
+    assert rec.info["iterations"] >= 1 and len(rec.mesh.vertices) > 100

@@ -38,6 +38,9 @@ BUILTIN_METHODS: dict[str, str] = {
     "mc_taubin": "methods.mc_taubin:MCTaubin",
     "distmesh": "methods.distmesh:DistMesh",
     "poisson": "methods.poisson:ScreenedPoisson",
+    "reach_for_the_spheres": "methods.reach_for_the_spheres:ReachForTheSpheres",
+    "dual_contouring": "methods.dual_contouring:DualContouring",
+    "flying_edges": "methods.flying_edges:FlyingEdges",
 }
 
 

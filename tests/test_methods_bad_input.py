@@ -10,7 +10,8 @@ from methods import BUILTIN_METHODS, Param, available_methods, get_method
 from methods.marching_cubes import mesh_facts
 from phantoms import InputError, Volume, get_phantom
 
-BASELINES = ["marching_cubes", "mc_taubin", "distmesh", "poisson"]
+BASELINES = ["marching_cubes", "mc_taubin", "distmesh", "poisson", "flying_edges", "reach_for_the_spheres",
+             "dual_contouring"]
 
 
 @pytest.fixture(scope="module")

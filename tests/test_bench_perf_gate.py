@@ -285,7 +285,7 @@ def test_perf_runs_a_benchmark_and_records_its_ratio(tmp_path):
     """The real pipeline on the cheapest benchmark: pytest-benchmark JSON → ratio to the reference → summary."""
     out = tmp_path / "mc.json"
     env = dict(os.environ, LSB_PERF_REF_ROUNDS="3", LSB_PERF_REF_TOPUP="1")
-    proc = subprocess.run([sys.executable, "-m", "bench", "perf", "-k", "marching_cubes", "--rounds", "3",
+    proc = subprocess.run([sys.executable, "-m", "bench", "perf", "-k", "marching_cubes_ellipsoid_n96", "--rounds", "3",
                            "--save", str(out)], cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     data = json.loads(out.read_text())

@@ -76,15 +76,21 @@ def summarise(raw: dict) -> dict:
     }
 
 
-def load_summary(path: str | Path) -> dict:
-    """Read a perf summary or a raw pytest-benchmark JSON file (:class:`InputError` if unreadable)."""
+def read_json_file(path: str | Path):
+    """The parsed JSON of ``path``; an unreadable or non-JSON file → :class:`InputError` naming it."""
     p = Path(path)
     try:
-        raw = json.loads(p.read_text(encoding="utf-8"))
+        return json.loads(p.read_text(encoding="utf-8"))
     except OSError as exc:
         raise InputError(f"cannot read {str(p)!r}: {exc.strerror or exc}") from None
     except ValueError as exc:
         raise InputError(f"{str(p)!r} is not JSON: {exc}") from None
+
+
+def load_summary(path: str | Path) -> dict:
+    """Read a perf summary or a raw pytest-benchmark JSON file (:class:`InputError` if unreadable)."""
+    p = Path(path)
+    raw = read_json_file(p)
     if not isinstance(raw, dict):
         raise InputError(f"{str(p)!r}: not a perf summary")
     try:

@@ -31,6 +31,8 @@ from pathlib import Path
 
 from phantoms import InputError
 
+from .baseline import read_json_file
+
 __all__ = ["QUALITY_FORMAT", "QUALITY_BASELINE", "QUALITY_CONFIGS", "TOLERANCES", "Tolerance", "run_quality",
            "cells_from_rows", "load_quality", "save_quality", "quality_gate", "QualityResult",
            "format_quality"]
@@ -149,12 +151,7 @@ def run_quality(configs=None, *, jobs: int | None = 2, progress: bool = False) -
 
 def load_quality(path: str | Path) -> dict:
     p = Path(path)
-    try:
-        raw = json.loads(p.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"cannot read {str(p)!r}: {exc.strerror or exc}") from None
-    except ValueError as exc:
-        raise InputError(f"{str(p)!r} is not JSON: {exc}") from None
+    raw = read_json_file(p)
     if not isinstance(raw, dict) or raw.get("format") != QUALITY_FORMAT or not isinstance(raw.get("cells"), dict):
         raise InputError(f"{str(p)!r}: not a quality summary (format {QUALITY_FORMAT})")
     return raw

@@ -87,12 +87,17 @@ class ShapeGradient(Method):
         "move_tol": Param(0.01, "stop ('converged') when the largest normal move per iteration stays below "
                           "move_tol voxels for 3 iterations (0 = off): the surface has stopped and the energy "
                           "only changes by the tangential relaxation", float, min=0.0),
-        "init": Param("auto", "initial surface: 'auto' = a sphere enclosing the region φ < 0 (its bounding "
-                      "sphere plus 2 voxels) meshed at edge_length; 'sphere' = the Fibonacci sphere of init_radius "
-                      "/ init_vertices / init_center (the paper's Γ0); init_mesh overrides both", str,
-                      choices=("auto", "sphere")),
-        "edge_length": Param(1.0, "target edge length of the initial sphere (init='auto') and of the remeshing, "
-                             "in voxels", float, min=0.1, max=20.0),
+        "init": Param("genus0", "initial surface: 'genus0' = a genus-0 surface of the volume itself: the region "
+                      "φ < 0 (pre-smoothed on noisy volumes) grown from its deepest sample keeping only simple points "
+                      "(one component, no handle, no cavity: where sulcal banks or thin parts merge at grid "
+                      "resolution the growth stops at the thinnest place), then marching cubes with its ambiguous "
+                      "cells resolved to that topology (falls back to 'auto' if that fails); 'auto' = a sphere "
+                      "enclosing the region φ < 0 (its bounding sphere plus 2 voxels) meshed at edge_length; "
+                      "'sphere' = the Fibonacci sphere of init_radius / init_vertices / init_center (the paper's "
+                      "Γ0); init_mesh overrides all", str, choices=("genus0", "auto", "sphere")),
+        "edge_length": Param(0.5, "target edge length of the initial sphere (init='auto') and of the remeshing, "
+                             "in voxels; 0.5 keeps parts a voxel thin (the bunny's ear tips are lost at 1)",
+                             float, min=0.1, max=20.0),
         "coarse_to_fine": Param(False, "two stages: first the data term alone (β = 0) draws the surface into "
                                 "concavities and sulci (the alignment term resists the intermediate shapes), then "
                                 "the configured β smooths and aligns it; a stage ends when the flow settles. False "
@@ -169,12 +174,16 @@ class ShapeGradient(Method):
         cfg["stages"] = [{"beta": cfg["beta"], "edge_length": cfg["edge_length"]}]
         if cfg["coarse_to_fine"] and cfg["remesh_every"] > 0 and cfg["beta"] > 0:
             cfg["stages"].insert(0, {"beta": 0.0, "edge_length": cfg["edge_length"]})
-        x, faces, flipped, init_facts = initial_surface(cfg, volume)
         noise = estimate_noise(volume)
         cfg["s_world"] = cfg["s"] * volume.h ** 2
         sigma = cfg["presmooth"]
         if sigma == "auto":
             sigma = _AUTO_PRESMOOTH_SIGMA if noise >= _AUTO_PRESMOOTH_NOISE * volume.h else 0.0
+        values = None
+        if sigma > 0 and cfg["init"] == "genus0" and cfg["init_mesh"] is None:
+            from scipy.ndimage import gaussian_filter
+            values = gaussian_filter(volume.values, float(sigma), mode="nearest")
+        x, faces, flipped, init_facts = initial_surface(cfg, volume, values=values)
         cfg["presmooth_used"] = float(sigma)
         clean = noise < _AUTO_PRESMOOTH_NOISE * volume.h
         cfg["polish_used"] = cfg["polish"] == "on" or (cfg["polish"] == "auto" and clean)

@@ -13,7 +13,8 @@ from phantoms import InputError, Volume
 #: the enclosing sphere of init='auto' clears the inside grid points by this many voxels
 _INIT_MARGIN_VOXELS = 2.0
 
-__all__ = ["parse_snapshots", "prepare_init_mesh", "initial_surface", "enclosing_sphere", "target_topology"]
+__all__ = ["parse_snapshots", "prepare_init_mesh", "initial_surface", "enclosing_sphere", "genus0_surface",
+           "target_topology"]
 
 
 def parse_snapshots(value) -> tuple[int, ...]:
@@ -110,18 +111,29 @@ def prepare_init_mesh(mesh) -> tuple[np.ndarray, np.ndarray, bool]:
 
 
 
-def initial_surface(cfg: dict, volume: Volume, edge_length_voxels: float | None = None):
+def initial_surface(cfg: dict, volume: Volume, edge_length_voxels: float | None = None,
+                    values: np.ndarray | None = None):
     """(vertices, faces, flipped, facts) of the initial surface the config asks for, checked to lie in the grid.
 
-    ``init_mesh`` given: that mesh; ``init='auto'``: :func:`enclosing_sphere` at ``edge_length_voxels`` (default:
-    the config's edge length);
-    ``init='sphere'``: the Fibonacci sphere of ``init_vertices`` / ``init_radius`` / ``init_center``.
+    ``init_mesh`` given: that mesh; ``init='genus0'``: :func:`genus0_surface` of ``values`` (default: the
+    volume's samples; the method passes its pre-smoothed samples on noisy volumes), or the enclosing sphere if
+    that fails; ``init='auto'``: :func:`enclosing_sphere` at ``edge_length_voxels`` (default: the config's edge
+    length); ``init='sphere'``: the Fibonacci sphere of ``init_vertices`` / ``init_radius`` / ``init_center``.
     """
     flipped = False
     facts: dict = {"kind": cfg["init"] if cfg["init_mesh"] is None else "mesh"}
-    if cfg["init_mesh"] is not None:
+    x = None
+    if cfg["init_mesh"] is None and cfg["init"] == "genus0":
+        x, faces, more = genus0_surface(volume, volume.values if values is None else values)
+        facts.update(more)
+        if x is None:
+            facts["kind"] = "auto"
+            facts["fallback"] = "the genus-0 start failed (" + more["disambiguation"] + "): enclosing sphere"
+    if x is not None:
+        pass
+    elif cfg["init_mesh"] is not None:
         x, faces, flipped = prepare_init_mesh(cfg["init_mesh"])
-    elif cfg["init"] == "auto":
+    elif cfg["init"] in ("auto", "genus0"):
         ell = cfg["edge_length"] if edge_length_voxels is None else edge_length_voxels
         x, faces, more = enclosing_sphere(volume, ell * volume.h, _INIT_MARGIN_VOXELS * volume.h)
         facts.update(more)
@@ -179,6 +191,40 @@ def target_topology(volume: Volume) -> dict:
         out["message"] = (f"the region φ < 0 has {what} at grid resolution, but the method evolves one genus-0 "
                           "surface: the result cannot have the target's topology")
     return out
+
+
+def genus0_surface(volume: Volume, values: np.ndarray):
+    """(vertices, faces, facts) of a genus-0 surface of the region ``values < 0`` (world coordinates, outward),
+    or ``(None, None, facts)`` when no attempt gave one.
+
+    The region is grown from its deepest sample, in order of φ, keeping only simple points
+    (:func:`geometry.digital.homotopic_growth`): a solid with one component, no handle and no cavity that takes
+    every inside sample except where the sampled region has a handle (two sulcal banks closer than a voxel), where
+    it stops at the thinnest place.  Its marching-cubes surface (:func:`geometry.digital.ball_field`) is one closed
+    genus-0 surface within a fraction of a voxel of φ = 0 elsewhere.  Facts: samples inside / in the solid / left
+    out, how marching cubes' ambiguous cells were resolved.
+    """
+    from geometry.digital import ball_field, homotopic_growth
+
+    values = np.asarray(values, dtype=np.float64)
+    inside = values < 0
+    solid = homotopic_growth(values, 0.0)
+    facts = {"inside_samples": int(inside.sum()), "solid_samples": int(solid.sum()),
+             "left_out_samples": int((inside & ~solid).sum()), "disambiguation": "failed"}
+    if not solid.any():
+        raise InputError("method 'shape_gradient': no sample of the volume is inside (φ < 0) away from the box's "
+                         "outer layer — there is no surface to reconstruct")
+    _, mesh, how = ball_field(values, solid, volume.h)
+    facts["disambiguation"] = how
+    if mesh is None:
+        return None, None, facts
+    v_idx, faces = mesh
+    x = volume.index_to_world(v_idx)
+    cross = np.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])
+    if float(np.einsum("ij,ij->i", x[faces[:, 0]], cross).sum()) < 0:
+        faces = faces[:, ::-1]
+    facts["vertices"] = int(len(x))
+    return x, np.ascontiguousarray(faces), facts
 
 
 def enclosing_sphere(volume: Volume, edge_length: float, margin: float) -> tuple[np.ndarray, np.ndarray, dict]:

@@ -1,0 +1,76 @@
+"""The genus-0 start (init='genus0', the default): a closed genus-0 surface of the volume itself, on targets
+with and without one genus-0 surface, clean and noisy (methods/shape_gradient/start.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from geometry.intersections import self_intersection_pairs
+from methods.shape_gradient import ShapeGradient
+from methods.shape_gradient.remesh import is_sphere_like
+from methods.shape_gradient.start import genus0_surface
+from phantoms import InputError, add_noise, get_phantom
+from phantoms.base import grid_volume
+
+
+def test_the_start_of_a_torus_is_the_torus_cut_open():
+    ph = get_phantom("torus")
+    vol = ph.volume(n=40)
+    x, f, facts = genus0_surface(vol, vol.values)
+    assert is_sphere_like(f, len(x))
+    assert trimesh.Trimesh(x, f).volume > 0                              # outward
+    assert facts["left_out_samples"] > 0 and facts["solid_samples"] + facts["left_out_samples"] == \
+        facts["inside_samples"]
+    d = np.abs(ph.sdf(x))
+    assert np.median(d) < 0.05 * vol.h and np.mean(d > 0.5 * vol.h) < 0.05   # on the torus except at the cut
+
+
+def test_the_start_of_a_sphere_is_on_the_sphere_and_in_world_coordinates():
+    # anisotropic, off-centre: the start must be in world units (origin + index · spacing)
+    from phantoms import Volume
+    n = (30, 36, 26)
+    spacing = np.array([0.09, 0.07, 0.1])
+    origin = np.array([-1.0, -1.5, -0.9])
+    idx = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), axis=-1)
+    p = origin + idx * spacing
+    c = np.array([0.3, -0.2, 0.35])
+    vol = Volume(np.linalg.norm(p - c, axis=-1) - 0.7, origin, spacing)
+    x, f, facts = genus0_surface(vol, vol.values)
+    assert facts["left_out_samples"] == 0 and facts["disambiguation"] == "gentle"
+    assert np.abs(np.linalg.norm(x - c, axis=1) - 0.7).max() < 0.02
+
+
+def test_no_inside_sample_is_a_clear_error():
+    # inside only on the box's outer layer (x = −2.5): nothing a closed surface in the box can enclose (the method
+    # itself refuses such a volume earlier, as an open level set)
+    vol = grid_volume(lambda p: p[:, 0] + 2.4, n=16)
+    with pytest.raises(InputError, match="no sample of the volume is inside"):
+        genus0_surface(vol, vol.values)
+    with pytest.raises(InputError, match="open"):
+        ShapeGradient().reconstruct(vol)
+
+
+def test_two_spheres_give_one_of_them_and_say_so():
+    def two(p):
+        return np.minimum(np.linalg.norm(p - [0.9, 0, 0], axis=1) - 0.7, np.linalg.norm(p + [0.9, 0, 0], axis=1) - 0.5)
+    vol = grid_volume(two, n=40)
+    r = ShapeGradient().reconstruct(vol)
+    assert not r.info["topology"]["compatible"] and r.info["init"]["kind"] == "genus0"
+    c = r.mesh.vertices.mean(axis=0)
+    assert c[0] > 0.7                                               # the larger sphere
+    assert np.abs(np.linalg.norm(r.mesh.vertices - [0.9, 0, 0], axis=1) - 0.7).max() < 0.5 * vol.h
+
+
+def test_a_noisy_volume_starts_from_the_smoothed_samples():
+    ph = get_phantom("sphere")
+    vol, _ = add_noise(ph.volume(n=40), "gaussian", 30.0, seed=1)
+    plain = genus0_surface(vol, vol.values)
+    r = ShapeGradient(max_iter=20).reconstruct(vol)
+    assert r.info["presmooth_used"] > 0
+    v0, f0 = r.info["snapshots"][0]
+    # the smoothed start has fewer vertices and is smoother than the start from the raw noisy samples
+    assert len(v0) < len(plain[0])
+    assert np.std(ph.sdf(v0)) < np.std(ph.sdf(plain[0]))
+    assert is_sphere_like(f0, len(v0)) and len(self_intersection_pairs(v0, f0)) == 0

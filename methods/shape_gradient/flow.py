@@ -93,7 +93,9 @@ class ShapeGradientFlow:
         self.moves: list[float] = []
         self._polished = None
         self.guard = bool(cfg.get("guard", False))
-        if self.guard:
+        if self.remesh_every and cfg.get("remesh_start"):
+            self._remesh_and_guard(0)                # a start with marching cubes' slivers: isotropic first
+        elif self.guard:
             self._guard(0)                           # the start: the first safe state (or repaired)
 
     # ------------------------------------------------------------------ one iteration

@@ -184,6 +184,7 @@ class ShapeGradient(Method):
             from scipy.ndimage import gaussian_filter
             values = gaussian_filter(volume.values, float(sigma), mode="nearest")
         x, faces, flipped, init_facts = initial_surface(cfg, volume, values=values)
+        cfg["remesh_start"] = init_facts["kind"] == "genus0"
         cfg["presmooth_used"] = float(sigma)
         clean = noise < _AUTO_PRESMOOTH_NOISE * volume.h
         cfg["polish_used"] = cfg["polish"] == "on" or (cfg["polish"] == "auto" and clean)

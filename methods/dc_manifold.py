@@ -302,17 +302,20 @@ def fan_triangles(polys: list[list[int]], first_id: int) -> np.ndarray:
 TUNNEL_CUBES = np.array([(1 << c) | (1 << (7 - c)) for c in range(4)])
 
 
-def _link(faces: np.ndarray, v: int) -> tuple[np.ndarray, list[int] | None]:
+def _link(faces: list, incident: dict, v: int) -> tuple[list[int], list[int] | None]:
     """The triangles around ``v`` and their outer boundary as one ordered cycle (a → b for each triangle
     (v, a, b)); None when it is not a single simple cycle."""
-    around = np.flatnonzero((faces == v).any(axis=1))
+    around = sorted(incident[v])
     nxt = {}
-    for f in faces[around]:
-        k = int(np.flatnonzero(f == v)[0])
-        a, b = int(f[(k + 1) % 3]), int(f[(k + 2) % 3])
+    for i in around:
+        f = faces[i]
+        k = f.index(v)
+        a, b = f[(k + 1) % 3], f[(k + 2) % 3]
         if a in nxt:
             return around, None
         nxt[a] = b
+    if not nxt:
+        return around, None
     cycle = [next(iter(nxt))]
     while len(cycle) <= len(nxt):
         b = nxt.get(cycle[-1])
@@ -365,21 +368,36 @@ def bridge_tunnels(vertices: np.ndarray, faces: np.ndarray, pairs: np.ndarray) -
     """Join the two patch vertices of every tunnel cell (two opposite inside corners, which the grid's
     26-connectivity links through the cell) into a tube: both vertices' fans are removed and their boundary
     cycles joined by a strip.  Returns (faces, tubes made); a pair whose fans are not simple disks, or whose
-    boundaries touch, stays two caps."""
+    boundaries touch, or that no edge-manifold strip joins, stays two caps.  Each tunnel costs the size of
+    its neighbourhood (a vertex → faces index kept up to date), not of the mesh."""
+    if len(pairs) == 0:
+        return faces, 0
+    tri = faces.tolist()
+    alive = [True] * len(tri)
+    incident: dict[int, set] = {}
+    for i, f in enumerate(tri):
+        for v in f:
+            incident.setdefault(v, set()).add(i)
     made = 0
-    for v1, v2 in pairs:
-        f1, p = _link(faces, int(v1))
-        f2, q = _link(faces, int(v2))
+    for v1, v2 in pairs.tolist():
+        f1, p = _link(tri, incident, v1)
+        f2, q = _link(tri, incident, v2)
         if p is None or q is None or set(p) & set(q):
             continue
-        keep = np.ones(len(faces), bool)
-        keep[f1] = keep[f2] = False
-        rest = faces[keep]
-        taken = set(map(tuple, np.sort(np.concatenate([rest[:, [0, 1]], rest[:, [1, 2]], rest[:, [2, 0]]]),
-                                       axis=1).tolist()))
+        gone = set(f1) | set(f2)
+        near = set().union(*(incident[v] for v in p + q)) - gone
+        taken = {_pair(tri[i][a], tri[i][(a + 1) % 3]) for i in near for a in range(3)}
         strip = _strip(vertices, p, q, taken)
         if strip is None:
             continue
-        faces = np.concatenate([rest, np.array(strip, np.int64)])
+        for i in gone:
+            alive[i] = False
+            for v in tri[i]:
+                incident[v].discard(i)
+        for t in strip:
+            for v in t:
+                incident[v].add(len(tri))
+            tri.append(t)
+            alive.append(True)
         made += 1
-    return faces, made
+    return np.array([f for f, keep in zip(tri, alive) if keep], np.int64).reshape(-1, 3), made

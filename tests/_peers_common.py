@@ -3,6 +3,7 @@ flying_edges); not collected (the name starts with an underscore).
 
 * :func:`volume` – a phantom's clean sdf volume at N, built once per session;
 * :func:`check_closed_outward` – watertight, one component, χ = 2, consistent winding, outward;
+* :func:`edge_and_vertex_manifold` – every edge in two faces (once each way), every vertex's faces one disk;
 * :func:`hausdorff_h` – the symmetric Hausdorff distance to the phantom's true surface in grid spacings,
   with the suite's own metric code (bench.metrics: the phantom's exact distance for mesh → truth, pymeshlab's
   exact point-to-triangle distance for truth → mesh);
@@ -73,3 +74,26 @@ def hausdorff_h(mesh, phantom: str, h: float, n_samples: int = 20000, seed: int 
     true_pts, _ = truth.sample_surface(n_samples, seed)
     d_tr = float(point_mesh_distance(true_pts, v, f).max())
     return max(d_rt, d_tr) / h
+
+
+def edge_and_vertex_manifold(mesh) -> bool:
+    """Every edge in exactly two faces, once in each direction, and every vertex's faces one fan (a disk)."""
+    f = np.asarray(mesh.faces)
+    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    if len(np.unique(directed, axis=0)) != len(directed):
+        return False                                            # an edge twice in one direction
+    und, counts = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
+    if not (counts == 2).all():
+        return False
+    nxt: dict = {}
+    for a, b, c in f.tolist():
+        for v, x, y in ((a, b, c), (b, c, a), (c, a, b)):
+            nxt.setdefault(v, {})[x] = y
+    for ring in nxt.values():                                   # each vertex's link: one cycle through all
+        start = next(iter(ring))
+        steps, cur = 1, ring[start]
+        while cur != start and cur in ring and steps <= len(ring):
+            cur, steps = ring[cur], steps + 1
+        if cur != start or steps != len(ring):
+            return False
+    return True

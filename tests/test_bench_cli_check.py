@@ -35,8 +35,6 @@ def broken(monkeypatch):
 #: built-ins that check-method fails, for limits of the method itself (measured; the failure is asserted, so a fix
 #: shows up as an unexpected pass)
 KNOWN_FAILURES = {
-    "dual_contouring": "one vertex per cell: on the noisy sphere at N = 24 the mesh has non-manifold, "
-                       "inconsistently oriented edges where noise puts two sheets in a cell",
     "reach_for_the_spheres": "the flow diverges on the anisotropic off-centre ellipsoid and on the torus at N = 24 "
                              "(the mesh grows past its vertex guard, some vertices leave the box)",
 }

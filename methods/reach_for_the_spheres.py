@@ -52,9 +52,15 @@ import trimesh
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
-from .marching_cubes import mesh_facts, orient_outward
+from .marching_cubes import marching_cubes_mesh, mesh_facts, orient_outward
 
-__all__ = ["ReachForTheSpheres", "grid_samples"]
+__all__ = ["ReachForTheSpheres", "grid_samples", "distance_reading", "zero_set_distance", "initial_ellipsoid"]
+
+#: the distance test: |φ| is read as a distance when the median of |φ| / (distance to the zero set) over the
+#: samples 2–6 h from the surface is within 15 % of 1 ...
+DISTANCE_TOL = 0.15
+#: ... and a field whose ratio spreads more than this (90th / 10th percentile) is too noisy to judge
+DISTANCE_SPREAD = 2.0
 
 
 def grid_samples(volume: Volume, samples: str, band: float) -> tuple[np.ndarray, np.ndarray]:
@@ -69,6 +75,52 @@ def grid_samples(volume: Volume, samples: str, band: float) -> tuple[np.ndarray,
     return volume.origin + idx * volume.spacing, v[mask]
 
 
+def zero_set_distance(volume: Volume, points: np.ndarray, name: str = "reach_for_the_spheres") -> np.ndarray:
+    """Unsigned distance from ``points`` (world, (K, 3)) to φ's zero set, triangulated by marching cubes
+    (the zero set of the trilinear interpolant along the grid edges; within O(h²) of a smooth surface)."""
+    import gpytoolbox as gpy
+
+    mc = marching_cubes_mesh(volume, name=name)
+    d2 = gpy.squared_distance(np.asarray(points, float), np.asarray(mc.vertices, float),
+                              np.asarray(mc.faces, np.int64), use_cpp=True, use_aabb=True)[0]
+    return np.sqrt(d2)
+
+
+def distance_reading(volume: Volume) -> dict:
+    """Is |φ| a distance?  ``{"ratio": median, "spread": p90 / p10, "is_distance": bool}`` of |φ| / d over the
+    grid samples 2–6 h from the zero set, d = :func:`zero_set_distance`.  An exact signed distance reads
+    0.99–1.0 (bunny and cortex 0.96–0.99), one with paper-SNR noise 1.02–1.03; the paper's polynomial sphere
+    2.1, an ellipsoid's normalised implicit 0.74.  A field too noisy for marching cubes to give a surface
+    (spread > 2, e.g. SNR 20 dB: 1.3–10) counts as a distance: it is given to the method as it is."""
+    a = np.abs(volume.values)
+    band = (a > 2 * volume.h) & (a < 6 * volume.h)
+    if band.sum() < 10:
+        return {"ratio": float("nan"), "spread": float("nan"), "is_distance": True}
+    pts = volume.origin + np.argwhere(band) * volume.spacing
+    r = a[band] / np.maximum(zero_set_distance(volume, pts), 1e-12 * volume.h)
+    p10, p50, p90 = np.percentile(r, [10, 50, 90])
+    spread = float(p90 / max(p10, 1e-12))
+    ok = abs(p50 - 1.0) <= DISTANCE_TOL or spread > DISTANCE_SPREAD
+    return {"ratio": float(p50), "spread": spread, "is_distance": bool(ok)}
+
+
+def initial_ellipsoid(volume: Volume, subdivisions: int, size: float) -> tuple[np.ndarray, np.ndarray]:
+    """The start: an icosphere scaled per axis to the ellipsoid through the corners of the inside samples'
+    bounding box (semi-axes √3 × its half-sides, times ``size``, plus h), centred on that box, and clipped to
+    end one grid step inside the grid box on each side — where the samples' spheres can still push it."""
+    import gpytoolbox as gpy
+
+    V0, F0 = gpy.icosphere(subdivisions)
+    inside = np.argwhere(volume.values < 0)
+    lo, hi = volume.origin, volume.origin + (np.asarray(volume.shape) - 1) * volume.spacing
+    in_lo, in_hi = volume.origin + inside.min(0) * volume.spacing, volume.origin + inside.max(0) * volume.spacing
+    centre = 0.5 * (in_lo + in_hi)
+    semi = size * np.sqrt(3.0) * 0.5 * (in_hi - in_lo) + volume.h
+    room = np.minimum(hi - centre, centre - lo) - volume.spacing
+    semi = np.maximum(np.minimum(semi, room), volume.spacing)
+    return V0 * semi + centre, F0
+
+
 class ReachForTheSpheres(Method):
     name = "reach_for_the_spheres"
     description = ("Reach for the Spheres (Sellán, Batty & Stein 2023, gpytoolbox): an icosphere flowed to "
@@ -76,9 +128,9 @@ class ReachForTheSpheres(Method):
     params = {
         "init_subdivisions": Param(2, "the initial mesh: an icosphere with this many subdivisions (2 = 162 "
                                       "vertices, the library's example)", type=int, min=0, max=6),
-        "init_radius": Param(1.0, "the icosphere's radius as a multiple of the sphere around the inside "
-                                  "samples' bounding box (centred on it; 1 = that circumscribed sphere plus one h)",
-                             type=float, min=0.1, max=3.0),
+        "init_radius": Param(1.0, "the start's size: its semi-axes are this × √3 × the half-sides of the inside "
+                                  "samples' bounding box, plus one h (1 = through the box's corners), clipped to "
+                                  "one h inside the grid box", type=float, min=0.1, max=3.0),
         "edge_length": Param(2.0, "the finest target edge length, in grid spacings h (the library's default "
                                   "is twice the mean sample spacing, i.e. 2 h)", type=float, min=0.25, max=20.0),
         "max_iter": Param(2000, "iteration cap (the library's default is 20000)", type=int, min=1,
@@ -90,14 +142,32 @@ class ReachForTheSpheres(Method):
                          choices=("all", "band")),
         "band": Param(4.0, "outside width of the band in grid spacings h (with samples = 'band')", type=float,
                       min=1.0, max=100.0),
-        "max_vertices": Param(None, "stop (stop_reason 'diverged') when the mesh has more vertices than this; "
-                                    "default: the number of grid samples with |φ| < h (≈ 2× a marching-cubes mesh, "
-                                    "≈ 4× what 2 h edges need) — the flow crumples on some shapes (the cortex at "
-                                    "N = 96 grows past 30,000 vertices in 85 steps, each slower)", type=int,
-                            min=4, max=10**8),
+        "redistance": Param("auto", "the sphere radii: 'auto' = |φ| when it reads as a distance (see the module "
+                                    "docstring), else the distance to φ's zero set; 'yes' = always that distance; "
+                                    "'no' = always |φ|", type=str, choices=("auto", "yes", "no")),
+        "max_vertices": Param(None, "the divergence guard: the run fails (ReconstructionFailed) when the mesh has "
+                                    "more vertices than this; default: the number of grid samples with |φ| < h "
+                                    "(≈ 2× a marching-cubes mesh, ≈ 4× what 2 h edges need)", type=int,
+                              min=4, max=10**8),
         "batch_size": Param(20000, "samples drawn at random per step (plus every inside sample), the "
                                    "library's batching; 0 = all every step", type=int, min=0, max=10**8),
     }
+
+    def _radii(self, volume: Volume, S: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, dict]:
+        mode = self.config["redistance"]
+        reading = distance_reading(volume) if mode == "auto" else {}
+        if mode == "yes" or (mode == "auto" and not reading["is_distance"]):
+            S = np.sign(S) * zero_set_distance(volume, U, self.name)
+            return S, {"redistanced": True, **{f"distance_{k}": v for k, v in reading.items()}}
+        return S, {"redistanced": False, **{f"distance_{k}": v for k, v in reading.items()}}
+
+    def _diverged(self, volume: Volume, state, its: int, why: str) -> ReconstructionFailed:
+        from .shape_gradient.start import target_topology
+
+        topo = target_topology(volume)
+        note = (f"; {topo['message']}" if not topo["compatible"] else
+                "; the region φ < 0 reads as one genus-0 solid, so try a smaller edge_length or samples = 'all'")
+        return ReconstructionFailed(f"method {self.name!r}: the flow diverged at iteration {its}: {why}{note}")
 
     def reconstruct(self, volume: Volume) -> Reconstruction:
         import gpytoolbox as gpy
@@ -107,34 +177,37 @@ class ReachForTheSpheres(Method):
         U, S = grid_samples(volume, cfg["samples"], cfg["band"])
         if len(U) < 10:
             raise InputError(f"method {self.name!r}: only {len(U)} grid samples in the band; widen 'band'")
+        S, radii_info = self._radii(volume, S, U)
         # map the grid box to [-1, 1]^3 (uniform scale) where the library's defaults are meant to work
         lo = volume.origin
         hi = volume.origin + (np.asarray(volume.shape) - 1) * volume.spacing
         centre, scale = 0.5 * (lo + hi), 0.5 * float((hi - lo).max())
-        Un, Sn = (U - centre) / scale, S / scale
-        V0, F0 = gpy.icosphere(cfg["init_subdivisions"])
-        inside = np.argwhere(volume.values < 0)
-        in_lo, in_hi = (volume.origin + inside.min(0) * volume.spacing, volume.origin + inside.max(0) * volume.spacing)
-        radius = cfg["init_radius"] * (0.5 * float(np.linalg.norm(in_hi - in_lo)) + volume.h)
-        V0 = (V0 * radius + 0.5 * (in_lo + in_hi) - centre) / scale
+        V0, F0 = initial_ellipsoid(volume, cfg["init_subdivisions"], cfg["init_radius"])
+        V0 = (V0 - centre) / scale
         min_h = cfg["edge_length"] * volume.h / scale
-        state = gpy.ReachForTheSpheresState(V=V0, F=F0, U=Un, S=Sn, sdf=None, h=max(0.2, min_h), min_h=min_h)
-        t0 = time.perf_counter()
+        state = gpy.ReachForTheSpheresState(V=V0, F=F0, U=(U - centre) / scale, S=S / scale, sdf=None,
+                                            h=max(0.2, min_h), min_h=min_h)
         cap = cfg["max_vertices"] or max(int((np.abs(volume.values) < volume.h).sum()), 4 * len(V0))
-        done = crumpled = False
+        box_lo, box_hi = (lo - centre - 2 * volume.h) / scale, (hi - centre + 2 * volume.h) / scale
+        t0, done = time.perf_counter(), False
         try:
-            while not (done or crumpled):
+            while not done:
                 done = gpy.reach_for_the_spheres_iteration(
                     state, max_iter=cfg["max_iter"], tol=cfg["tol"], batch_size=cfg["batch_size"])
-                crumpled = len(state.V) > cap
+                if len(state.V) > cap:
+                    raise self._diverged(volume, state, state.its, f"the mesh grew past max_vertices = {cap} "
+                                         f"({len(state.V)} vertices): it crumples")
+                out = ((state.V < box_lo) | (state.V > box_hi)).any(1).sum()
+                if out:
+                    raise self._diverged(volume, state, state.its, f"{out} vertices left the grid box by more "
+                                         "than 2 h, where no sample's sphere holds them")
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
+            if isinstance(exc, ReconstructionFailed):
+                raise
             raise ReconstructionFailed(f"method {self.name!r}: the flow failed at iteration {state.its} ({exc})")
         wall = time.perf_counter() - t0
         its = int(state.its)
-        if crumpled:
-            stop, msg = "diverged", (f"the mesh grew past max_vertices = {cap} ({len(state.V)} vertices): the flow "
-                                     "crumples; the current mesh is returned")
-        elif its >= cfg["max_iter"]:
+        if its >= cfg["max_iter"]:
             stop, msg = "max_iter", f"the iteration cap {cfg['max_iter']} was reached"
         elif state.V.shape == state.V_last_converged.shape and np.array_equal(state.V, state.V_last_converged):
             stop, msg = "diverged", ("a flow singularity (NaN, zero-area face or non-manifold edge): the last "
@@ -145,6 +218,6 @@ class ReachForTheSpheres(Method):
         mesh = trimesh.Trimesh(V, np.asarray(state.F, dtype=np.int64), process=False)
         orient_outward(mesh)
         info = {"iterations": its, "stop_reason": stop, "stop_message": msg, "samples_used": int(len(U)),
-                "final_edge_target_h": float(state.h) * scale / volume.h, "wall_flow_s": wall}
+                "final_edge_target_h": float(state.h) * scale / volume.h, "wall_flow_s": wall, **radii_info}
         info.update({f"mesh_{k}": v for k, v in mesh_facts(mesh).items()})
         return Reconstruction(mesh, info)

@@ -37,8 +37,6 @@ def broken(monkeypatch):
 KNOWN_FAILURES = {
     "dual_contouring": "one vertex per cell: on the noisy sphere at N = 24 the mesh has non-manifold, "
                        "inconsistently oriented edges where noise puts two sheets in a cell",
-    "reach_for_the_spheres": "the flow diverges on the anisotropic off-centre ellipsoid and on the torus at N = 24 "
-                             "(the mesh grows past its vertex guard, some vertices leave the box)",
 }
 
 

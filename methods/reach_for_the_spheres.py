@@ -13,8 +13,8 @@ The adapter runs gpytoolbox's own iteration (``reach_for_the_spheres_iteration``
 * ``stop_reason`` – ``converged`` (every sphere tangent within the tolerance, or no progress at the
   finest edge length), ``max_iter`` (the cap was hit) or ``diverged`` (a flow singularity — NaN, a
   zero-area face or a non-manifold edge: the library returns the last mesh it had converged at a coarser
-  edge length; or the mesh grew past ``max_vertices``, the adapter's guard against a crumpling flow whose
-  steps get ever slower; ``stop_message`` says which).
+  edge length; ``stop_message`` says so);
+* ``redistanced``, ``distance_ratio``, ``distance_spread`` – the radii test below.
 
 Units.  The library's defaults are absolute lengths tuned for shapes in [-1, 1]³ (tangency tolerance 0.01,
 first target edge length 0.2).  The adapter maps the grid's box to [-1, 1]³ (centre at 0, one uniform
@@ -22,15 +22,41 @@ scale: half the longest side → 1; SDF values scaled by the same factor), runs 
 so the method behaves the same on a grid of any size.  ``edge_length`` is in grid spacings h (default 2 h,
 which is the library's own default, twice the mean sample spacing).
 
+Radii (``redistance``).  The method needs |φ| to be the distance to the surface: a sphere smaller than the
+distance cannot be made tangent, one larger crosses the surface.  The suite's volumes are level sets, not
+always distances (the paper's polynomial variant: |φ| ≈ 2 × the distance near the sphere; a normalised implicit
+of the ellipsoid (1, 0.7, 0.5), as in ``check-method``: 0.5–1 ×).  Given such a field the flow crumples: on
+``check-method``'s anisotropic ellipsoid at N = 24 the old adapter grew the mesh to 2,584 vertices in 56 steps,
+19 of them out of the grid; on 0.5 × a sphere's SDF 4,290 vertices, 18 h off; on 2 × it stopped 7 h off the
+zero set.  So the adapter reads |φ| / d, d = the distance to φ's zero set (its marching-cubes triangulation,
+exact point-to-triangle distance, gpytoolbox), over the samples 2–6 h from it: an exact SDF reads 0.99–1.0 (the
+bunny and the cortex 0.96–0.99, their distance being certified exact only near the surface), one with the
+paper's noise 1.02–1.03, c × an SDF reads c.  ``redistance = "auto"`` (default) keeps |φ| when the median ratio
+is within 15 % of 1 — the library then sees exactly the grid it is given — and otherwise gives it sign(φ) · d
+(the zero set unchanged).  A field so noisy that marching cubes breaks its zero set into bubbles (the ratio's
+90th/10th percentiles more than 2× apart: SNR 20 dB reads 1.3–10) is given as it is.  ``"yes"``/``"no"``
+force either.
+
+Start.  An icosphere (``init_subdivisions``) centred on the bounding box of the inside samples, through its
+corners (radius ``init_radius`` × half its diagonal, + h) — and, new, squeezed per axis to end one h inside the
+grid box.  The sphere alone stuck out of flat grids (the torus case: to z = ±2.2 in a grid of ±0.76), where no
+sample's sphere holds the surface; in the suite's cubic grids it fits and nothing changes.
+
+Divergence.  A flow that crumples grows its mesh and leaves the samples, each step slower (the cortex at N = 96
+grew past 30,000 vertices in 85 steps).  The run fails with ``methods.ReconstructionFailed``
+— never a crumpled mesh returned as a result — when the mesh has more than ``max_vertices`` vertices (default:
+the samples with |φ| < h, ≈ 4× what 2 h edges need) or a vertex is more than 2 h outside the grid box; the
+message gives the iteration, the reason and the target's topology read at grid resolution (the suite's
+``target_topology``): the flow keeps the start's genus 0, so a torus (χ = 0) cannot be reached — measured at
+N = 24: it fails at step 6, a vertex out of the box.
+
 Samples.  ``samples = "all"`` (default) gives every grid sample, the paper's setting: ≈ N³ spheres, of
 which each step uses ``batch_size`` random ones plus every inside one (the library's batching).  ``"band"``
 gives every inside sample (φ < 0) and the outside samples with φ < ``band`` · h: cheaper steps (bunny,
 N = 48, loaded machine: 20 s instead of 45 s, Hausdorff 0.81 h either way), but fragile — without the far
 outside spheres nothing stops the surface from crumpling outwards, and at N = 96 with band = 4 the bunny's
-and the cortex's meshes grow without bound (75,000 vertices, 8 h on the cortex; band = 8 recovers the bunny).
-A two-sided band |φ| < band·h is worse still (the bunny crumples at N = 48).  The initial icosphere is put
-close around the shape: centred on the bounding box of the inside samples, radius half that box's diagonal
-plus h.
+and the cortex's meshes grow without bound (band = 8 recovers the bunny).  A two-sided band |φ| < band·h is
+worse still (the bunny crumples at N = 48).
 
 Noise.  The library stops when every sphere is tangent within ``tol``, or after 100 steps without progress
 at the finest edge length.  On a noisy volume the first never happens, so every noisy cell pays the 100
@@ -105,9 +131,9 @@ def distance_reading(volume: Volume) -> dict:
 
 
 def initial_ellipsoid(volume: Volume, subdivisions: int, size: float) -> tuple[np.ndarray, np.ndarray]:
-    """The start: an icosphere scaled per axis to the ellipsoid through the corners of the inside samples'
-    bounding box (semi-axes √3 × its half-sides, times ``size``, plus h), centred on that box, and clipped to
-    end one grid step inside the grid box on each side — where the samples' spheres can still push it."""
+    """The start: an icosphere through the corners of the inside samples' bounding box (radius ``size`` × half
+    its diagonal, plus h), centred on that box — then squeezed, per axis, to end one grid step inside the grid
+    box, where the samples' spheres can still push it (an ellipsoid only in grids too flat for the sphere)."""
     import gpytoolbox as gpy
 
     V0, F0 = gpy.icosphere(subdivisions)
@@ -115,9 +141,9 @@ def initial_ellipsoid(volume: Volume, subdivisions: int, size: float) -> tuple[n
     lo, hi = volume.origin, volume.origin + (np.asarray(volume.shape) - 1) * volume.spacing
     in_lo, in_hi = volume.origin + inside.min(0) * volume.spacing, volume.origin + inside.max(0) * volume.spacing
     centre = 0.5 * (in_lo + in_hi)
-    semi = size * np.sqrt(3.0) * 0.5 * (in_hi - in_lo) + volume.h
+    radius = size * 0.5 * float(np.linalg.norm(in_hi - in_lo)) + volume.h
     room = np.minimum(hi - centre, centre - lo) - volume.spacing
-    semi = np.maximum(np.minimum(semi, room), volume.spacing)
+    semi = np.maximum(np.minimum(radius, room), volume.spacing)
     return V0 * semi + centre, F0
 
 
@@ -128,9 +154,9 @@ class ReachForTheSpheres(Method):
     params = {
         "init_subdivisions": Param(2, "the initial mesh: an icosphere with this many subdivisions (2 = 162 "
                                       "vertices, the library's example)", type=int, min=0, max=6),
-        "init_radius": Param(1.0, "the start's size: its semi-axes are this × √3 × the half-sides of the inside "
-                                  "samples' bounding box, plus one h (1 = through the box's corners), clipped to "
-                                  "one h inside the grid box", type=float, min=0.1, max=3.0),
+        "init_radius": Param(1.0, "the icosphere's radius as a multiple of the sphere around the inside "
+                                  "samples' bounding box (centred on it; 1 = that circumscribed sphere plus one h), "
+                                  "squeezed per axis to one h inside the grid box", type=float, min=0.1, max=3.0),
         "edge_length": Param(2.0, "the finest target edge length, in grid spacings h (the library's default "
                                   "is twice the mean sample spacing, i.e. 2 h)", type=float, min=0.25, max=20.0),
         "max_iter": Param(2000, "iteration cap (the library's default is 20000)", type=int, min=1,

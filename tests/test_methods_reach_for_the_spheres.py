@@ -7,6 +7,7 @@ cylinder and the bunny (14–22 s each on a loaded 2-core machine) are marked sl
 
 from __future__ import annotations
 
+import gpytoolbox as gpy
 import numpy as np
 import pytest
 
@@ -131,19 +132,20 @@ def test_a_genus_one_target_fails_clearly():
 
 
 def test_the_start_fits_inside_a_flat_grid():
-    """The start is where samples can push it: an ellipsoid through the corners of the inside box, clipped to
-    one h inside the grid box (the old start, a sphere of radius √3 × 0.55 + h = 1.05 here, stuck out of the
-    grid's ±0.75 in z, and out-of-box vertices now count as divergence)."""
+    """The start is where samples can push it: the sphere through the corners of the inside box, squeezed to
+    one h inside the grid box (unsqueezed, its radius √3 × 0.5 + h = 0.97 here stuck out of the grid's ±0.7 in
+    z, and out-of-box vertices now count as divergence)."""
     h = 0.1
-    lo = np.array([-1.5, -1.5, -0.75])
+    lo = np.array([-1.5, -1.5, -0.7])
     shape = np.floor(-2 * lo / h + 1e-9).astype(int) + 1
     pts = lo + np.indices(shape).reshape(3, -1).T * h
     vol = Volume((np.linalg.norm(pts, axis=1) - 0.55).reshape(shape), lo, np.full(3, h))
     V0, _ = initial_ellipsoid(vol, 2, 1.0)
     hi = lo + (shape - 1) * h
     assert (V0 >= lo + h - 1e-9).all() and (V0 <= hi - h + 1e-9).all()
-    # x, y: √3 × the inside box's half-side (0.5) + h, unclipped; z: clipped to one h inside
-    assert np.ptp(V0, axis=0) / 2 == pytest.approx([np.sqrt(3) * 0.5 + h] * 2 + [0.75 - h], rel=1e-6)
+    # x, y: half the inside box's diagonal (√3 × 0.5) + h; z: squeezed to one h inside
+    semi = np.array([np.sqrt(3) * 0.5 + h] * 2 + [0.7 - h])
+    assert np.allclose(V0, gpy.icosphere(2)[0] * semi)       # centred on the inside box's centre, 0
     rec = get_method("reach_for_the_spheres").reconstruct(vol)
     assert rec.info["stop_reason"] == "converged"
     assert np.abs(np.linalg.norm(rec.mesh.vertices, axis=1) - 0.55).max() < 0.5 * h

@@ -198,7 +198,7 @@ class ReachForTheSpheres(Method):
             return S, {"redistanced": True, **{f"distance_{k}": v for k, v in reading.items()}}
         return S, {"redistanced": False, **{f"distance_{k}": v for k, v in reading.items()}}
 
-    def _diverged(self, volume: Volume, state, its: int, why: str) -> ReconstructionFailed:
+    def _diverged(self, volume: Volume, its: int, why: str) -> ReconstructionFailed:
         from .shape_gradient.start import target_topology
 
         topo = target_topology(volume)
@@ -234,12 +234,12 @@ class ReachForTheSpheres(Method):
                 stalled = state.h <= state.min_h and state.convergence_counter > cfg["patience"]
                 done = done or stalled
                 if len(state.V) > cap:
-                    raise self._diverged(volume, state, state.its, f"the mesh grew past max_vertices = {cap} "
+                    raise self._diverged(volume, state.its, f"the mesh grew past max_vertices = {cap} "
                                          f"({len(state.V)} vertices): it crumples")
                 out = ((state.V < box_lo) | (state.V > box_hi)).any(1).sum()
                 if out:
-                    raise self._diverged(volume, state, state.its, f"{out} vertices left the grid box by more "
-                                         "than 2 h, where no sample's sphere holds them")
+                    raise self._diverged(volume, state.its, f"{out} vertex(es) left the grid box by "
+                                         "more than 2 h, where no sample's sphere holds them")
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
             if isinstance(exc, ReconstructionFailed):
                 raise

@@ -35,7 +35,8 @@ paper's noise 1.02–1.03, c × an SDF reads c.  ``redistance = "auto"`` (defaul
 is within 15 % of 1 — the library then sees exactly the grid it is given — and otherwise gives it sign(φ) · d
 (the zero set unchanged).  A field so noisy that marching cubes breaks its zero set into bubbles (the ratio's
 90th/10th percentiles more than 2× apart: SNR 20 dB reads 1.3–10) is given as it is.  ``"yes"``/``"no"``
-force either.
+force either.  The paper's polynomial at N = 48 (ratio 2.1 sphere, 1.75 fused spheres): with |φ| the flow leaves
+the grid in 1–2 steps; redistanced, the sphere is within 0.11 h (14 steps), the fused spheres 0.89 h.
 
 Start.  An icosphere (``init_subdivisions``) centred on the bounding box of the inside samples, through its
 corners (radius ``init_radius`` × half its diagonal, + h) — and, new, squeezed per axis to end one h inside the
@@ -203,7 +204,8 @@ class ReachForTheSpheres(Method):
 
         topo = target_topology(volume)
         note = (f"; {topo['message']}" if not topo["compatible"] else
-                "; the region φ < 0 reads as one genus-0 solid, so try a smaller edge_length or samples = 'all'")
+                "; the region φ < 0 reads as one genus-0 solid: if |φ| is not a distance, try redistance = 'yes', "
+                "else a smaller edge_length or samples = 'all'")
         return ReconstructionFailed(f"method {self.name!r}: the flow diverged at iteration {its}: {why}{note}")
 
     def reconstruct(self, volume: Volume) -> Reconstruction:

@@ -199,14 +199,16 @@ class ReachForTheSpheres(Method):
             return S, {"redistanced": True, **{f"distance_{k}": v for k, v in reading.items()}}
         return S, {"redistanced": False, **{f"distance_{k}": v for k, v in reading.items()}}
 
-    def _diverged(self, volume: Volume, its: int, why: str) -> ReconstructionFailed:
+    def _diverged(self, volume: Volume, its: int, why: str, radii: dict) -> ReconstructionFailed:
         from .shape_gradient.start import target_topology
 
         topo = target_topology(volume)
-        note = (f"; {topo['message']}" if not topo["compatible"] else
-                "; the region φ < 0 reads as one genus-0 solid: if |φ| is not a distance, try redistance = 'yes', "
-                "else a smaller edge_length or samples = 'all'")
-        return ReconstructionFailed(f"method {self.name!r}: the flow diverged at iteration {its}: {why}{note}")
+        note = topo["message"] if not topo["compatible"] else "the region φ < 0 reads as one genus-0 solid"
+        ratio = radii.get("distance_ratio")
+        read = f"|φ| reads as {ratio:.2f} × the distance to its zero set" if ratio is not None else "not read"
+        radii_text = "the distance to φ's zero set" if radii["redistanced"] else "|φ|"
+        return ReconstructionFailed(f"method {self.name!r}: the flow diverged at iteration {its}: {why}; {note}; "
+                                    f"sphere radii: {radii_text} ({read})")
 
     def reconstruct(self, volume: Volume) -> Reconstruction:
         import gpytoolbox as gpy
@@ -237,11 +239,11 @@ class ReachForTheSpheres(Method):
                 done = done or stalled
                 if len(state.V) > cap:
                     raise self._diverged(volume, state.its, f"the mesh grew past max_vertices = {cap} "
-                                         f"({len(state.V)} vertices): it crumples")
+                                         f"({len(state.V)} vertices): it crumples", radii_info)
                 out = ((state.V < box_lo) | (state.V > box_hi)).any(1).sum()
                 if out:
                     raise self._diverged(volume, state.its, f"{out} vertex(es) left the grid box by "
-                                         "more than 2 h, where no sample's sphere holds them")
+                                         "more than 2 h, where no sample's sphere holds them", radii_info)
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
             if isinstance(exc, ReconstructionFailed):
                 raise

@@ -49,7 +49,10 @@ grew past 30,000 vertices in 85 steps).  The run fails with ``methods.Reconstruc
 the samples with |φ| < h, ≈ 4× what 2 h edges need) or a vertex is more than 2 h outside the grid box; the
 message gives the iteration, the reason and the target's topology read at grid resolution (the suite's
 ``target_topology``): the flow keeps the start's genus 0, so a torus (χ = 0) cannot be reached — measured at
-N = 24: it fails at step 6, a vertex out of the box.
+N = 24: it fails at step 6, a vertex out of the box.  The cortex at N = 96 crumples too (past max_vertices
+at step 72; the old adapter returned that mesh: 6.1 h, 127,433 intersecting face pairs, scored as valid).  There
+is no automatic restart with "safer" settings because none was found: a coarser edge_length converges on that
+cortex but no better (edge_length 4: 2.9 h, 10,009 intersecting pairs; 3: 2.7 h, 243,351 pairs, 120 s).
 
 Samples.  ``samples = "all"`` (default) gives every grid sample, the paper's setting: ≈ N³ spheres, of
 which each step uses ``batch_size`` random ones plus every inside one (the library's batching).  ``"band"``

@@ -34,10 +34,7 @@ def broken(monkeypatch):
 
 #: built-ins that check-method fails, for limits of the method itself (measured; the failure is asserted, so a fix
 #: shows up as an unexpected pass)
-KNOWN_FAILURES = {
-    "reach_for_the_spheres": "the flow diverges on the anisotropic off-centre ellipsoid and on the torus at N = 24 "
-                             "(the mesh grows past its vertex guard, some vertices leave the box)",
-}
+KNOWN_FAILURES: dict[str, str] = {}      # none at the moment (dual contouring and Reach for the Spheres were)
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=KNOWN_FAILURES[n], strict=True))

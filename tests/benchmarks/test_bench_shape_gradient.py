@@ -13,6 +13,8 @@ relax) of the last round are stored in the benchmark's ``extra_info``.
 * One iteration at 100,000 vertices (sphere, N = 96): the second ``flow.step()`` (a steady-state iteration: the
   H¹ solver's multigrid hierarchy, refreshed every 5 iterations, is built by the first); building the initial
   sphere, its operators and the first step are the per-round setup and are not timed.
+* A whole default run on the bunny and on the cortex at N = 96 (issue 14: ≤ 5 s each), ``perf_slow`` (skipped by
+  ``python -m bench perf --quick``); the per-phase seconds go to ``extra_info``.
 """
 
 from __future__ import annotations
@@ -65,3 +67,24 @@ def test_one_iteration_at_100k_vertices(benchmark, sphere_volume):
     assert flow.iteration == 2 and len(flow.state.x) == 100_000
     benchmark.extra_info.update({f"{p}_s": round(flow.timings[p] - before[p], 4) for p in PHASES})
     benchmark.extra_info["cg_iterations"] = flow.cg_iterations[-1] if flow.cg_iterations else 0
+
+
+@pytest.fixture(scope="module")
+def real_volumes():
+    return {name: get_phantom(name).volume(n=96) for name in ("bunny", "cortex")}
+
+
+@pytest.mark.perf_slow
+@pytest.mark.parametrize("name", ["bunny", "cortex"])
+def test_full_run_at_n96(benchmark, real_volumes, name):
+    """A whole default run on a real shape at N = 96 (issue 14's target: ≤ 5 s each on 2 cores): the genus-0
+    start, its first remesh, the flow with remeshing and the guard, the crease polish and the projection."""
+    vol = real_volumes[name]
+    method = ShapeGradient()
+    method.reconstruct(vol)                              # warm-up: compiled kernels, cached derivative grids
+    rec = benchmark.pedantic(method.reconstruct, args=(vol,), rounds=3, iterations=1)
+    assert rec.info["init"]["kind"] == "genus0" and rec.mesh.is_watertight
+    t = rec.info["timings"]
+    benchmark.extra_info.update({f"{p}_s": round(t.get(p, 0.0), 3) for p in PHASES + ("setup", "remesh", "guard",
+                                                                                        "polish", "projection")})
+    benchmark.extra_info.update({"iterations": rec.info["iterations"], "vertices": len(rec.mesh.vertices)})

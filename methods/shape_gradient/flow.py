@@ -17,6 +17,7 @@ from .energy import evaluate_state, gradient_from_state, no_fold
 from .guard import count_intersections, repair_intersections
 from .polish import crease_polish, newton_project
 from .remesh import remesh
+from .signs import SignGuard
 
 __all__ = ["ShapeGradientFlow", "STOP_REASONS"]
 
@@ -30,9 +31,6 @@ _CG_MAXITER = 100
 _DIRECT_MAX_VERTICES = 40_000  # solver='auto': the LU up to this many vertices, multigrid above ...
 _CG_MAX_S_EDGES = 2.0          # ... or CG while s is at most this many squared edge lengths
 _LU_REFRESH = 5                # the direct H¹ solver refactors M + sK every this many iterations
-_SIGN_MARGIN = 0.25            # sign guard: samples with |φ| above this many voxels are clearly inside/outside ...
-_SIGN_BAND = 3.0               # ... and within this many voxels of φ = 0 are the ones checked ...
-_SIGN_SLACK = (2, 1e-3)        # ... and the flow may put at most 2 + 0.1 % of them more on the wrong side than its start
 _PROJECTION_STEPS = 3          # final Newton projection onto φ = 0: steps ...
 _PROJECTION_MAX_VOXELS = 0.5   # ... each capped at this many voxels
 _PROJECTION_REVERT_ROUNDS = 4  # rounds of putting back the vertices whose projection made faces intersect
@@ -96,14 +94,14 @@ class ShapeGradientFlow:
         self.moves: list[float] = []
         self._polished = None
         self.guard = bool(cfg.get("guard", False))
-        self._signs = None                           # sign guard: (points, inside, allowed count, checkpoint)
-        self.sign_log: list[tuple[int, int]] = []
+        self.signs = None                            # the sign guard (signs.py), on clean volumes
         if self.remesh_every and cfg.get("remesh_start"):
             self._remesh_and_guard(0)                # a start with marching cubes' slivers: isotropic first
         elif self.guard:
             self._guard(0)                           # the start: the first safe state (or repaired)
         if cfg.get("sign_guard_used"):
-            self._start_sign_guard(getattr(field, "volume", None))
+            if getattr(field, "volume", None) is not None:
+                self.signs = SignGuard(field.volume, self.h, self.state.x, self.ops.faces, self.ops)
 
     # ------------------------------------------------------------------ one iteration
     def _end(self, reason: str, message: str) -> bool:
@@ -209,8 +207,10 @@ class ShapeGradientFlow:
         self.history.append(new.E)
         if self.remesh_every and it % self.remesh_every == 0:
             self._remesh_and_guard(it)
-            if not self._check_signs(it):
-                return self._end("sign_guard", self._sign_message)
+            back = self.signs.check(it, self.state.x, self.ops) if self.signs is not None else None
+            if back is not None:
+                self._set_mesh(*back)
+                return self._end("sign_guard", self.signs.message)
         if it in self.snap_set:
             if self.guard and (not self.intersections or self.intersections[-1][0] != it):
                 self._guard(it)                      # a snapshot is a result too: intersection-free
@@ -297,49 +297,6 @@ class ShapeGradientFlow:
         self._V_prev = None          # the warm start and the factor of the H¹ solve belong to the old mesh
         self._lu = None
         self._solver_choice = None
-
-    # ------------------------------------------------------------------ the sign guard
-    def _start_sign_guard(self, volume) -> None:
-        """Record the grid samples that are clearly inside or outside (|φ| > h/4, within 3 h of φ = 0) and how
-        many of them the start puts on the wrong side (the allowance; ≈ 0 for the genus-0 start)."""
-        if volume is None:
-            return
-        v, h = volume.values, self.h
-        sel = (np.abs(v) > _SIGN_MARGIN * h) & (np.abs(v) < _SIGN_BAND * h)
-        idx = np.argwhere(sel)
-        pts, inside = volume.index_to_world(idx), v[sel] < 0
-        self._signs = [pts, inside, 0, None]
-        wrong = self._wrong_side()
-        self._signs[2] = wrong + _SIGN_SLACK[0] + int(_SIGN_SLACK[1] * len(pts))
-        self._signs[3] = (0, self.state.x.copy(), self.ops)
-        self.sign_log.append((0, wrong))
-
-    def _wrong_side(self) -> int:
-        import gpytoolbox
-        pts, inside = self._signs[0], self._signs[1]
-        if len(pts) == 0:
-            return 0
-        w = gpytoolbox.fast_winding_number(pts, np.ascontiguousarray(self.state.x, dtype=np.float64),
-                                           np.ascontiguousarray(self.ops.faces, dtype=np.int32))
-        return int(np.count_nonzero(inside != (np.asarray(w) > 0.5)))
-
-    def _check_signs(self, it: int) -> bool:
-        """False (and the mesh rolled back to the last checkpoint) when the surface now puts more clearly-inside
-        or clearly-outside samples on the wrong side than its start did: it is cutting a part the volume has (a
-        voxel-thin ear retracting under remeshing and the alignment term) or swallowing a gap."""
-        if self._signs is None:
-            return True
-        wrong = self._wrong_side()
-        self.sign_log.append((it, wrong))
-        if wrong <= self._signs[2]:
-            self._signs[3] = (it, self.state.x.copy(), self.ops)
-            return True
-        back, x, ops = self._signs[3]
-        self._set_mesh(x, ops)
-        self._sign_message = (f"iteration {it}: the surface put {wrong} samples with |φ| > {_SIGN_MARGIN:g} voxel "
-                              f"on the wrong side (its start: {self.sign_log[0][1]}, allowed {self._signs[2]}); rolled back to "
-                              f"iteration {back}")
-        return False
 
     def _remesh_and_guard(self, it: int) -> None:
         """Remesh toward the target edge length, then make sure no faces intersect (repair or roll back)."""
@@ -486,7 +443,7 @@ class ShapeGradientFlow:
             "move_history_voxels": [float(m / h) for m in self.moves],
             "init_flipped": bool(self.init_flipped),
             "init": dict(self.init_facts),
-            "sign_guard": [list(t) for t in self.sign_log],
+            "sign_guard": [list(t) for t in self.signs.log] if self.signs is not None else [],
             "topology": dict(self.topology),
             "warnings": [] if self.topology.get("compatible", True) else [self.topology["message"]],
             "noise_estimate": float(self.noise),

@@ -17,7 +17,7 @@ def test_each_flag_from_a_row():
     assert result_flags(clean, torus) == ["topology_mismatch"]                   # a sphere for a torus
     assert result_flags({**clean, "euler": 0}, torus) == []
     assert result_flags({**clean, "self_intersections": 3}, sphere) == ["self_intersecting"]
-    for stop in ("max_iter", "line_search_floor", "diverged"):
+    for stop in ("max_iter", "line_search_floor", "diverged", "sign_guard"):
         assert result_flags({**clean, "stop_reason": stop}, sphere) == ["not_converged"]
     assert result_flags(clean, None) == []                                       # no truth: no topology flag
 

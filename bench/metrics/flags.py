@@ -5,7 +5,8 @@
   (a phantom knows its own: ``genus`` and ``n_components``; one component unless it says otherwise);
 * ``dropped_components`` — fewer components than the truth (a method that kept only its largest part);
 * ``self_intersecting`` — at least one pair of non-adjacent faces intersects;
-* ``not_converged`` — the method stopped on ``max_iter``, ``line_search_floor`` or ``diverged``.
+* ``not_converged`` — the method stopped on ``max_iter``, ``line_search_floor``, ``diverged`` or
+  ``sign_guard`` (the shape gradient rolled back to a checkpoint: its result is an early iterate).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import math
 __all__ = ["result_flags", "FLAGS"]
 
 FLAGS = ("topology_mismatch", "dropped_components", "self_intersecting", "not_converged")
-_NOT_CONVERGED = ("max_iter", "line_search_floor", "diverged")
+_NOT_CONVERGED = ("max_iter", "line_search_floor", "diverged", "sign_guard")
 
 
 def _number(row: dict, key: str) -> float | None:

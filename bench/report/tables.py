@@ -121,7 +121,7 @@ FLAG_TITLES = {
     "topology_mismatch": "Euler characteristic or number of components differs from the truth's",
     "dropped_components": "fewer components than the truth (a part was dropped)",
     "self_intersecting": "some non-adjacent faces intersect",
-    "not_converged": "the method stopped on max_iter, line_search_floor or diverged",
+    "not_converged": "the method stopped on max_iter, line_search_floor, diverged or sign_guard (rolled back to an earlier iterate)",
 }
 
 

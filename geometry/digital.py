@@ -292,16 +292,13 @@ def surface_is_sphere(field: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None
     genus-0 surface, else None."""
     from skimage.measure import marching_cubes
 
-    from .topology import connected_components, euler_characteristic, is_closed, is_oriented
+    from .topology import is_sphere_like
     try:
         v, f, _, _ = marching_cubes(field, 0.0, method="lewiner", allow_degenerate=False)
     except (ValueError, RuntimeError):
         return None
     f = np.asarray(f, np.int64)
-    if len(f) == 0 or len(np.unique(f)) != len(v):
-        return None
-    if not (is_closed(f, len(v)) and is_oriented(f, len(v)) and euler_characteristic(f, len(v)) == 2
-            and connected_components(f, len(v), by="face")[0] == 1):
+    if not is_sphere_like(f, len(v)):
         return None
     return np.asarray(v, float), f
 

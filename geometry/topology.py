@@ -17,6 +17,7 @@ import numpy as np
 __all__ = [
     "edges_unique", "face_edge_keys", "face_edges", "edge_face_counts", "directed_edge_repeats",
     "is_closed", "is_manifold", "is_oriented", "euler_characteristic", "genus", "connected_components",
+    "is_sphere_like",
     "sample_surface",
 ]
 
@@ -128,6 +129,16 @@ def connected_components(faces, n_vertices: int | None = None, *, by: str = "ver
         raise ValueError(f"by must be 'vertex' or 'face'; got {by!r}")
     n, labels = _cc(g, directed=False)
     return int(n), labels
+
+
+def is_sphere_like(faces, n_vertices: int) -> bool:
+    """One closed, consistently oriented surface with Euler characteristic 2 that uses every vertex."""
+    f = np.asarray(faces, np.int64)
+    if len(f) == 0 or len(np.unique(f)) != n_vertices:
+        return False
+    return (is_closed(f, n_vertices) and is_oriented(f, n_vertices)
+            and euler_characteristic(f, n_vertices) == 2
+            and connected_components(f, n_vertices, by="face")[0] == 1)
 
 
 def sample_surface(vertices, faces, n: int, seed=0) -> tuple[np.ndarray, np.ndarray]:

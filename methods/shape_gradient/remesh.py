@@ -13,19 +13,9 @@ import warnings
 
 import numpy as np
 
-from geometry.topology import connected_components, euler_characteristic, is_closed, is_oriented
+from geometry.topology import is_sphere_like
 
 __all__ = ["remesh", "is_sphere_like"]
-
-
-def is_sphere_like(faces: np.ndarray, n_vertices: int) -> bool:
-    """One closed, consistently oriented surface with Euler characteristic 2 that uses every vertex."""
-    f = np.asarray(faces, np.int64)
-    if len(f) == 0 or len(np.unique(f)) != n_vertices:
-        return False
-    return (is_closed(f, n_vertices) and is_oriented(f, n_vertices)
-            and euler_characteristic(f, n_vertices) == 2
-            and connected_components(f, n_vertices, by="face")[0] == 1)
 
 
 def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iterations: int = 3

@@ -403,3 +403,38 @@ def test_noise_estimate():
     noisy, _ = add_noise(vol, "gaussian", 40.0, seed=3)
     true_sigma = np.std(noisy.values - vol.values)
     assert estimate_noise(noisy) == pytest.approx(true_sigma, rel=0.05)
+
+
+def test_start_smoothing_brings_the_noise_to_its_target():
+    from scipy.ndimage import gaussian_filter
+    from methods.shape_gradient.field import start_smoothing
+    assert start_smoothing(0.0) == 0.0 and start_smoothing(0.99) == 0.0 and start_smoothing(float("nan")) == 0.0
+    sigmas = [start_smoothing(n) for n in (1.5, 3.0, 6.0)]
+    assert 0 < sigmas[0] < sigmas[1] < sigmas[2]
+    rng = np.random.default_rng(0)
+    for noise, sigma in zip((1.5, 3.0, 6.0), sigmas):        # measured on a field of pure i.i.d. noise
+        out = gaussian_filter(rng.normal(0.0, noise, (64, 64, 64)), sigma, mode="wrap")
+        assert np.std(out) == pytest.approx(1.0, rel=0.05)
+    assert start_smoothing(3.0, target_voxels=0.5) > sigmas[1]
+
+
+def test_beta_auto_follows_the_noise(sphere32):
+    noisy, _ = add_noise(sphere32, "gaussian", 40.0, seed=0)
+    assert SG(max_iter=2, guard=False).reconstruct(sphere32).info["beta_used"] == 1.0
+    assert SG(max_iter=2, guard=False).reconstruct(noisy).info["beta_used"] == 0.01
+    assert SG(max_iter=2, guard=False, beta=0.5).reconstruct(noisy).info["beta_used"] == 0.5
+    assert SG().config["beta"] == "auto" and SG(beta="2").config["beta"] == 2.0
+    with pytest.raises(InputError, match="'beta'"):
+        SG(beta="strong")
+    with pytest.raises(InputError, match="'start_smooth'"):
+        SG(start_smooth=-1)
+
+
+def test_heavy_noise_is_not_mistaken_for_an_off_surface_result():
+    """20 dB: the median |φ| at the true surface is itself ≈ 0.9 voxel; the check allows for the noise."""
+    ph = get_phantom("sphere")
+    vol, _ = add_noise(ph.volume(n=40), "gaussian", 20.0, seed=0)
+    r = SG().reconstruct(vol)
+    assert r.info["off_surface_limit_voxels"] > 1.0
+    assert hausdorff(r.mesh, ph) < 3.0 * vol.h
+    assert topology(r.mesh)["euler"] == 2

@@ -4,8 +4,8 @@ own metrics against the exact surfaces.
 Slow (≈ 2–3 min: building the three volumes is half of it): ``pytest -m slow tests/test_methods_shape_gradient_real.py``.
 Targets: bunny Hausdorff ≤ 0.65 h (marching cubes' value), 95th percentile ≤ 0.12 h; cortex one component, χ = 2,
 95th percentile ≤ 0.5 h, mean ≤ 0.1 h (marching cubes gives χ = −44 there); brain_mri Hausdorff ≤ 0.75 h; all
-without self-intersections.  The bunny under 40 dB Gaussian noise (Hausdorff ≤ 1.0 h, smoother than marching
-cubes) is not met with the defaults and is asserted as a strict xfail with the measured reason.
+without self-intersections; the bunny under 40 dB Gaussian noise: Hausdorff ≤ 1.0 h and smoother than marching
+cubes (with beta='auto' = 0.01 and the start grown from the unsmoothed values on such a volume).
 """
 
 from __future__ import annotations
@@ -56,10 +56,6 @@ def test_brain_mri():
     assert m["hausdorff_h"] <= 0.75 and m["self_intersections"] == 0 and m["euler"] == 2, m
 
 
-@pytest.mark.xfail(strict=True, reason="measured: with the defaults the 40 dB bunny loses its ears (Hausdorff ≈ 6 h): "
-                   "the alignment term β|∇_Γφ|² reads ∇φ of the σ = 1 voxel pre-smoothed volume, where the voxel-thin "
-                   "ears have merged; beta=0, presmooth=0.3 gives 0.93 h and roughness 10.5° (marching cubes 21.5°) "
-                   "but fails the paper's noisy sphere (0.54 h > 0.5 h)")
 def test_bunny_at_40_db():
     vol, _ = add_noise(volume("bunny"), "gaussian", 40.0, seed=0)
     m = score("bunny", ShapeGradient().reconstruct(vol).mesh, vol)

@@ -63,15 +63,25 @@ def test_two_spheres_give_one_of_them_and_say_so():
     assert np.abs(np.linalg.norm(r.mesh.vertices - [0.9, 0, 0], axis=1) - 0.7).max() < 0.5 * vol.h
 
 
-def test_a_noisy_volume_starts_from_the_smoothed_samples():
+def test_a_very_noisy_volume_starts_from_the_smoothed_samples():
     ph = get_phantom("sphere")
-    vol, _ = add_noise(ph.volume(n=40), "gaussian", 30.0, seed=1)
+    vol, _ = add_noise(ph.volume(n=40), "gaussian", 20.0, seed=1)     # noise ≈ 1.3 voxels
     plain = genus0_surface(vol, vol.values)
     r = ShapeGradient(max_iter=20).reconstruct(vol)
-    assert r.info["presmooth_used"] > 0
+    assert r.info["presmooth_used"] > 0 and r.info["start_smooth_used"] > 0
     v0, f0 = r.info["snapshots"][0]
     # the smoothed start has fewer vertices and is smoother than the start from the raw noisy samples
     assert len(v0) < len(plain[0])
     assert np.std(ph.sdf(v0)) < np.std(ph.sdf(plain[0]))
     assert is_sphere_like(f0, len(v0)) and len(self_intersection_pairs(v0, f0)) == 0
 
+
+def test_a_mildly_noisy_volume_starts_from_its_own_samples():
+    """Noise below a voxel: the start keeps the data's values (smoothing would erase voxel-thin parts)."""
+    vol, _ = add_noise(get_phantom("sphere").volume(n=40), "gaussian", 40.0, seed=1)
+    r = ShapeGradient(max_iter=3).reconstruct(vol)
+    assert 0.05 < r.info["noise_estimate_voxels"] < 1.0
+    assert r.info["start_smooth_used"] == 0.0 and r.info["presmooth_used"] > 0
+    plain = genus0_surface(vol, vol.values)
+    v0, f0 = r.info["snapshots"][0]                      # the start before its first remesh
+    assert len(v0) == len(plain[0]) and np.array_equal(f0, plain[1])

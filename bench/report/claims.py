@@ -65,6 +65,8 @@ class Claim:
 def _beta(params) -> float | None:
     try:
         p = json.loads(params) if isinstance(params, str) else dict(params or {})
+        if p.get("beta") == "auto":      # shape_gradient's default: 1 on clean volumes, 0.01 on noisy ones (> 0)
+            return 1.0
         return float(p.get("beta"))
     except (TypeError, ValueError, AttributeError):
         return None

@@ -10,7 +10,7 @@ import numpy as np
 from phantoms import Sample, Volume
 from phantoms.volume import trilinear_channels
 
-__all__ = ["GridSampler", "as_field", "estimate_noise", "smoothed_field"]
+__all__ = ["GridSampler", "as_field", "estimate_noise", "smoothed_field", "start_smoothing"]
 
 _NOISE: "weakref.WeakKeyDictionary[Volume, float]" = weakref.WeakKeyDictionary()
 
@@ -141,3 +141,28 @@ def smoothed_field(volume: Volume, sigma: float, presmooth_phi: bool = False) ->
         cache[key] = {2: ch2, 1: np.ascontiguousarray(ch2[:, :4])}
         del smooth                                               # its own cache goes with it
     return GridSampler(volume, channels=cache[key])
+
+
+def _gaussian_noise_gain(sigma: float) -> float:
+    """Factor by which scipy's 3-D ``gaussian_filter`` (σ voxels, truncate 4) scales the std of i.i.d. noise."""
+    if sigma <= 0:
+        return 1.0
+    r = int(4.0 * sigma + 0.5)
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
+    k /= k.sum()
+    return float(np.sum(k ** 2)) ** 1.5
+
+
+def start_smoothing(noise_voxels: float, target_voxels: float = 1.0) -> float:
+    """The smallest Gaussian σ (voxels) that brings i.i.d. noise of ``noise_voxels`` std down to
+    ``target_voxels`` (0 when it already is): what the genus-0 start is grown from on a noisy volume — no more
+    smoothing than needed, since every voxel of σ also erases parts about that thin (the bunny's ears)."""
+    if not np.isfinite(noise_voxels) or noise_voxels <= target_voxels:
+        return 0.0
+    lo, hi = 0.0, 10.0
+    if noise_voxels * _gaussian_noise_gain(hi) > target_voxels:
+        return hi
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if noise_voxels * _gaussian_noise_gain(mid) > target_voxels else (lo, mid)
+    return hi

@@ -34,7 +34,9 @@ _LU_REFRESH = 5                # the direct H¹ solver refactors M + sK every th
 _PROJECTION_STEPS = 3          # final Newton projection onto φ = 0: steps ...
 _PROJECTION_MAX_VOXELS = 0.5   # ... each capped at this many voxels
 _PROJECTION_REVERT_ROUNDS = 4  # rounds of putting back the vertices whose projection made faces intersect
-_OFF_SURFACE_VOXELS = 0.5      # a result whose median |φ| at the vertices exceeds this (voxels) has failed
+_OFF_SURFACE_VOXELS = 0.5      # a result whose median |φ| at the vertices exceeds this (voxels) has failed ...
+_OFF_SURFACE_NOISE = 1.0       # ... added in quadrature to this many noise stds (on the true surface of a noisy
+#                                volume the median |φ| is already 0.67 std)
 _FOLD_DEGREES = 60.0       # a trial step that turns any face normal by more than this is rejected
 
 
@@ -397,16 +399,18 @@ class ShapeGradientFlow:
         vol = float((t[:, 0] * np.cross(t[:, 1], t[:, 2], axis=0)).sum() / 6.0)
         phi = self.field.sample_t(geo.vertices_t, 0)[0]
         med = float(np.median(np.abs(phi)))
-        facts = {"signed_volume": vol, "median_abs_phi_voxels": med / self.h}
+        noise = float(self.noise) if np.isfinite(self.noise) else 0.0
+        limit = float(np.hypot(_OFF_SURFACE_VOXELS * self.h, _OFF_SURFACE_NOISE * noise))
+        facts = {"signed_volume": vol, "median_abs_phi_voxels": med / self.h, "off_surface_limit_voxels": limit / self.h}
         if self.stop != "diverged" and self.cfg.get("guard", False):
             if vol <= self.h ** 3:
                 raise ReconstructionFailed(
                     f"method 'shape_gradient': the surface collapsed (enclosed volume {vol:.3g}, less than one "
                     f"voxel) after {self.iteration} iterations ({self.stop or 'max_iter'})")
-            if med > _OFF_SURFACE_VOXELS * self.h:
+            if med > limit:
                 raise ReconstructionFailed(
                     f"method 'shape_gradient': the surface did not reach φ = 0 (median |φ| at the vertices "
-                    f"{med / self.h:.2f} voxels after {self.iteration} iterations, {self.stop or 'max_iter'}); "
+                    f"{med / self.h:.2f} voxels, more than {limit / self.h:.2f} for this volume's noise, after {self.iteration} iterations, {self.stop or 'max_iter'}); "
                     "raise max_iter or check the volume")
         return facts
 
@@ -449,6 +453,8 @@ class ShapeGradientFlow:
             "noise_estimate": float(self.noise),
             "noise_estimate_voxels": float(self.noise / h),
             "presmooth_used": float(cfg.get("presmooth_used", 0.0)),
+            "start_smooth_used": float(cfg.get("start_smooth_used", 0.0)),
+            "beta_used": float(cfg["beta"]),
             "grid_spacing": float(h),
             "polish": polish_info,
             "projection": projection_info,

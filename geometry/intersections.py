@@ -21,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .arrays import unique_ints
+
 __all__ = ["self_intersection_pairs", "intersecting_faces"]
 
 
@@ -227,4 +229,4 @@ def self_intersection_pairs(vertices: np.ndarray, faces: np.ndarray, chunk: int 
 
 def intersecting_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Sorted indices of the faces that intersect some non-adjacent face (see :func:`self_intersection_pairs`)."""
-    return np.unique(self_intersection_pairs(vertices, faces))
+    return unique_ints(self_intersection_pairs(vertices, faces))

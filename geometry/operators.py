@@ -21,6 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import kernels
+from .arrays import unique_ints
 from .curvature import fit_ring, tangent_frames_t
 from .mesh import lumped_vertex_areas, one_ring
 from .topology import edges_unique
@@ -326,7 +327,7 @@ class MeshOperators:
         rows = np.repeat(faces, 3, axis=1).ravel()          # entry 9f + 3i + j is (faces[f,i], faces[f,j])
         cols = np.tile(faces, (1, 3)).ravel()
         key = rows * V + cols
-        uniq = np.unique(key)
+        uniq = unique_ints(key)
         self._nnz = len(uniq)
         r, c = uniq // V, uniq % V
         self._indices = c.astype(np.int32)

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .arrays import count_distinct, unique_ints
+
 __all__ = [
     "edges_unique", "face_edge_keys", "face_edges", "edge_face_counts", "directed_edge_repeats",
     "is_closed", "is_manifold", "is_oriented", "euler_characteristic", "genus", "connected_components",
@@ -44,7 +46,7 @@ def edges_unique(faces) -> np.ndarray:
     e.sort(axis=1)
     e64 = e.astype(np.int64, copy=False)
     n = np.int64(e64.max()) + 1
-    u = np.unique(e64[:, 0] * n + e64[:, 1])
+    u = unique_ints(e64[:, 0] * n + e64[:, 1])
     return np.column_stack([u // n, u % n]).astype(e.dtype, copy=False)
 
 
@@ -134,7 +136,7 @@ def connected_components(faces, n_vertices: int | None = None, *, by: str = "ver
 def is_sphere_like(faces, n_vertices: int) -> bool:
     """One closed, consistently oriented surface with Euler characteristic 2 that uses every vertex."""
     f = np.asarray(faces, np.int64)
-    if len(f) == 0 or len(np.unique(f)) != n_vertices:
+    if len(f) == 0 or f.min() < 0 or f.max() >= n_vertices or count_distinct(f, n_vertices) != n_vertices:
         return False
     return (is_closed(f, n_vertices) and is_oriented(f, n_vertices)
             and euler_characteristic(f, n_vertices) == 2

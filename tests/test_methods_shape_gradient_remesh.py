@@ -12,6 +12,7 @@ import pytest
 import trimesh
 
 from geometry.intersections import self_intersection_pairs
+from geometry.sphere import fibonacci_sphere
 from geometry.topology import euler_characteristic, is_closed, is_manifold, is_oriented
 from methods import ReconstructionFailed
 from methods.shape_gradient import ShapeGradient
@@ -52,6 +53,22 @@ def test_remesh_keeps_one_closed_oriented_genus_0_surface_near_the_target_edge_l
     length = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
     assert 0.06 < np.median(length) < 0.1
     assert trimesh.Trimesh(x, f).volume == pytest.approx(trimesh.Trimesh(v, m.faces).volume, rel=0.02)
+
+
+def test_the_direct_remesher_call_is_the_public_one():
+    """remesh.py calls gpytoolbox's C++ kernel directly on closed meshes (skipping the wrapper's checks):
+    same output as gpytoolbox.remesh_botsch; an open mesh still goes through the wrapper."""
+    import gpytoolbox
+
+    from methods.shape_gradient.remesh import _botsch
+    x, f = fibonacci_sphere(2000, 1.0)
+    x = np.ascontiguousarray(x * [1.0, 1.6, 0.7])
+    f = np.ascontiguousarray(f, dtype=np.int32)
+    a, b = _botsch(x, f, 3, 0.06, gpytoolbox), gpytoolbox.remesh_botsch(x, f, 3, 0.06, True)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    open_f = np.ascontiguousarray(f[1:])
+    a, b = _botsch(x, open_f, 2, 0.06, gpytoolbox), gpytoolbox.remesh_botsch(x, open_f, 2, 0.06, True)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
 
 
 def test_is_sphere_like_refuses_open_two_component_and_torus_meshes():

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from geometry.arrays import unique_ints
 from geometry.intersections import self_intersection_pairs
 from geometry.topology import edge_face_counts, face_edge_keys
 
@@ -29,7 +30,7 @@ def drop_degenerate_index_faces(faces: np.ndarray) -> np.ndarray:
 
 def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Drop unreferenced vertices; returns (vertices, faces, old_index_of_each_kept_vertex)."""
-    used = np.unique(faces)
+    used = unique_ints(faces)
     remap = np.full(len(vertices), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
     return np.asarray(vertices, float)[used], remap[faces], used
@@ -78,7 +79,7 @@ def topology_metrics(vertices: np.ndarray, faces: np.ndarray) -> dict:
 def sif_pct(pairs: np.ndarray, n_faces: int) -> float:
     """SIF %: share of the faces that intersect at least one non-adjacent face (``pairs`` from
     :func:`self_intersection_pairs`), in percent."""
-    return float(100.0 * len(np.unique(pairs)) / n_faces) if n_faces else float("nan")
+    return float(100.0 * len(unique_ints(pairs)) / n_faces) if n_faces else float("nan")
 
 
 # --------------------------------------------------------------------------- quality

@@ -66,6 +66,7 @@ class ShapeGradientFlow:
         self.init_facts: dict = {}
         self.iteration = 0
         self.remesh_every = int(cfg.get("remesh_every") or 0)
+        self._remesh_rounds = int(cfg.get("remesh_iterations", 3))
         # coarse to fine: the stages' settings ({"beta", "edge_length" in voxels}), first first
         self.stages = [dict(st) for st in (cfg.get("stages") or [{}])]
         self.stage_starts: list[dict] = []
@@ -208,8 +209,12 @@ class ShapeGradientFlow:
         self.iteration = it
         self.history.append(new.E)
         if self.remesh_every and it % self.remesh_every == 0:
-            self._remesh_and_guard(it)
-            back = self.signs.check(it, self.state.x, self.ops) if self.signs is not None else None
+            # the sign guard looks before the remesh (a flow that already cut a part is not worth remeshing) and
+            # after it (the remesher's collapses can cut a voxel-thin tip too)
+            back = self.signs.check(it, self.state.x, self.ops, keep=False) if self.signs is not None else None
+            if back is None:
+                self._remesh_and_guard(it)
+                back = self.signs.check(it, self.state.x, self.ops) if self.signs is not None else None
             if back is not None:
                 self._set_mesh(*back)
                 return self._end("sign_guard", self.signs.message)
@@ -250,7 +255,10 @@ class ShapeGradientFlow:
             solver = self._auto_solver(geo, s)
         if solver == "direct":
             if self._lu is None or self._lu_age >= _LU_REFRESH:
-                self._lu = splu(ops.h1_matrix(geo, s)[0].tocsc(), permc_spec="COLAMD")
+                # M + sK is symmetric: a symmetric ordering (minimum degree on A + Aᵀ, diagonal pivots) fills
+                # 40 % less than COLAMD (cortex, 34k vertices: factor 0.28 s vs 0.36 s, solve 10 vs 19 ms)
+                self._lu = splu(ops.h1_matrix(geo, s)[0].tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                options={"SymmetricMode": True})
                 self._lu_age = 0
             sol = self._lu.solve(b)
             self._lu_age += 1
@@ -303,7 +311,8 @@ class ShapeGradientFlow:
     def _remesh_and_guard(self, it: int) -> None:
         """Remesh toward the target edge length, then make sure no faces intersect (repair or roll back)."""
         t0 = time.perf_counter()
-        out = remesh(self.state.x, self.ops.faces, self.edge_length, int(self.cfg.get("remesh_iterations", 3)))
+        # the flow's meshes are closed (checked at every remesh); the start is checked here once more
+        out = remesh(self.state.x, self.ops.faces, self.edge_length, self._remesh_rounds, closed=it > 0)
         if out is None:
             self.remesh_refused += 1
         else:
@@ -315,6 +324,11 @@ class ShapeGradientFlow:
             self._calm = self._still = 0
         self.timings["remesh"] += time.perf_counter() - t0
         self._guard(it)
+
+    def _checked(self) -> bool:
+        """True when the current mesh is the last one the intersection guard passed (nothing moved since)."""
+        return (self._safe is not None and self._safe[1] is self.ops
+                and np.array_equal(self._safe[0], self.state.x))
 
     def _guard(self, it: int) -> bool:
         """Check for self-intersections; repair or roll back.  True when the mesh is now intersection-free."""
@@ -353,7 +367,7 @@ class ShapeGradientFlow:
         """
         cfg, h = self.cfg, self.h
         guard = bool(cfg.get("guard", False))
-        if guard:
+        if guard and not self._checked():
             self._guard(self.iteration)
         x = self.state.x
         polish = {"used": bool(cfg.get("polish_used", False))}
@@ -362,7 +376,8 @@ class ShapeGradientFlow:
             xp, stats = crease_polish(self.field, self.ops, x, h, angle=cfg["polish_angle"],
                                       weight=cfg["polish_weight"])
             polish.update(stats)
-            if guard and stats["zone_vertices"] and count_intersections(xp, self.ops.faces)[0]:
+            moved = np.flatnonzero(np.any(xp != x, axis=1))    # x was checked: only the polished patch can meet
+            if guard and stats["zone_vertices"] and count_intersections(xp, self.ops.faces, moved=moved)[0]:
                 polish["rejected"] = "it made faces intersect"
             else:
                 x = xp
@@ -374,7 +389,7 @@ class ShapeGradientFlow:
             t0 = time.perf_counter()
             xq, _ = newton_project(self.field, x, steps=_PROJECTION_STEPS, max_step=_PROJECTION_MAX_VOXELS * h)
             xq = np.where(np.isfinite(xq).all(axis=1, keepdims=True), xq, x)
-            kept_back = 0
+            kept_back, n = 0, 0
             for _ in range(_PROJECTION_REVERT_ROUNDS if guard else 0):
                 n, bad = count_intersections(xq, self.ops.faces)
                 if n == 0:
@@ -383,7 +398,9 @@ class ShapeGradientFlow:
                 back = np.unique(np.concatenate([back, self.ops.ring[back][self.ops.ring_valid[back]]]))
                 kept_back += int(np.any(xq[back] != x[back], axis=1).sum())
                 xq[back] = x[back]
-            ok = not (guard and count_intersections(xq, self.ops.faces)[0])
+            if guard and n:                                   # the last round's repair is not checked yet
+                n = count_intersections(xq, self.ops.faces)[0]
+            ok = not (guard and n)
             projection["max_move_voxels"] = float(np.linalg.norm(xq - x, axis=1).max() / h) if ok else 0.0
             projection["kept_back"] = kept_back
             if ok:
@@ -417,9 +434,9 @@ class ShapeGradientFlow:
     def result(self) -> Reconstruction:
         """The mesh (closed, outward) and the info dict; ReconstructionFailed for a collapsed or off-surface result."""
         cfg, h = self.cfg, self.h
-        t0 = time.perf_counter()
         if self._polished is None:
             self._polished = self._finish()
+        t0 = time.perf_counter()
         final_geo, polish_info, projection_info = self._polished
         checks = self._check_result(final_geo)
         H_final, K_final = self.ops.curvature(final_geo, linear=self.linear)

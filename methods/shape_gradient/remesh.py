@@ -18,18 +18,37 @@ from geometry.topology import is_sphere_like
 __all__ = ["remesh", "is_sphere_like"]
 
 
-def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iterations: int = 3
-           ) -> tuple[np.ndarray, np.ndarray] | None:
+def _botsch(V: np.ndarray, F: np.ndarray, iterations: int, edge_length: float, gpytoolbox, closed: bool = False):
+    """gpytoolbox's Botsch–Kobbelt remesher.  The flow's meshes are closed and manifold (checked after every
+    remesh), so its C++ kernel is called directly when this gpytoolbox has the known one: the public wrapper's
+    input checks (boundary vertices, non-manifold edges: two ``np.unique`` over all edges) cost a third of the
+    remesh at 34k vertices.  Any other input, or another gpytoolbox, goes through the public wrapper."""
+    try:
+        from gpytoolbox_bindings import _remesh_botsch_cpp_impl
+    except ImportError:
+        _remesh_botsch_cpp_impl = None
+    if _remesh_botsch_cpp_impl is not None and (closed or is_sphere_like(F, len(V))):
+        try:
+            return _remesh_botsch_cpp_impl(V, F, iterations, edge_length, np.zeros(0, dtype=np.int32),
+                                           np.zeros((0, 2), dtype=np.int32), True)
+        except TypeError:     # another signature: use the public function
+            pass
+    return gpytoolbox.remesh_botsch(V, F, iterations, edge_length, True)
+
+
+def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iterations: int = 3, *,
+           closed: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
     """The mesh remeshed toward edge length ``edge_length`` (world units), or None when the remesher's output
-    is not sphere-like (:func:`is_sphere_like`) and the caller should keep its mesh."""
+    is not sphere-like (:func:`is_sphere_like`) and the caller should keep its mesh.  ``closed=True``: the
+    caller knows the input is one closed manifold surface (the flow's meshes are), so it is not re-checked."""
     with warnings.catch_warnings():      # gpytoolbox's own imports use deprecated numpy paths
         warnings.simplefilter("ignore", DeprecationWarning)
         import gpytoolbox
 
+    V = np.ascontiguousarray(vertices, dtype=np.float64)
+    F = np.ascontiguousarray(faces, dtype=np.int32)
     try:
-        U, G = gpytoolbox.remesh_botsch(np.ascontiguousarray(vertices, dtype=np.float64),
-                                        np.ascontiguousarray(faces, dtype=np.int32), int(iterations),
-                                        float(edge_length), True)
+        U, G = _botsch(V, F, int(iterations), float(edge_length), gpytoolbox, closed)
     except ValueError:  # the remesher refuses non-manifold input
         return None
     U = np.asarray(U, dtype=np.float64)

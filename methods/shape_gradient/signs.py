@@ -44,13 +44,14 @@ class SignGuard:
                                            np.ascontiguousarray(faces, dtype=np.int32))
         return int(np.count_nonzero(self.inside != (np.asarray(w) > 0.5)))
 
-    def check(self, it: int, x: np.ndarray, ops) -> tuple[np.ndarray, object] | None:
-        """None when the mesh is within the allowance (it becomes the checkpoint); else the checkpoint's
-        (vertices, operators) to go back to, with :attr:`message` saying why."""
+    def check(self, it: int, x: np.ndarray, ops, keep: bool = True) -> tuple[np.ndarray, object] | None:
+        """None when the mesh is within the allowance (with ``keep``, it becomes the checkpoint); else the
+        checkpoint's (vertices, operators) to go back to, with :attr:`message` saying why."""
         wrong = self.wrong_side(x, ops.faces)
         self.log.append((it, wrong))
         if wrong <= self.allowed:
-            self.checkpoint = (it, x.copy(), ops)
+            if keep:
+                self.checkpoint = (it, x.copy(), ops)
             return None
         back, xb, opsb = self.checkpoint
         self.message = (f"iteration {it}: the surface put {wrong} samples with |φ| > {MARGIN_VOXELS:g} voxel on the "

@@ -1,0 +1,41 @@
+"""The intersection guard's check (methods/shape_gradient/guard.py): both tests, the local patch check."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry.intersections import self_intersection_pairs
+from geometry.sphere import fibonacci_sphere
+from methods.shape_gradient.guard import _meshlab_faces, count_intersections
+
+
+def _sphere_with_a_dent(dent: float):
+    """A unit sphere whose vertex nearest the north pole is pushed down by ``dent`` (through the south side
+    when dent > 2)."""
+    x, f = fibonacci_sphere(600, 1.0)
+    x = np.array(x, dtype=float)
+    top = int(np.argmax(x[:, 2]))
+    x[top, 2] -= dent
+    return x, np.asarray(f), top
+
+
+def test_count_is_the_union_of_both_tests():
+    x, f, _ = _sphere_with_a_dent(2.3)
+    n, bad = count_intersections(x, f)
+    expected = np.union1d(_meshlab_faces(x, f), np.unique(self_intersection_pairs(x, f)))
+    assert n > 0 and n == len(bad) and np.array_equal(bad, expected)
+
+
+def test_the_local_check_finds_what_the_full_check_finds():
+    x, f, top = _sphere_with_a_dent(2.3)                 # the pole's fan pierces the south side
+    n, bad = count_intersections(x, f)
+    n_local, bad_local = count_intersections(x, f, moved=np.array([top]))
+    assert n > 0 and n_local == n and np.array_equal(bad_local, bad)
+    far = int(np.argmin(x[:, 0]))         # another vertex: its patch (grown by the longest face) never invents a hit
+    assert set(count_intersections(x, f, moved=np.array([far]))[1]) <= set(bad)
+
+
+def test_a_clean_mesh_has_no_intersections_by_either_check():
+    x, f, top = _sphere_with_a_dent(0.5)                  # a dent, no piercing
+    assert count_intersections(x, f)[0] == 0
+    assert count_intersections(x, f, moved=np.array([top]))[0] == 0

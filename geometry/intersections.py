@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from . import broadphase
 from .arrays import unique_ints
 
 __all__ = ["self_intersection_pairs", "intersecting_faces"]
@@ -186,28 +187,34 @@ def _straddles(s: np.ndarray) -> np.ndarray:
     return ~((s > 0).all(axis=1) | (s < 0).all(axis=1))
 
 
-def self_intersection_pairs(vertices: np.ndarray, faces: np.ndarray, chunk: int = 500_000) -> np.ndarray:
-    """All intersecting pairs (i, j) of faces that share no vertex index; shape (P, 2), each pair once."""
+def self_intersection_pairs(vertices: np.ndarray, faces: np.ndarray, chunk: int = 500_000,
+                            compiled: bool | None = None) -> np.ndarray:
+    """All intersecting pairs (i, j) of faces that share no vertex index; shape (P, 2), each pair once.
+
+    ``compiled``: the broad phase of :mod:`geometry.broadphase` (numba) instead of the numpy/cKDTree one
+    (None: from :data:`geometry.kernels.MIN_SIZE` faces on); the same pairs either way."""
     v = np.asarray(vertices, float)
     f = np.asarray(faces, dtype=np.int64)
     if len(f) < 2:
         return np.zeros((0, 2), dtype=np.int64)
     tri = v[f]
     lo, hi = tri.min(axis=1), tri.max(axis=1)
-    cand = _candidate_pairs(tri)
+    compiled = broadphase.wanted(len(f)) if compiled is None else compiled
+    cand = broadphase.box_pairs(lo, hi, f) if compiled else _candidate_pairs(tri)
     found = []
     for s in range(0, len(cand), chunk):
         i, j = cand[s:s + chunk, 0], cand[s:s + chunk, 1]
-        keep = np.ones(len(i), bool)
-        for k in range(3):      # boxes overlap
-            keep &= (lo[i, k] <= hi[j, k]) & (lo[j, k] <= hi[i, k])
-        i, j = i[keep], j[keep]
-        fi, fj = f[i], f[j]
-        share = np.zeros(len(i), bool)
-        for a in range(3):      # no shared vertex index
-            for b in range(3):
-                share |= fi[:, a] == fj[:, b]
-        i, j = i[~share], j[~share]
+        if not compiled:        # the compiled broad phase has applied these two filters already
+            keep = np.ones(len(i), bool)
+            for k in range(3):      # boxes overlap
+                keep &= (lo[i, k] <= hi[j, k]) & (lo[j, k] <= hi[i, k])
+            i, j = i[keep], j[keep]
+            fi, fj = f[i], f[j]
+            share = np.zeros(len(i), bool)
+            for a in range(3):      # no shared vertex index
+                for b in range(3):
+                    share |= fi[:, a] == fj[:, b]
+            i, j = i[~share], j[~share]
         if not len(i):
             continue
         A, B = tri[i], tri[j]

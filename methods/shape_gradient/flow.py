@@ -208,16 +208,8 @@ class ShapeGradientFlow:
         self.state = new
         self.iteration = it
         self.history.append(new.E)
-        if self.remesh_every and it % self.remesh_every == 0:
-            # the sign guard looks before the remesh (a flow that already cut a part is not worth remeshing) and
-            # after it (the remesher's collapses can cut a voxel-thin tip too)
-            back = self.signs.check(it, self.state.x, self.ops, keep=False) if self.signs is not None else None
-            if back is None:
-                self._remesh_and_guard(it)
-                back = self.signs.check(it, self.state.x, self.ops) if self.signs is not None else None
-            if back is not None:
-                self._set_mesh(*back)
-                return self._end("sign_guard", self.signs.message)
+        if self.remesh_every and it % self.remesh_every == 0 and not self._remesh_point(it):
+            return self._end("sign_guard", self.signs.message)
         if it in self.snap_set:
             if self.guard and (not self.intersections or self.intersections[-1][0] != it):
                 self._guard(it)                      # a snapshot is a result too: intersection-free
@@ -307,6 +299,19 @@ class ShapeGradientFlow:
         self._V_prev = None          # the warm start and the factor of the H¹ solve belong to the old mesh
         self._lu = None
         self._solver_choice = None
+
+    def _remesh_point(self, it: int) -> bool:
+        """Remesh and check; False when the sign guard rolled the mesh back (the flow must stop).  The sign
+        guard looks before the remesh (a flow that already cut a part is not worth remeshing) and after it
+        (the remesher's collapses can cut a voxel-thin tip too)."""
+        back = self.signs.check(it, self.state.x, self.ops, keep=False) if self.signs is not None else None
+        if back is None:
+            self._remesh_and_guard(it)
+            back = self.signs.check(it, self.state.x, self.ops) if self.signs is not None else None
+        if back is not None:
+            self._set_mesh(*back)
+            return False
+        return True
 
     def _remesh_and_guard(self, it: int) -> None:
         """Remesh toward the target edge length, then make sure no faces intersect (repair or roll back)."""

@@ -33,6 +33,7 @@ from __future__ import annotations
 import heapq
 
 import numpy as np
+from scipy import ndimage
 
 from .kernels import AVAILABLE, _jit
 
@@ -188,16 +189,21 @@ def _grow_reference(phi: np.ndarray, level: float, seed) -> np.ndarray:
 def homotopic_growth(phi: np.ndarray, level: float = 0.0, *, reference: bool = False) -> np.ndarray:
     """The genus-0 solid grown inside ``phi < level`` (bool array of phi's shape; see the module docstring).
 
-    The seed is the deepest sample off the grid's outer layer; an empty array when no such sample is inside.
+    The seed is the deepest sample of the largest 26-connected part of ``phi < level`` off the grid's outer
+    layer (of several objects the largest is kept — not the one with the deepest sample, which may be a small
+    fragment: a mis-signed sliver of a flawed mesh's distance field took 16 of 7,476 inside samples); an empty
+    array when no such sample is inside.
     ``reference=True`` runs the pure-Python growth (slow; for tests on small grids).
     """
     phi = np.ascontiguousarray(phi, dtype=np.float64)
     if phi.ndim != 3 or min(phi.shape) < 3:
         raise ValueError(f"homotopic_growth: expected a 3-D grid of at least 3 samples per axis, got {phi.shape}")
     core = phi[1:-1, 1:-1, 1:-1]
-    seed = np.asarray(np.unravel_index(int(np.argmin(core)), core.shape)) + 1
-    if not phi[tuple(seed)] < level:
+    labels, n = ndimage.label(core < level, structure=np.ones((3, 3, 3), bool))
+    if n == 0:
         return np.zeros(phi.shape, bool)
+    largest = 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
+    seed = np.asarray(np.unravel_index(int(np.argmin(np.where(labels == largest, core, np.inf))), core.shape)) + 1
     if reference or not AVAILABLE:
         return _grow_reference(phi, float(level), seed)
     return _grow(phi, float(level), seed.astype(np.int64), NEIGHBOUR_OFFSETS, _ADJ6, _ADJ26, _N18, _FACE6, _ALL)

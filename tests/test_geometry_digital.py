@@ -104,6 +104,18 @@ def test_two_objects_and_a_cavity():
     assert is_ball(solid) and 0 < ((shell < 0) & ~solid).sum() < 0.05 * (shell < 0).sum()   # the shell is opened
 
 
+def test_the_largest_object_is_grown_not_the_deepest_fragment():
+    """A small fragment with the deepest values (a mis-signed sliver of a flawed mesh's distance field) must not
+    become the start: the cow of pymeshlab's samples gave a 16-sample solid of 7,476 inside samples."""
+    (x, y, z), h = _grid(32)
+    big = np.sqrt((x + 0.5) ** 2 + y ** 2 + z ** 2) - 0.9
+    frag = 10.0 * (np.sqrt((x - 1.2) ** 2 + y ** 2 + z ** 2) - 0.25)       # far deeper, a few samples
+    phi = np.minimum(big, frag)
+    assert phi.argmin() == frag.argmin()
+    solid = homotopic_growth(phi)
+    assert is_ball(solid) and np.array_equal(solid, big < 0)
+
+
 def test_no_inside_sample_gives_an_empty_solid():
     assert not homotopic_growth(np.ones((8, 8, 8))).any()
     phi = np.ones((8, 8, 8))

@@ -22,7 +22,7 @@ class EllipsoidPolynomial:
         return Sample(phi, grad, hess)
 
 
-def fd_normal_derivative(field, vertices, faces, alpha, beta, eps=1e-6):
+def fd_normal_derivative(field, vertices, faces, alpha, beta, eps=1e-6, density=0.0):
     """Central finite differences ∂E/∂(move of vertex i along its area-weighted normal), all i at once.
 
     Only the faces around vertex i change when it moves, so each (face, corner) pair is evaluated with
@@ -47,15 +47,15 @@ def fd_normal_derivative(field, vertices, faces, alpha, beta, eps=1e-6):
             dbl = np.linalg.norm(cross, axis=1)
             nf = cross / dbl[:, None]
             Ef, _ = face_energies(np.asarray(s.phi), np.asarray(s.grad).T, nf.T, 0.5 * dbl, alpha, beta)
-            res.append(Ef)
+            res.append(Ef + density * 0.5 * dbl)
         out += np.bincount(v, weights=(res[0] - res[1]) / (2 * eps), minlength=len(x))
     return out
 
 
-def gradient_fd_error(field, vertices, faces, alpha=5.0, beta=1.0, kind="full"):
+def gradient_fd_error(field, vertices, faces, alpha=5.0, beta=1.0, kind="full", density=0.0):
     """Relative L2 error ‖A·G − FD‖ / ‖FD‖ of the shape gradient against finite differences."""
-    G, _, A = shape_gradient(field, vertices, faces, alpha, beta, kind=kind)
-    fd = fd_normal_derivative(field, vertices, faces, alpha, beta)
+    G, _, A = shape_gradient(field, vertices, faces, alpha, beta, kind=kind, density=density)
+    fd = fd_normal_derivative(field, vertices, faces, alpha, beta, density=density)
     return float(np.linalg.norm(A * G - fd) / np.linalg.norm(fd))
 
 

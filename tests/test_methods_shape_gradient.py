@@ -62,6 +62,25 @@ def _fd_mesh(n):
     return fibonacci_sphere(n, 1.3)
 
 
+def test_the_noise_variance_term_matches_finite_differences():
+    """unbias: E gains density × area (density = −ασ̂²); its gradient term 2H·density must be the derivative
+    of that discrete energy too (a large density, so the term dominates the check)."""
+    field = EllipsoidPolynomial()
+    assert gradient_fd_error(field, *_fd_mesh(7584), density=-0.5) <= 0.01
+    G0, _, _ = shape_gradient(field, *_fd_mesh(1896))
+    G1, H, _ = shape_gradient(field, *_fd_mesh(1896), density=-0.5)
+    np.testing.assert_allclose(G1 - G0, 2.0 * H * -0.5, atol=1e-12)
+
+
+def test_noisy_volumes_subtract_the_noise_variance(sphere32):
+    noisy, _ = add_noise(sphere32, "gaussian", 40.0, seed=0)
+    r = SG(max_iter=2, guard=False).reconstruct(noisy)
+    sigma = r.info["noise_estimate"]
+    assert r.info["parameters"]["noise_variance"] == pytest.approx((2 / 3) ** 3 * sigma ** 2) and sigma > 0
+    assert SG(max_iter=2, guard=False, unbias=False).reconstruct(noisy).info["parameters"]["noise_variance"] == 0
+    assert SG(max_iter=2, guard=False).reconstruct(sphere32).info["parameters"]["noise_variance"] == 0   # clean
+
+
 def test_full_gradient_matches_finite_differences_of_the_discrete_energy():
     """Per-vertex relative L2 error of A·G against central differences of E (analytic ellipsoid field):
     ≤ 3 % at 1,896 vertices, ≤ 1 % at 7,584 (measured 1.6 % and 0.8 %)."""
@@ -438,3 +457,14 @@ def test_heavy_noise_is_not_mistaken_for_an_off_surface_result():
     assert r.info["off_surface_limit_voxels"] > 1.0
     assert hausdorff(r.mesh, ph) < 3.0 * vol.h
     assert topology(r.mesh)["euler"] == 2
+
+
+def test_the_interpolated_noise_variance_is_eight_27ths():
+    """The factor unbias uses: trilinear interpolation of i.i.d. unit noise at uniformly random points has mean
+    variance (2/3)³ (measured on a grid of pure noise)."""
+    from phantoms import Volume
+    rng = np.random.default_rng(0)
+    vol = Volume(rng.normal(size=(24, 24, 24)), np.zeros(3), np.ones(3))
+    p = rng.uniform(2, 21, (200_000, 3))
+    v = np.asarray(vol.sample(p, derivatives=0).phi)
+    assert np.mean(v ** 2) == pytest.approx((2 / 3) ** 3, rel=0.03)

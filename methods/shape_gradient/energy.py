@@ -40,7 +40,8 @@ def face_energies(phi: np.ndarray, grad: np.ndarray, normals: np.ndarray, areas:
     return Ef, phi_n * gt
 
 
-def discrete_energy(field, vertices: np.ndarray, faces: np.ndarray, alpha: float, beta: float) -> float:
+def discrete_energy(field, vertices: np.ndarray, faces: np.ndarray, alpha: float, beta: float,
+                    density: float = 0.0) -> float:
     """The discrete energy E = Σ_f a_f g(c_f, n_f), g = αφ² + β(|∇φ|² − (∇φ·n_f)²), c_f the centroid.
 
     ``field`` is a Volume, a :class:`GridSampler` or any object with ``sample(points, derivatives)``.
@@ -49,7 +50,7 @@ def discrete_energy(field, vertices: np.ndarray, faces: np.ndarray, alpha: float
     x = np.asarray(vertices, float)
     ops = MeshOperators(faces, len(x))
     zero = dict.fromkeys(("energy", "interpolation"), 0.0)
-    return evaluate_state(field, ops, x, alpha, beta, zero).E
+    return evaluate_state(field, ops, x, alpha, beta, zero, density=density).E
 
 
 @dataclass
@@ -65,8 +66,12 @@ class FlowState:
 
 
 def evaluate_state(field, ops: MeshOperators, x: np.ndarray, alpha: float, beta: float,
-                   timings: dict | None = None) -> FlowState:
-    """Geometry and the discrete energy at ``x`` (V, 3); E is +inf when a vertex leaves the field's box."""
+                   timings: dict | None = None, *, density: float = 0.0) -> FlowState:
+    """Geometry and the discrete energy at ``x`` (V, 3); E is +inf when a vertex leaves the field's box.
+
+    ``density``: a constant added to the integrand (E += density · area).  The flow passes −α·σ̂² on a noisy
+    volume: with φ = φ_true + noise of variance σ², E[φ²] = φ_true² + σ², so ∫αφ² carries a term ασ²·area — a
+    mean-curvature flow that shrinks thin parts and tips; subtracting the estimated variance removes it."""
     t0 = time.perf_counter()
     geo = ops.geometry(x)
     if not field.contains_t(geo.vertices_t):
@@ -81,7 +86,7 @@ def evaluate_state(field, ops: MeshOperators, x: np.ndarray, alpha: float, beta:
         Ef, X = kernels.face_energies(ch, geo.normals_t, geo.face_areas, alpha, beta)   # same arithmetic
     else:
         Ef, X = face_energies(ch[0], ch[1:4], geo.normals_t, geo.face_areas, alpha, beta)
-    E = float(Ef.sum())
+    E = float(Ef.sum()) + (density * float(geo.face_areas.sum()) if density else 0.0)
     if timings is not None:
         timings["interpolation"] += t2 - t1
         timings["energy"] += (t1 - t0) + (time.perf_counter() - t2)
@@ -89,10 +94,12 @@ def evaluate_state(field, ops: MeshOperators, x: np.ndarray, alpha: float, beta:
 
 
 def gradient_from_state(field, state: FlowState, ops: MeshOperators, alpha: float, beta: float, *,
-                        kind: str = "full", linear: bool = True, timings: dict | None = None):
+                        kind: str = "full", linear: bool = True, timings: dict | None = None,
+                        density: float = 0.0):
     """(G, H): the shape gradient (V,) at every vertex of ``state`` and the mean curvature used for it.
 
-    G = 2αφφ_n + 2β[(D²φ∇φ)·n − φ_n nᵀD²φn] + 2H[αφ² + β(|∇φ|² − φ_n²)]  (− 2β div_Γ X if kind='full').
+    G = 2αφφ_n + 2β[(D²φ∇φ)·n − φ_n nᵀD²φn] + 2H[αφ² + β(|∇φ|² − φ_n²) + density]  (− 2β div_Γ X if
+    kind='full'; ``density``: see :func:`evaluate_state`).
     G_i × (lumped area of i) approximates ∂E/∂(move of vertex i along its normal).
     """
     if kind not in ("full", "paper"):
@@ -123,7 +130,7 @@ def gradient_from_state(field, state: FlowState, ops: MeshOperators, alpha: floa
     phi_n = g0 * n0 + g1 * n1 + g2 * n2
     G = 2.0 * alpha * phi * phi_n \
         + 2.0 * beta * ((hn0 * g0 + hn1 * g1 + hn2 * g2) - phi_n * (hn0 * n0 + hn1 * n1 + hn2 * n2)) \
-        + 2.0 * H * (alpha * phi * phi + beta * (g0 * g0 + g1 * g1 + g2 * g2 - phi_n * phi_n))
+        + 2.0 * H * (alpha * phi * phi + beta * (g0 * g0 + g1 * g1 + g2 * g2 - phi_n * phi_n) + density)
     if kind == "full" and beta != 0.0:
         G -= 2.0 * beta * ops.divergence(geo, state.X, transposed=True)
     if timings is not None:
@@ -134,16 +141,17 @@ def gradient_from_state(field, state: FlowState, ops: MeshOperators, alpha: floa
 
 
 def shape_gradient(field, vertices: np.ndarray, faces: np.ndarray, alpha: float = 5.0, beta: float = 1.0, *,
-                   kind: str = "full", linear: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   kind: str = "full", linear: bool = True, density: float = 0.0
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Standalone (G, H, lumped vertex areas) for a mesh in a field (see :func:`gradient_from_state`)."""
     field = as_field(field)
     x = np.asarray(vertices, float)
     ops = MeshOperators(faces, len(x))
     zero = dict.fromkeys(("energy", "interpolation", "curvature", "gradient"), 0.0)
-    state = evaluate_state(field, ops, x, alpha, beta, zero)
+    state = evaluate_state(field, ops, x, alpha, beta, zero, density=density)
     if state.X is None:
         raise InputError("shape_gradient: some vertices lie outside the field's box")
-    G, H = gradient_from_state(field, state, ops, alpha, beta, kind=kind, linear=linear)
+    G, H = gradient_from_state(field, state, ops, alpha, beta, kind=kind, linear=linear, density=density)
     return G, H, state.geo.vertex_areas
 
 

@@ -56,6 +56,8 @@ class ShapeGradientFlow:
                                       "energy", "relax", "polish", "remesh", "guard", "projection"), 0.0)
         self.timings["setup"] = setup_seconds
         self.alpha, self.beta = cfg["alpha"], cfg["beta"]
+        # −α σ̂² on a noisy volume (unbias): removes the ασ²·area a noisy φ² adds to E (energy.evaluate_state)
+        self.density = -float(cfg["alpha"]) * float(cfg.get("noise_variance", 0.0))
         self.kind, self.linear = cfg["gradient"], cfg["curvature"] == "tilted"
         self.max_move = cfg["max_move"] * self.h
         self.floor_move = _FLOOR_MOVE_VOXELS * self.h
@@ -71,7 +73,8 @@ class ShapeGradientFlow:
         self.stages = [dict(st) for st in (cfg.get("stages") or [{}])]
         self.stage_starts: list[dict] = []
         self._enter_stage(self.stages.pop(0))
-        self.state = evaluate_state(field, ops, np.asarray(x, float), self.alpha, self.beta, self.timings)
+        self.state = evaluate_state(field, ops, np.asarray(x, float), self.alpha, self.beta, self.timings,
+                                    density=self.density)
         if not np.isfinite(self.state.E):
             raise InputError("method 'shape_gradient': the energy of the initial surface is not finite")
         self.history = [self.state.E]
@@ -126,7 +129,8 @@ class ShapeGradientFlow:
         self._move_prev, self._grow = self.max_move, False
         if self.remesh_every:
             self._remesh_and_guard(self.iteration)
-        self.state = evaluate_state(self.field, self.ops, self.state.x, self.alpha, self.beta, self.timings)
+        self.state = evaluate_state(self.field, self.ops, self.state.x, self.alpha, self.beta, self.timings,
+                                    density=self.density)
         self._safe = None
         return True
 
@@ -141,7 +145,7 @@ class ShapeGradientFlow:
         it = self.iteration + 1
         state = self.state
         G, _ = gradient_from_state(field, state, ops, alpha, beta, kind=self.kind, linear=self.linear,
-                                   timings=timings)
+                                   timings=timings, density=self.density)
         self.curvature_fallbacks += state.curvature_fallbacks
         if not np.isfinite(G).all():
             bad = int((~np.isfinite(G)).sum())
@@ -168,7 +172,7 @@ class ShapeGradientFlow:
             x_new = state.x + tau * direction + (0.0 if shift is None else shift)
             if not np.isfinite(x_new).all():
                 return self._end("diverged", f"iteration {it}: non-finite vertex positions")
-            new = evaluate_state(field, ops, x_new, alpha, beta, timings)
+            new = evaluate_state(field, ops, x_new, alpha, beta, timings, density=self.density)
             if not np.isfinite(new.E):
                 return self._end("diverged", f"iteration {it}: the mesh left the volume box" if new.X is None
                                  else f"iteration {it}: non-finite energy")
@@ -184,7 +188,7 @@ class ShapeGradientFlow:
                     x_new = state.x + tau * direction
                     if with_shift:
                         x_new += shift
-                    cand = evaluate_state(field, ops, x_new, alpha, beta, timings)
+                    cand = evaluate_state(field, ops, x_new, alpha, beta, timings, density=self.density)
                     if np.isfinite(cand.E) and cand.E <= state.E - _ARMIJO * tau * slope \
                             and no_fold(geo, cand.geo):
                         new = cand
@@ -295,7 +299,7 @@ class ShapeGradientFlow:
     def _set_mesh(self, x: np.ndarray, ops: MeshOperators, state=None) -> None:
         self.ops = ops
         self.state = state if state is not None else evaluate_state(self.field, ops, x, self.alpha, self.beta,
-                                                                    self.timings)
+                                                                    self.timings, density=self.density)
         self._V_prev = None          # the warm start and the factor of the H¹ solve belong to the old mesh
         self._lu = None
         self._solver_choice = None
@@ -386,7 +390,8 @@ class ShapeGradientFlow:
                 polish["rejected"] = "it made faces intersect"
             else:
                 x = xp
-            polish["energy"] = float(evaluate_state(self.field, self.ops, x, self.alpha, self.beta).E) \
+            polish["energy"] = float(evaluate_state(self.field, self.ops, x, self.alpha, self.beta,
+                                                        density=self.density).E) \
                 if stats["zone_vertices"] else float(self.state.E)
             self.timings["polish"] += time.perf_counter() - t0
         projection = {"used": bool(cfg.get("projection_used", False))}

@@ -33,6 +33,7 @@ PRESETS: dict[str, dict[str, Any]] = {
 _AUTO_PRESMOOTH_SIGMA = 1.0   # presmooth='auto': σ (voxels) used on noisy volumes ...
 _AUTO_PRESMOOTH_NOISE = 0.05  # ... i.e. when the estimated noise is at least this many voxels
 _AUTO_BETA = (1.0, 0.01)      # beta='auto': on clean / noisy volumes
+_INTERP_NOISE_GAIN = (2.0 / 3.0) ** 3   # mean of Σwᵢ² of trilinear weights over a cell
 
 
 def _auto_or_number(key: str, value: Any, hi: float) -> "float | str":
@@ -84,6 +85,11 @@ class ShapeGradient(Method):
                            "(robust std of 4th differences) is at least 0.05 voxel, else off", object),
         "start_smooth": Param("auto", "Gaussian σ in voxels of the values the genus-0 start is grown from (0 = the "
                               "data's own values); 'auto' = the presmooth σ", object),
+        "unbias": Param(True, "on noisy volumes, subtract the estimated noise variance from φ² in the data term: "
+                        "trilinear φ of noise with std σ has E[φ²] = φ_true² + (2/3)³σ² on average, so ∫αφ² carries "
+                        "(2/3)³ασ² × area, a mean-curvature flow that shrinks thin parts and tips (40 dB airplane: "
+                        "3.16 → 1.39 h)",
+                        bool),
         "presmooth_phi": Param(False, "pre-smooth φ itself too (True: the data term then sees the shrunken "
                                "level set of the smoothed volume), or only the derivative grids (False)", bool),
         "polish": Param("auto", "crease polish of the final mesh (crease_polish): vertices next to sharp creases "
@@ -205,6 +211,9 @@ class ShapeGradient(Method):
         x, faces, flipped, init_facts = initial_surface(cfg, volume, values=values)
         cfg["remesh_start"] = init_facts["kind"] == "genus0"
         cfg["presmooth_used"] = float(sigma)
+        # the noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise has variance
+        # σ²Σwᵢ², on average (∫₀¹ t² + (1 − t)² dt)³ = (2/3)³ of σ² over positions in a cell
+        cfg["noise_variance"] = _INTERP_NOISE_GAIN * float(noise) ** 2 if (cfg["unbias"] and not clean) else 0.0
         cfg["start_smooth_used"] = float(s0)
         cfg["polish_used"] = cfg["polish"] == "on" or (cfg["polish"] == "auto" and clean)
         cfg["projection_used"] = cfg["projection"] == "on" or (cfg["projection"] == "auto" and clean)

@@ -69,9 +69,9 @@ def evaluate_state(field, ops: MeshOperators, x: np.ndarray, alpha: float, beta:
                    timings: dict | None = None, *, density: float = 0.0) -> FlowState:
     """Geometry and the discrete energy at ``x`` (V, 3); E is +inf when a vertex leaves the field's box.
 
-    ``density``: a constant added to the integrand (E += density · area).  The flow passes −α·σ̂² on a noisy
-    volume: with φ = φ_true + noise of variance σ², E[φ²] = φ_true² + σ², so ∫αφ² carries a term ασ²·area — a
-    mean-curvature flow that shrinks thin parts and tips; subtracting the estimated variance removes it."""
+    ``density``: a constant added to the integrand (E += density · area).  The flow passes −α(2/3)³σ̂² on a
+    noisy volume: trilinear φ of noise with variance σ² has E[φ²] = φ_true² + (2/3)³σ² on average over a cell,
+    so ∫αφ² carries (2/3)³ασ²·area — a mean-curvature flow that shrinks thin parts and tips; this removes it."""
     t0 = time.perf_counter()
     geo = ops.geometry(x)
     if not field.contains_t(geo.vertices_t):

@@ -9,6 +9,7 @@ import numpy as np
 import trimesh
 from scipy.sparse.linalg import cg, splu
 
+from geometry.arrays import unique_ints
 from geometry.operators import MeshOperators, dot, jacobi_cg
 from phantoms import InputError
 
@@ -56,7 +57,7 @@ class ShapeGradientFlow:
                                       "energy", "relax", "polish", "remesh", "guard", "projection"), 0.0)
         self.timings["setup"] = setup_seconds
         self.alpha, self.beta = cfg["alpha"], cfg["beta"]
-        # −α σ̂² on a noisy volume (unbias): removes the ασ²·area a noisy φ² adds to E (energy.evaluate_state)
+        # −α(2/3)³σ̂² on a noisy volume (unbias): the area term a noisy φ² adds to E (energy.evaluate_state)
         self.density = -float(cfg["alpha"]) * float(cfg.get("noise_variance", 0.0))
         self.kind, self.linear = cfg["gradient"], cfg["curvature"] == "tilted"
         self.max_move = cfg["max_move"] * self.h
@@ -404,8 +405,8 @@ class ShapeGradientFlow:
                 n, bad = count_intersections(xq, self.ops.faces)
                 if n == 0:
                     break
-                back = np.unique(self.ops.faces[bad])        # where projecting made faces meet: not projected
-                back = np.unique(np.concatenate([back, self.ops.ring[back][self.ops.ring_valid[back]]]))
+                back = unique_ints(self.ops.faces[bad])      # where projecting made faces meet: not projected
+                back = unique_ints(np.concatenate([back, self.ops.ring[back][self.ops.ring_valid[back]]]))
                 kept_back += int(np.any(xq[back] != x[back], axis=1).sum())
                 xq[back] = x[back]
             if guard and n:                                   # the last round's repair is not checked yet

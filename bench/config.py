@@ -6,7 +6,9 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
     description = "..."
 
     [grid]
-    phantoms = ["sphere", "ellipsoid"]      # names from `python -m bench phantoms`
+    phantoms = ["sphere", "ellipsoid"]      # names from `python -m bench phantoms`, "mesh:PATH",
+                                            # "volume:PATH?threshold=300" or { volume = "PATH", threshold = 300 };
+                                            # a glob in PATH is one phantom per file
     variants = ["sdf"]                      # sdf | paper
     n = 96                                  # grid points per axis; a number or a list
     extent = 2.5                            # the grid covers [-extent, extent]^3
@@ -55,7 +57,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from phantoms import NOISE_KINDS, VARIANTS, InputError, get_phantom, is_phantom_name, phantom_names
+from phantoms import (NOISE_KINDS, VARIANTS, InputError, expand_phantoms, get_phantom, is_file_phantom,
+                      is_phantom_name, phantom_names, phantom_path)
+from phantoms.user import spec_from_table
 
 from .textspec import parse_value as _parse_value
 from .textspec import split_top as _split_top
@@ -125,10 +129,10 @@ class NoiseSpec:
         if self.kind == "none":
             return None
         if self.snr == "paper":
-            snr = get_phantom(phantom).paper_snr_db
+            snr = None if is_file_phantom(phantom) else get_phantom(phantom).paper_snr_db
             if snr is None:
                 raise InputError(f"noise {self.kind!r} with snr = 'paper': phantom {phantom!r} has no paper SNR;"
-                                 " give the SNR in dB")
+                                 " give the SNR in dB (e.g. --noise none,gaussian@30)")
             return float(snr)
         return float(self.snr)
 
@@ -242,11 +246,19 @@ class RunConfig:
         known = phantom_names()
         for p in self.phantoms:
             if not is_phantom_name(p):
-                raise InputError(f"unknown phantom {p!r}; valid phantoms: {', '.join(known)}, or mesh:PATH")
-            if p.startswith("mesh:") and not Path(p[len("mesh:"):]).expanduser().is_file():
-                raise InputError(f"phantom {p!r}: no such mesh file {p[len('mesh:'):]!r}")
+                raise InputError(f"unknown phantom {p!r}; valid phantoms: {', '.join(known)}, mesh:PATH or "
+                                 "volume:PATH")
         if len(set(self.phantoms)) != len(self.phantoms):
             raise InputError("grid.phantoms: a phantom is listed twice")
+        expanded = expand_phantoms(self.phantoms)       # globs: an empty one is an error naming the pattern
+        for _, source in expanded:
+            if is_file_phantom(source):
+                path = Path(phantom_path(source)).expanduser()
+                # a file that exists but cannot be read is a failed row of its cells, not a refused config
+                if not (path.is_file() or (source.startswith("volume:") and path.is_dir())):
+                    kind = "mesh" if source.startswith("mesh:") else "volume"
+                    raise InputError(f"phantom {source!r}: no such {kind} file {str(path)!r}")
+        known = known + [name for name, _ in expanded]
         for v in self.variants:
             if v not in VARIANTS:
                 raise InputError(f"unknown variant {v!r}; valid variants: {', '.join(VARIANTS)}")
@@ -256,7 +268,7 @@ class RunConfig:
         if not self.extent > 0:
             raise InputError(f"grid.extent: must be positive, got {self.extent}")
         for s in self.noise:
-            for p in self.phantoms:
+            for _, p in expanded:
                 s.snr_for(p)
         if self.n_samples < 1000:
             raise InputError(f"metrics.n_samples: must be >= 1000, got {self.n_samples}")
@@ -275,7 +287,7 @@ class RunConfig:
                     raise InputError(f"method label {label!r} is used twice; give each [[methods]] entry a "
                                      "distinct label")
                 labels[label] = spec.name
-                for ph in self.phantoms:
+                for ph, _ in expanded:
                     get_method(spec.name, **spec.params_for(params, ph))  # raises InputError on bad params
         for i, col in enumerate(self.report.get("paper_columns", [])):
             if col["label"] not in labels:
@@ -302,7 +314,8 @@ def config_from_dict(data: dict, source: str = "") -> RunConfig:
         cfg.description = str(data["description"])
     if "phantoms" not in grid:
         raise InputError(f"{where}: [grid] needs phantoms = [...]")
-    cfg.phantoms = [str(p) for p in _as_list(grid["phantoms"], "grid.phantoms")]
+    cfg.phantoms = [spec_from_table(p, f"grid.phantoms[{i}]") if isinstance(p, dict) else str(p)
+                    for i, p in enumerate(_as_list(grid["phantoms"], "grid.phantoms"))]
     if "variants" in grid:
         cfg.variants = [str(v) for v in _as_list(grid["variants"], "grid.variants")]
     if "n" in grid:

@@ -149,6 +149,14 @@ class Phantom:
         raise NotImplementedError
 
     # ---- shared
+    #: whether the phantom knows its true surface (a user volume without ``truth=`` does not)
+    has_truth: bool = True
+
+    def ground_truth(self) -> "Phantom | None":
+        """The phantom the truth metrics are computed against: itself (a user volume: its reference surface,
+        or None without one)."""
+        return self
+
     #: total length of the true crease / rim curves (0 on smooth phantoms)
     crease_length: float = 0.0
 

@@ -31,7 +31,7 @@ from .base import DEFAULT_EXTENT, DEFAULT_N, as_points, check_n, grid_volume
 from .mesh import MeshPhantom, load_mesh
 from .volume import Volume
 
-__all__ = ["REAL_SHAPES", "get_real_phantom", "get_mesh_file_phantom", "Bunny", "Cortex", "BrainMRI",
+__all__ = ["REAL_SHAPES", "get_real_phantom", "get_mesh_file_phantom", "get_volume_phantom", "Bunny", "Cortex", "BrainMRI",
            "bunny_path", "cortex_path", "mni152_t1_path"]
 
 
@@ -125,7 +125,8 @@ class BrainMRI(MeshPhantom):
         from scipy import ndimage
         from skimage.measure import marching_cubes
 
-        from .io import _origin_spacing_from_affine, mask_to_sdf
+        from .io import _origin_spacing_from_affine
+        from .masks import mask_to_sdf
 
         self.threshold = float(threshold)
         if not 0.0 < self.threshold < 1.0:
@@ -185,6 +186,7 @@ class BrainMRI(MeshPhantom):
 REAL_SHAPES: dict[str, type[MeshPhantom]] = {cls.name: cls for cls in (Bunny, Cortex, BrainMRI)}
 
 _CACHE: dict = {}
+_VOLUME_CACHE: dict = {}
 
 
 def _cached(key, name: str, build) -> MeshPhantom:
@@ -207,6 +209,32 @@ def get_mesh_file_phantom(name: str, path, **params) -> MeshPhantom:
         stamp = None
     key = (name, str(path.resolve()) if stamp is not None else str(path), stamp, tuple(sorted(params.items())))
     return _cached(key, name, lambda: MeshPhantom.from_file(path, name=name, **params))
+
+
+def _stamp(path: Path):
+    """A file's (or a DICOM folder's files') version: modification times and sizes."""
+    try:
+        if path.is_dir():
+            return tuple(sorted((p.name, p.stat().st_mtime_ns, p.stat().st_size) for p in path.iterdir()))
+        st = path.stat()
+        return (st.st_mtime_ns, st.st_size)
+    except OSError:
+        return None
+
+
+def get_volume_phantom(spec: str, name: str | None = None):
+    """The phantom of a ``volume:PATH[?options]`` spec (:class:`phantoms.user.VolumePhantom`); cached per
+    process and file version (the image's and the truth file's modification times and sizes)."""
+    from .user import VolumePhantom, parse_spec
+
+    path, opts = parse_spec(spec)
+    files = [Path(path).expanduser()] + ([Path(opts["truth"]).expanduser()] if "truth" in opts else [])
+    key = (spec, name, tuple(_stamp(p) for p in files))
+    if key not in _VOLUME_CACHE:
+        if len(_VOLUME_CACHE) >= 4:                         # user volumes can be large: keep the last few
+            _VOLUME_CACHE.pop(next(iter(_VOLUME_CACHE)))
+        _VOLUME_CACHE[key] = VolumePhantom(spec, name=name)
+    return _VOLUME_CACHE[key]
 
 
 def get_real_phantom(name: str, **params) -> MeshPhantom:

@@ -13,7 +13,7 @@ from bench.metrics.registry import METRICS, Metric
 def test_every_metric_column_has_an_entry_in_the_same_order():
     assert list(METRICS) == list(METRIC_NAMES)
     assert all(m.name == k for k, m in METRICS.items())
-    assert {m.kind for m in METRICS.values()} <= {"distance", "distance_h", "truth", "truth_free", "runner"}
+    assert {m.kind for m in METRICS.values()} <= {"distance", "distance_h", "truth", "truth_free", "fidelity", "runner"}
     assert [k for k, m in METRICS.items() if m.kind == "distance_h"] == [
         f"{k}_h" for k, m in METRICS.items() if m.kind == "distance"]
 
@@ -29,7 +29,7 @@ def test_evaluate_returns_exactly_the_registered_metrics_it_owns():
     with_truth = evaluate(mesh, get_phantom("sphere"), 0.1, n_samples=2000)
     assert list(with_truth) == [k for k, m in METRICS.items() if m.kind != "runner"]
     without = evaluate(mesh, None, 0.1, n_samples=2000)
-    assert list(without) == [k for k, m in METRICS.items() if m.kind == "truth_free"]
+    assert list(without) == [k for k, m in METRICS.items() if m.kind in ("truth_free", "fidelity")]
 
 
 def test_facts_are_well_formed():

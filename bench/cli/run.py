@@ -138,6 +138,7 @@ def _resolve_config(args) -> RunConfig:
         cfg.imports = list(dict.fromkeys(cfg.imports + args.imports))
     if args.method:
         cfg.methods = [parse_method_spec(s) for s in args.method]
+        _drop_replaced_report_labels(cfg)
     if args.add_method:
         cfg.methods = cfg.methods + [parse_method_spec(s) for s in args.add_method]
     if args.n_samples:
@@ -151,6 +152,18 @@ def _resolve_config(args) -> RunConfig:
             cfg.name += "*"
     cfg.validate()
     return cfg
+
+
+def _drop_replaced_report_labels(cfg: RunConfig) -> None:
+    """The config's [report] layout names its own method labels: keep only the entries whose label --method kept."""
+    labels = {label for spec in cfg.methods for label, _ in spec.instances()}
+    cols = [c for c in cfg.report.get("paper_columns", []) if c["label"] in labels]
+    uniform = cfg.report.get("uniform_label")
+    cfg.report = {k: v for k, v in cfg.report.items() if k not in ("paper_columns", "uniform_label")}
+    if cols:
+        cfg.report["paper_columns"] = cols
+    if uniform in labels:
+        cfg.report["uniform_label"] = uniform
 
 
 def _check_executor_args(args) -> None:

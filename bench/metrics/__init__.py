@@ -13,7 +13,9 @@ phantom's exact ground truth:
 * curvature and smoothness (``curvature.py``): the shared paraboloid-fit estimator over a 2h neighbourhood;
 * topology, quality, self-intersections and SIF % (``topology.py``);
 * sharp-feature accuracy ``edge_chamfer`` / ``edge_fscore`` (``features.py``) and the volumetric ``iou``
-  (``volume.py``).
+  (``volume.py``);
+* data fidelity against the volume the method was given — SDF agreement, |φ| on the mesh, sign agreement
+  (``fidelity.py``) — truth-free, so also for user scans.
 
 The mesh is evaluated as given except that faces with a repeated vertex index (no area, no real edges)
 and unreferenced vertices are dropped first (``n_vertices`` / ``n_faces`` report the mesh as given).
@@ -51,6 +53,7 @@ from .distance import (
     sample_mesh_surface,
 )
 from .features import edge_metrics
+from .fidelity import band_query, fidelity_metrics
 from .registry import METRICS, Metric
 from .volume import iou
 from .topology import (
@@ -64,7 +67,7 @@ from .topology import (
 )
 
 __all__ = [
-    "evaluate", "METRICS", "Metric", "METRIC_NAMES", "TRUTH_FREE_NAMES", "DISTANCE_NAMES", "RUNNER_NAMES", "PARALLEL_DISTANCE",
+    "evaluate", "METRICS", "Metric", "METRIC_NAMES", "TRUTH_FREE_NAMES", "FIDELITY_NAMES", "DISTANCE_NAMES", "RUNNER_NAMES", "PARALLEL_DISTANCE",
     "sample_mesh_surface", "point_mesh_distance", "self_intersection_pairs", "triangle_angles",
     "vertex_curvature", "constant_curvature_value", "CONSTANT_CURVATURE", "DISTANCE_LIBRARY",
 ]
@@ -72,8 +75,10 @@ __all__ = [
 #: distances in world units; each also appears divided by the grid spacing as ``<name>_h``
 DISTANCE_NAMES = [k for k, m in METRICS.items() if m.kind == "distance"]
 
-#: keys evaluate returns when no truth is given (user volumes)
-TRUTH_FREE_NAMES = [k for k, m in METRICS.items() if m.kind == "truth_free"]
+#: keys evaluate returns when no truth is given (user volumes); the fidelity ones need the volume
+TRUTH_FREE_NAMES = [k for k, m in METRICS.items() if m.kind in ("truth_free", "fidelity")]
+#: the data-fidelity metrics (against the volume φ; docs/METRICS.md)
+FIDELITY_NAMES = [k for k, m in METRICS.items() if m.kind == "fidelity"]
 
 #: filled by the runner, not by evaluate
 RUNNER_NAMES = [k for k, m in METRICS.items() if m.kind == "runner"]
@@ -82,7 +87,7 @@ RUNNER_NAMES = [k for k, m in METRICS.items() if m.kind == "runner"]
 METRIC_NAMES = list(METRICS)
 
 
-def evaluate(mesh, truth, spacing: float, *, n_samples: int = 100_000, seed: int = 0,
+def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_000, seed: int = 0,
              crease_band: float = 0.1) -> dict:
     """All METRICS.md metrics of ``mesh`` against the phantom ``truth`` (or the truth-free subset).
 
@@ -96,6 +101,9 @@ def evaluate(mesh, truth, spacing: float, *, n_samples: int = 100_000, seed: int
     spacing : float
         Grid spacing h: the F-score threshold, the unit of the ``*_h`` distances and the curvature
         neighbourhood radius (2h).
+    volume : phantoms.Volume, optional
+        The volume the method was given; with it the data-fidelity metrics (:data:`FIDELITY_NAMES`) are
+        computed (NaN without it).
     n_samples : int
         Area-uniform samples on each of the two surfaces (≥ 100,000 for reported results).
     seed : int
@@ -107,9 +115,15 @@ def evaluate(mesh, truth, spacing: float, *, n_samples: int = 100_000, seed: int
     Returns
     -------
     dict with the keys of :data:`METRIC_NAMES` except :data:`RUNNER_NAMES` (plain Python floats, ints,
-    bools; NaN where a metric is undefined, e.g. ``H_std`` on the ellipsoid).
+    bools; NaN where a metric is undefined, e.g. ``H_std`` on the ellipsoid); without a truth the keys of
+    :data:`TRUTH_FREE_NAMES`.
+
+    Raises
+    ------
+    InputError
+        A mesh without faces, non-finite vertices, faces indexing missing vertices, a bad spacing.
     """
-    return _evaluate(mesh, truth, spacing, n_samples=n_samples, seed=seed, crease_band=crease_band)
+    return _evaluate(mesh, truth, spacing, volume=volume, n_samples=n_samples, seed=seed, crease_band=crease_band)
 
 
 def _check_inputs(mesh, spacing, n_samples, crease_band):
@@ -168,7 +182,15 @@ def _start(fn, *args):
     return wait
 
 
-def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.1, timings=None) -> dict:
+def _distances(true_pts, band_pts, V, F):
+    """(truth → mesh distances or None, band samples → mesh distances or None): the worker thread's share."""
+    d_tr = point_mesh_distance(true_pts, V, F) if true_pts is not None else None
+    d_band = point_mesh_distance(band_pts, V, F) if band_pts is not None else None
+    return d_tr, d_band
+
+
+def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, crease_band=0.1,
+              timings=None) -> dict:
     """:func:`evaluate`, optionally recording the seconds spent per phase in ``timings``."""
     t = time.perf_counter()
     tm = timings if timings is not None else {}
@@ -195,12 +217,15 @@ def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.
         fn = -fn
     lap("prepare")
 
-    pending = None
+    true_pts = band = band_pts = None
     if truth is not None:
-        # truth -> recon distances (pymeshlab, C++) run in a worker thread while numpy does the rest
         true_pts, _ = truth.sample_surface(n_samples, seed)
         lap("truth_samples")
-        pending = _start(point_mesh_distance, true_pts, V, F)
+    if volume is not None:
+        band, band_pts = band_query(volume, seed)
+        lap("fidelity_band")
+    # truth -> recon and band -> recon distances (pymeshlab, C++) run in a worker thread while numpy does the rest
+    pending = _start(_distances, true_pts, band_pts, V, F)
 
     out.update(topology_metrics(V, F))
     out.update(quality_metrics(V, F))
@@ -213,10 +238,20 @@ def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.
     H, K, _ = vertex_curvature(V, F, h, outward=outward)
     lap("curvature_fit")
 
+    def fidelity(pts):
+        (_, d_band), tm["distances (worker)"] = pending()
+        lap("distances (wait)")
+        if volume is None:
+            out.update({k: math.nan for k in FIDELITY_NAMES})
+        else:
+            out.update(fidelity_metrics(V, F, volume, pts, band, d_band))
+        lap("fidelity")
+
     if truth is None:
         out.update(curvature_metrics(H, K))
         out["roughness_deg"] = roughness_deg(V, F, fn)
         lap("roughness")
+        fidelity(sample_mesh_surface(V, F, n_samples, seed)[0])
         return {k: out[k] for k in TRUTH_FREE_NAMES}
 
     tv = truth.truth(V)
@@ -228,8 +263,8 @@ def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.
     pts, fi = sample_mesh_surface(V, F, n_samples, seed)
     ts = truth.truth(pts)
     lap("recon_to_truth")
-    d_tr, tm["truth_to_recon (worker)"] = pending()
-    lap("truth_to_recon (wait)")
+    d_tr = pending()[0][0]
+    fidelity(pts)
     out.update(distance_metrics(ts.distance, float(max(tv.distance.max(), ts.distance.max())), d_tr, h,
                                 fn[fi], ts.normal))
     lap("distance_stats")

@@ -8,7 +8,8 @@ each in this order, and the report reads how to rank and show them from here.
 ``None`` (not ranked).  ``dtype`` is how a value is shown: ``"float"``, ``"int"`` or ``"bool"`` (a mean over
 seeds of a bool column is a share of yes).  ``kind`` says who computes it: ``"distance"`` (a distance to the
 true surface in world units, also reported divided by h as ``"distance_h"``), ``"truth"`` (needs the true
-surface), ``"truth_free"`` (computed for any mesh, also for user volumes) or ``"runner"`` (filled by the cell
+surface), ``"truth_free"`` (computed for any mesh, also for user volumes), ``"fidelity"`` (truth-free, read
+against the volume the method was given) or ``"runner"`` (filled by the cell
 runner from the method's info and the cost measurement, not by ``evaluate``).
 """
 
@@ -27,7 +28,7 @@ class Metric:
     dtype: str         # "float", "int" or "bool"
     meaning: str       # one line
     unit: str          # "" for a pure number
-    kind: str = "truth"  # "distance", "distance_h", "truth", "truth_free" or "runner"
+    kind: str = "truth"  # "distance", "distance_h", "truth", "truth_free", "fidelity" or "runner"
 
 
 _DISTANCES = {
@@ -63,6 +64,14 @@ _ROWS = [
     Metric("components", ("target", 1), "int", "connected components", "", "truth_free"),
     Metric("self_intersections", "min", "int", "intersecting non-adjacent face pairs", "", "truth_free"),
     Metric("sif_pct", "min", "float", "share of faces intersecting a non-adjacent face (SIF)", "%", "truth_free"),
+    Metric("sdf_rms_h", "min", "float", "RMS of (the mesh's signed distance − φ) at grid samples with |φ| < 3h",
+           "h", "fidelity"),
+    Metric("sdf_p95_h", "min", "float", "95th percentile of |mesh signed distance − φ| at grid samples with |φ| < 3h",
+           "h", "fidelity"),
+    Metric("phi_mean_h", "min", "float", "mean |φ| (trilinear) at area-uniform samples of the mesh", "h", "fidelity"),
+    Metric("phi_p95_h", "min", "float", "95th percentile of |φ| at area-uniform samples of the mesh", "h", "fidelity"),
+    Metric("sign_err_pct", "min", "float", "share of grid samples with |φ| > h/2 the mesh puts on the wrong side",
+           "%", "fidelity"),
     Metric("n_vertices", None, "int", "vertices of the mesh as given", "", "truth_free"),
     Metric("n_faces", None, "int", "faces of the mesh as given", "", "truth_free"),
     Metric("iterations", None, "int", "iterations of an iterative method", "", "runner"),

@@ -57,10 +57,10 @@ def _phantom_sdf(name: str):
     from phantoms import get_phantom
 
     try:
-        ph = get_phantom(name)
-    except Exception:  # noqa: BLE001 — a user volume or a phantom that cannot be rebuilt: no distance map
+        ph = get_phantom(name).ground_truth()
+    except Exception:  # noqa: BLE001 — a phantom that cannot be rebuilt: no distance map
         return None
-    return ph.sdf
+    return None if ph is None else ph.sdf
 
 
 def _b64(a: np.ndarray) -> str:
@@ -115,7 +115,9 @@ def _cell_view(r: dict, a: dict, sdf, extent: float, faces: int) -> tuple[dict, 
         full["H"] = np.asarray(H0, float)
     try:
         if sdf is not None:      # on the full mesh: the map shows the reconstruction's error, not the decimation's
-            full["d"] = np.asarray(sdf(v0), float) / (2.0 * extent / (float(r["N"]) - 1))
+            h = _num(r, "h")
+            h = h if math.isfinite(h) and h > 0 else 2.0 * extent / (float(r["N"]) - 1)
+            full["d"] = np.asarray(sdf(v0), float) / h
     except Exception:  # noqa: BLE001 — the distance map is optional
         full.pop("d", None)
     colours = {}
@@ -132,7 +134,8 @@ def viewer_payload(rows: list[dict], arrays, *, extent: float = 2.5, faces: int 
     for r in rows:
         phantom = str(r.get("phantom"))
         if phantom not in sdfs:
-            sdfs[phantom] = _phantom_sdf(phantom)
+            source = r.get("source")
+            sdfs[phantom] = _phantom_sdf(source if isinstance(source, str) and source else phantom)
         got = _cell_view(r, arrays(r["cell_id"]) or {}, sdfs[phantom], extent, faces)
         if got is not None:
             views[r["cell_id"]] = (f"{phantom}|{r.get('noise')}", *got)

@@ -12,14 +12,17 @@ import numpy as np
 
 from bench.metrics.registry import METRICS
 
-__all__ = ["BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables", "fmt_value", "noise_title", "is_nan", "best_mask", "best_rule"]
+__all__ = ["NO_TRUTH_NOTE", "BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables", "fmt_value", "noise_title", "is_nan", "best_mask", "best_rule"]
 
 #: how a metric's best value is chosen ("min", "max", ("target", value)); unranked metrics are absent
 BEST_DIRECTION: dict[str, Any] = {k: m.best for k, m in METRICS.items() if m.best is not None}
 
 #: columns that identify a cell or describe its outcome, never shown as metrics
 _ID_COLUMNS = {"cell_id", "phantom", "variant", "N", "noise", "snr_requested", "snr_achieved", "seed", "method",
-               "label", "parameters", "status", "error", "stop_reason"}
+               "label", "parameters", "status", "error", "stop_reason", "source", "h", "has_truth"}
+
+#: the note above a table whose phantom has no ground truth (a user volume without ``truth=``)
+NO_TRUTH_NOTE = "no ground truth: data fidelity and mesh quality only"
 
 
 def _dtype(col: str) -> str:
@@ -171,9 +174,30 @@ def _genus(phantom: str) -> int:
     from phantoms import get_phantom
 
     try:
-        return int(getattr(get_phantom(phantom), "genus", 0))
+        return int(getattr(get_phantom(phantom), "genus", 0) or 0)
     except Exception:
         return 0
+
+
+def _source(sub) -> str:
+    """What resolves a table's phantom: the rows' ``source`` (a dataset file) or the phantom name."""
+    if "source" in sub.columns:
+        vals = [str(x) for x in sub["source"] if isinstance(x, str) and x]
+        if vals:
+            return vals[0]
+    return str(sub["phantom"].iloc[0])
+
+
+def _without_truth(sub) -> bool:
+    """True when no row of the table had a ground truth (``has_truth`` false, or no truth metric at all)."""
+    from bench.metrics.registry import METRICS
+
+    if "has_truth" in sub.columns:
+        flags = sub["has_truth"].map(lambda x: str(x).strip().lower() in ("true", "1", "1.0", "yes"))
+        if sub["has_truth"].notna().any():
+            return not bool(flags.any())
+    truth_cols = [k for k, m in METRICS.items() if m.kind in ("distance", "distance_h", "truth") and k in sub.columns]
+    return bool(truth_cols) and bool(sub[truth_cols].isna().all().all()) and bool((sub["status"] == "ok").any())
 
 
 def _marked_html(t, metrics: list[str], genus: int) -> str:
@@ -192,7 +216,8 @@ def _marked_html(t, metrics: list[str], genus: int) -> str:
 
 def summary_tables(df) -> list[dict]:
     """One table per phantom × noise (× variant × N): ``[{"title", "phantom", "noise", "html", "n_methods",
-    "cells"}]`` (``cells``: method label → the cell id its row's mesh viewer shows, the first seed's)."""
+    "cells", "note"}]`` (``cells``: method label → the cell id its row's mesh viewer shows, the first seed's;
+    ``note``: :data:`NO_TRUTH_NOTE` for a phantom without ground truth — its truth columns are left out)."""
     metrics = _metric_columns(df)
     keys = ["phantom", "noise", "snr_requested", "variant", "N"]
     d = df.copy()
@@ -203,13 +228,19 @@ def summary_tables(df) -> list[dict]:
     multi_variant = d["variant"].nunique() > 1 or d["N"].nunique() > 1
     tables = []
     for (phantom, noise, snr, variant, n), idx in groups.items():
-        t = _method_rows(d.loc[idx], metrics)
+        sub = d.loc[idx]
+        no_truth = _without_truth(sub)
+        shown = metrics
+        if no_truth:            # the truth columns would be dashes only
+            from bench.metrics.registry import METRICS
+
+            shown = [m for m in metrics if m not in METRICS or METRICS[m].kind not in ("distance", "distance_h", "truth")]
+        t = _method_rows(sub, shown)
         title = f"{phantom} — {noise_title(noise, snr)}"
         if multi_variant:
             title += f" — {variant}, N = {n}"
-        sub = d.loc[idx]
         cells = {str(lab): str(g["cell_id"].iloc[0]) for lab, g in sub.groupby("label", sort=False)}
         tables.append({"title": title, "phantom": phantom, "noise": noise,
-                       "html": _marked_html(t, metrics, _genus(phantom)), "n_methods": len(t),
-                       "cells": cells})
+                       "html": _marked_html(t, shown, 0 if no_truth else _genus(_source(sub))),
+                       "n_methods": len(t), "cells": cells, "note": NO_TRUTH_NOTE if no_truth else ""})
     return tables

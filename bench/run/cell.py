@@ -15,6 +15,7 @@ the final mesh with its per-vertex mean curvature, the energy history and the sn
 
 from __future__ import annotations
 
+import hashlib
 import time
 import traceback
 from pathlib import Path
@@ -33,18 +34,27 @@ from .grid import canonical_json, slug
 from .store import save_npz
 from .values import error_text, plain
 
-__all__ = ["run_cell", "failed_result", "build_volume", "vertex_mean_curvature", "method_info"]
+__all__ = ["run_cell", "failed_result", "build_volume", "cell_source", "vertex_mean_curvature", "method_info"]
 
 
 def _volume_cache_path(cache_dir: str, cell: dict) -> Path:
-    key = f"{cell['phantom']}_{cell['variant']}_n{cell['n']}_e{cell['extent']:g}"
+    source = cell_source(cell)
+    name = cell["phantom"] if source == cell["phantom"] else f"{cell['phantom']}_{hashlib.sha1(source.encode()).hexdigest()[:8]}"
+    key = f"{name}_{cell['variant']}_n{cell['n']}_e{cell['extent']:g}"
     return Path(cache_dir) / f"{slug(key)}.npz"
+
+
+def cell_source(cell: dict) -> str:
+    """What resolves the cell's phantom (:func:`phantoms.get_phantom`): its ``source`` (a file of a dataset
+    glob, named by its stem) or its name."""
+    return cell.get("source") or cell["phantom"]
 
 
 def build_volume(cell: dict, cache_dir: str | None = None):
     """``(phantom, clean volume)`` of a cell, optionally cached on disk: the exact SDF of a phantom can cost
-    seconds at N = 96 and is the same for every method and noise setting."""
-    ph = get_phantom(cell["phantom"])
+    seconds at N = 96 and is the same for every method and noise setting.  ``n`` 0 is a user volume's native
+    grid."""
+    ph = get_phantom(cell_source(cell))
     path = _volume_cache_path(cache_dir, cell) if cache_dir else None
     if path is not None and path.exists():
         try:
@@ -52,7 +62,7 @@ def build_volume(cell: dict, cache_dir: str | None = None):
                 return ph, Volume(z["values"], z["origin"], z["spacing"])
         except Exception:  # a broken cache file is rebuilt
             pass
-    vol = ph.volume(n=cell["n"], extent=cell["extent"], variant=cell["variant"])
+    vol = ph.volume(n=cell["n"] or None, extent=cell["extent"], variant=cell["variant"])
     if path is not None:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -136,6 +146,7 @@ def _id_row(cell: dict) -> dict[str, Any]:
         "noise": cell["noise"], "snr_requested": cell["snr_requested"], "snr_achieved": None,
         "seed": cell["seed"], "method": cell["method"], "label": cell["label"],
         "parameters": canonical_json(plain(cell["params"])),
+        **({"source": cell["source"]} if cell.get("source") else {}),
     }
 
 
@@ -174,6 +185,10 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
         import_plugins(cell.get("imports") or ())
         stage = "volume"
         ph, vol = build_volume(cell, cache_dir)
+        if not cell["n"]:
+            row["N"] = int(max(vol.shape))           # a user volume on its native grid
+        truth = ph.ground_truth()
+        row["h"], row["has_truth"] = float(vol.h), truth is not None
         clean = vol
         if cell["noise"] != "none":
             vol, achieved = add_noise(vol, cell["noise"], cell["snr_requested"], seed=cell["seed"])
@@ -201,7 +216,7 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
         invalid = check_mesh(rec.mesh, clean, given=None if vol is clean else vol)
         stage = "metrics"
         try:
-            metrics = evaluate(rec.mesh, ph, vol.h, n_samples=cell["n_samples"], seed=cell["seed"])
+            metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell["n_samples"], seed=cell["seed"])
         except Exception:
             if not invalid:
                 raise
@@ -210,7 +225,7 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
         for k, v in runner_values.items():
             if v is not None or k not in row:
                 row[k] = plain(v)
-        row["flags"] = ";".join(result_flags(row, ph))
+        row["flags"] = ";".join(result_flags(row, truth))
         row["status"] = "invalid" if invalid else "ok"
         row["error"] = f"invalid: {'; '.join(invalid)}" if invalid else ""
     except Exception as exc:

@@ -12,7 +12,8 @@ import json
 import re
 from typing import Any
 
-from phantoms import InputError
+from phantoms import VOLUME_PREFIX, InputError, expand_phantoms
+from phantoms.user import parse_spec
 
 __all__ = ["cell_id", "expand_grid", "canonical_json", "slug"]
 
@@ -34,35 +35,47 @@ def cell_id(cell: dict) -> str:
     """
     key = {k: cell[k] for k in ("phantom", "variant", "n", "extent", "noise", "snr_requested", "seed",
                                 "method", "params", "n_samples")}
+    if cell.get("source", cell["phantom"]) != cell["phantom"]:
+        key["source"] = cell["source"]
     digest = hashlib.sha1(canonical_json(key).encode()).hexdigest()[:8]
     noise = cell["noise"] if cell["noise"] == "none" else f"{cell['noise']}{cell['snr_requested']:g}dB"
     return "_".join([slug(cell["phantom"]), cell["variant"], f"n{cell['n']}", slug(noise),
                      f"s{cell['seed']}", slug(cell["label"]), digest])
 
 
+def grid_sizes(source: str, sizes) -> list[int]:
+    """The grid sizes N a phantom runs at: a user volume runs on its native grid (N = 0 here; the row gets its
+    largest dimension) unless its spec says ``resample=yes``."""
+    if source.startswith(VOLUME_PREFIX) and not parse_spec(source)[1].get("resample"):
+        return [0]
+    return list(sizes)
+
+
 def expand_grid(cfg) -> list[dict]:
     """All cells of a validated :class:`bench.config.RunConfig`, in order phantom → variant → N → noise →
     seed → method.
 
-    Clean cells (noise ``none``) are run for the first seed only: without noise the seed changes nothing
+    A ``mesh:`` / ``volume:`` glob is one phantom per file (:func:`phantoms.expand_phantoms`; the cell's
+    ``source`` is the file's spec, its ``phantom`` the file's stem).  Clean cells (noise ``none``) are run for the first seed only: without noise the seed changes nothing
     but the metric sampling.  With ``grid.vary = "one_at_a_time"`` only the (N, noise) pairs that keep one of
     them at its first value are run: every noise setting at the first N, every N with the first noise setting.
     """
     cells = []
     one = getattr(cfg, "vary", "all") == "one_at_a_time"
-    for phantom in cfg.phantoms:
+    for phantom, source in expand_phantoms(cfg.phantoms):
         for variant in cfg.variants:
-            for n in cfg.n:
+            for n in grid_sizes(source, cfg.n):
                 for k, noise in enumerate(cfg.noise):
                     if one and n != cfg.n[0] and k != 0:
                         continue
-                    snr = noise.snr_for(phantom)
+                    snr = noise.snr_for(source)
                     seeds = cfg.seeds[:1] if noise.kind == "none" else cfg.seeds
                     for seed in seeds:
                         for spec in cfg.methods:
                             for label, params in spec.instances():
                                 cell = {
-                                    "phantom": phantom, "variant": variant, "n": int(n),
+                                    "phantom": phantom, **({"source": source} if source != phantom else {}),
+                                    "variant": variant, "n": int(n),
                                     "extent": float(cfg.extent), "noise": noise.kind,
                                     "snr_requested": snr, "seed": int(seed), "method": spec.name,
                                     "label": label, "params": spec.params_for(params, phantom),

@@ -1,0 +1,95 @@
+"""Which grid points a triangle mesh encloses: its winding number on a regular grid, by scan conversion.
+
+For every grid column (fixed i, j; the line along axis 2) the mesh's triangles that the column pierces are
+found from their projections onto the (axis 0, axis 1) plane; each piercing adds ±1 — the sign of the triangle's
+normal along the column — to every grid point below it.  For a closed, outward-oriented mesh the sum is 1 at the
+points inside and 0 outside (a nested or inverted part gives 2 or −1: :func:`grid_winding` returns the integer).
+Cost: one pass over the triangles (their column footprints) and one cumulative sum over the grid, instead of a
+winding-number query per grid point.
+
+Degenerate cases (a column through an edge or a vertex of the mesh, as marching cubes' vertices on grid lines
+always are) are avoided by symbolic perturbation: the columns sit at (i + ε₀, j + ε₁) grid steps with tiny
+irrational-looking offsets, so no column passes exactly through a mesh edge of any mesh met in practice, and
+each piercing is counted once.  A grid point is inside or outside by where it lies — a point closer than
+ε ≈ 3·10⁻⁶ grid steps to the surface may take either side.
+
+The tests compare it with :func:`gpytoolbox.fast_winding_number` at every grid point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["grid_winding", "COLUMN_OFFSET"]
+
+#: the columns' offset from the grid lines, in grid steps (symbolic perturbation, see the module docstring)
+COLUMN_OFFSET = (3.1415926e-6, 2.7182818e-6)
+_BATCH = 1 << 21          # column-triangle candidates handled at once (bounds the memory of a fine mesh)
+
+
+def _candidates(lo_i, hi_i, lo_j, hi_j):
+    """Per-candidate (triangle, i, j) of every triangle's column footprint [lo_i, hi_i] × [lo_j, hi_j]."""
+    ni = np.maximum(hi_i - lo_i + 1, 0)
+    nj = np.maximum(hi_j - lo_j + 1, 0)
+    count = ni * nj
+    tri = np.repeat(np.arange(len(count)), count)
+    start = np.cumsum(count) - count
+    local = np.arange(int(count.sum())) - np.repeat(start, count)
+    nj_t = np.maximum(nj[tri], 1)
+    return tri, lo_i[tri] + local // nj_t, lo_j[tri] + local % nj_t
+
+
+def grid_winding(vertices, faces, origin, spacing, shape) -> np.ndarray:
+    """The winding number of the mesh at every grid point ``origin + (i, j, k) * spacing``: int16, ``shape``.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float array, world coordinates.
+    faces : (F, 3) int array.
+    origin, spacing : the grid's first point and per-axis spacing (3 numbers each).
+    shape : the grid's (n0, n1, n2).
+    """
+    v = (np.asarray(vertices, float) - np.asarray(origin, float)) / np.asarray(spacing, float)
+    f = np.asarray(faces, np.int64)
+    shape = tuple(int(s) for s in shape)
+    acc = np.zeros(shape, np.int16)
+    if len(f) == 0:
+        return acc
+    e0, e1 = COLUMN_OFFSET
+    x = v[:, 0][f] - e0                        # (F, 3) column coordinates of the corners, relative to the offset
+    y = v[:, 1][f] - e1
+    z = v[:, 2][f]
+    d = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+    lo_i = np.clip(np.ceil(x.min(1)), 0, shape[0]).astype(np.int64)
+    hi_i = np.clip(np.floor(x.max(1)), -1, shape[0] - 1).astype(np.int64)
+    lo_j = np.clip(np.ceil(y.min(1)), 0, shape[1]).astype(np.int64)
+    hi_j = np.clip(np.floor(y.max(1)), -1, shape[1] - 1).astype(np.int64)
+    keep = (d != 0) & (hi_i >= lo_i) & (hi_j >= lo_j)
+    idx = np.flatnonzero(keep)
+    if not len(idx):
+        return acc
+    area = ((hi_i - lo_i + 1) * (hi_j - lo_j + 1))[idx]
+    cum = np.cumsum(area)
+    edges = np.unique(np.concatenate([[0], np.searchsorted(cum, np.arange(_BATCH, cum[-1], _BATCH)), [len(idx)]]))
+    flat = acc.reshape(-1)
+    for start, end in zip(edges[:-1], edges[1:]):
+        sel = idx[start:end]
+        t, ii, jj = _candidates(lo_i[sel], hi_i[sel], lo_j[sel], hi_j[sel])
+        tri = sel[t]
+        px, py = ii.astype(float), jj.astype(float)
+        xa, xb, xc = x[tri].T
+        ya, yb, yc = y[tri].T
+        dd = d[tri]
+        wa = ((xb - px) * (yc - py) - (xc - px) * (yb - py)) / dd
+        wb = ((xc - px) * (ya - py) - (xa - px) * (yc - py)) / dd
+        wc = 1.0 - wa - wb
+        hit = np.flatnonzero((wa > 0) & (wb > 0) & (wc > 0))
+        zt = z[tri[hit]]
+        zz = wa[hit] * zt[:, 0] + wb[hit] * zt[:, 1] + wc[hit] * zt[:, 2]
+        kk = np.ceil(zz).astype(np.int64) - 1            # the highest grid point strictly below the piercing
+        ok = kk >= 0
+        hit, kk = hit[ok], np.minimum(kk[ok], shape[2] - 1)
+        sgn = np.where(dd[hit] > 0, 1, -1).astype(np.int16)
+        np.add.at(flat, (ii[hit] * shape[1] + jj[hit]) * shape[2] + kk, sgn)
+    # every piercing counts for the grid points at or below its kk: a cumulative sum from the top of each column
+    return np.flip(np.cumsum(np.flip(acc, axis=2), axis=2, dtype=np.int16), axis=2)

@@ -18,10 +18,10 @@ def mask_to_sdf(mask, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> Volume
     Inside voxels get −(distance to the nearest outside voxel centre) + s/2, outside voxels
     (distance to the nearest inside voxel centre) − s/2: exact Euclidean distance transforms
     (:func:`scipy.ndimage.distance_transform_edt`) with the real, possibly anisotropic ``spacing``, s its
-    smallest entry, world units.  Along every grid edge joining an inside and an outside voxel the values are
-    −a and +a, so the trilinear zero level set crosses it half-way between the two voxel centres (the boundary
-    of the voxelised object).  Away from that crossing φ is a distance up to (s_max − s_min)/2 (exact on
-    isotropic grids along the axes).
+    smallest entry, world units.  On an isotropic grid the two voxels of every edge joining inside and outside
+    get −s/2 and +s/2, so the trilinear zero level set crosses the edge half-way between their centres: the
+    boundary of the voxelised object.  With anisotropic spacing that holds on the faces of the voxel set; near
+    its edges and corners the crossing moves by at most (s_max − s_min)/2 towards the inside voxel.
 
     Parameters
     ----------

@@ -1,0 +1,126 @@
+"""phantoms/images.py: every image format with its geometry, one world convention (RAS+), clear refusals."""
+
+from __future__ import annotations
+
+import gzip
+
+import nibabel as nib
+import numpy as np
+import pytest
+import SimpleITK as sitk
+
+from _volumes import itk_image, sphere_mask, write_dicom_series
+from phantoms import InputError
+from phantoms.images import read_image
+
+ORIGIN = (10.0, -20.0, 30.0)
+SPACING = (0.5, 0.6, 0.8)
+
+
+def _marked_sphere():
+    m = sphere_mask().astype(np.uint8)
+    m[1, 2, 3] = 1          # an asymmetric marker: a flip or a swap of axes would move it
+    return m
+
+
+@pytest.fixture(scope="module")
+def itk_files(tmp_path_factory):
+    """One marked sphere mask written by SimpleITK as NIfTI, NRRD, MetaImage (.mha, .mhd) and a DICOM series."""
+    d = tmp_path_factory.mktemp("itk")
+    img = itk_image(_marked_sphere(), ORIGIN, SPACING)
+    paths = {}
+    for suffix in (".nii.gz", ".nrrd", ".mha", ".mhd"):
+        paths[suffix] = d / f"s{suffix}"
+        sitk.WriteImage(img, str(paths[suffix]))
+    paths["dicom"] = write_dicom_series(img, d / "dicom")
+    return paths
+
+
+@pytest.mark.parametrize("fmt", [".nrrd", ".mha", ".mhd", "dicom"])
+def test_every_format_gives_the_same_volume_as_the_nifti(itk_files, fmt):
+    ref = read_image(itk_files[".nii.gz"])
+    got = read_image(itk_files[fmt])
+    assert got.values.shape == ref.values.shape
+    assert np.array_equal(got.values.astype(int), ref.values.astype(int))
+    assert np.allclose(got.origin, ref.origin, atol=1e-5) and np.allclose(got.spacing, ref.spacing, atol=1e-6)
+
+
+def test_itk_lps_becomes_ras_and_the_marker_keeps_its_world_position(itk_files):
+    """ITK's physical point of voxel (1, 2, 3) is LPS; read as RAS+ (x, y negated) the same voxel is found at
+    the negated point, whatever re-orientation the reader applied."""
+    img = sitk.ReadImage(str(itk_files[".nrrd"]))
+    lps = np.array(img.TransformIndexToPhysicalPoint((1, 2, 3)))
+    got = read_image(itk_files[".nrrd"])
+    ras = lps * [-1, -1, 1]
+    ijk = np.round((ras - got.origin) / got.spacing).astype(int)
+    assert got.values[tuple(ijk)] == 1 and got.values[tuple(ijk + [1, 0, 0])] == 0
+    assert (got.spacing > 0).all()
+
+
+def test_nibabel_nifti_keeps_its_ras_affine(tmp_path):
+    m = _marked_sphere()
+    aff = np.diag([*SPACING, 1.0])
+    aff[:3, 3] = ORIGIN
+    nib.save(nib.Nifti1Image(m, aff), str(tmp_path / "a.nii.gz"))
+    got = read_image(tmp_path / "a.nii.gz")
+    assert np.array_equal(got.values, m)
+    assert np.allclose(got.origin, ORIGIN) and np.allclose(got.spacing, SPACING)
+
+
+def test_flipped_and_swapped_axes_are_reoriented_not_refused(tmp_path):
+    m = _marked_sphere()
+    aff = np.zeros((4, 4))
+    aff[0, 1], aff[1, 0], aff[2, 2], aff[3, 3] = -0.6, 0.5, 0.8, 1.0    # array axes 0/1 swapped, one flipped
+    aff[:3, 3] = ORIGIN
+    nib.save(nib.Nifti1Image(m, aff), str(tmp_path / "f.nii"))
+    got = read_image(tmp_path / "f.nii")
+    world = aff @ [1, 2, 3, 1]                         # where the file puts the marker
+    ijk = np.round((world[:3] - got.origin) / got.spacing).astype(int)
+    assert got.values[tuple(ijk)] == 1
+    assert np.allclose(sorted(got.spacing), [0.5, 0.6, 0.8]) and got.values.sum() == m.sum()
+
+
+def test_an_oblique_grid_is_refused_with_the_angle(tmp_path):
+    th = np.radians(10)
+    d = [[np.cos(th), -np.sin(th), 0], [np.sin(th), np.cos(th), 0], [0, 0, 1]]
+    sitk.WriteImage(itk_image(_marked_sphere(), ORIGIN, SPACING, direction=d), str(tmp_path / "o.nrrd"))
+    with pytest.raises(InputError, match=r"o.nrrd: the image grid is not axis-aligned .*about 10°"):
+        read_image(tmp_path / "o.nrrd")
+
+
+def test_bad_images_are_one_line_naming_the_file(tmp_path):
+    sitk.WriteImage(sitk.GetImageFromArray(np.zeros((5, 6), np.uint8)), str(tmp_path / "flat.nrrd"))
+    with pytest.raises(InputError, match="flat.nrrd: a volume must be a 3-D image; got a 2-D image"):
+        read_image(tmp_path / "flat.nrrd")
+    nib.save(nib.Nifti1Image(np.zeros((4, 4, 4, 3), np.float32), np.eye(4)), str(tmp_path / "t.nii.gz"))
+    with pytest.raises(InputError, match="t.nii.gz: a 4-D image .*3 volumes"):
+        read_image(tmp_path / "t.nii.gz")
+    good = tmp_path / "g.nrrd"
+    sitk.WriteImage(itk_image(_marked_sphere(), ORIGIN, SPACING), str(good))
+    data = good.read_bytes()
+    (tmp_path / "cut.nrrd").write_bytes(data[: len(data) // 2])
+    (tmp_path / "empty.mha").write_bytes(b"")
+    (tmp_path / "junk.nii.gz").write_bytes(gzip.compress(b"not an image"))
+    for name in ("cut.nrrd", "empty.mha", "junk.nii.gz"):
+        with pytest.raises(InputError) as err:
+            read_image(tmp_path / name)
+        msg = str(err.value)
+        assert msg.startswith(str(tmp_path / name)) and "cannot read" in msg and "\n" not in msg
+    (tmp_path / "nodicom").mkdir()
+    with pytest.raises(InputError, match="nodicom: the folder holds no DICOM series"):
+        read_image(tmp_path / "nodicom")
+
+
+def test_a_dicom_folder_with_two_series_names_them_and_series_picks_one(tmp_path):
+    img = itk_image(_marked_sphere(), ORIGIN, SPACING)
+    folder = tmp_path / "two"
+    write_dicom_series(img, folder, series_uid="1.2.3.4.1")
+    write_dicom_series(sitk.Flip(img, (True, False, False)), folder / "_", series_uid="1.2.3.4.2")
+    for p in (folder / "_").iterdir():
+        p.rename(folder / f"b_{p.name}")
+    with pytest.raises(InputError, match=r"two: the folder holds 2 DICOM series \(1.2.3.4.1, 1.2.3.4.2\); choose one"):
+        read_image(folder)
+    a = read_image(folder, series="1.2.3.4.1")
+    assert a.values.sum() == _marked_sphere().sum()
+    with pytest.raises(InputError, match="no DICOM series '9.9'"):
+        read_image(folder, series="9.9")

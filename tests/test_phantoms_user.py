@@ -1,0 +1,160 @@
+"""phantoms/user.py and phantoms/masks.py: a user's volume as a phantom — masks to signed distances, options,
+ground truth, globs — with one-line refusals of bad input."""
+
+from __future__ import annotations
+
+import nibabel as nib
+import numpy as np
+import pytest
+import trimesh
+
+from _volumes import BOX_ORIGIN, BOX_SPACING, boxes_mask, sphere_mask, voxel_surface, write_boxes
+from phantoms import InputError, expand_phantoms, get_phantom, load_volume, mask_to_sdf
+from phantoms.user import format_spec, parse_spec, spec_from_table
+
+
+def _nifti(path, values, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0)):
+    aff = np.diag([*spacing, 1.0])
+    aff[:3, 3] = origin
+    nib.save(nib.Nifti1Image(values, aff), str(path))
+    return path
+
+
+def test_mask_of_a_known_sphere_zero_level_and_distances():
+    """A voxelised sphere (anisotropic spacing): the zero level set of its signed distance lies within half a
+    voxel (coarsest axis) of the true sphere, and near the surface φ is the true distance within a voxel."""
+    from skimage.measure import marching_cubes
+
+    spacing = np.array([0.4, 0.5, 0.7])
+    origin = np.array([-5.0, -6.0, -7.5])
+    n = (30, 26, 22)
+    centre, radius = np.array([0.3, -0.2, 0.1]), 4.0
+    pts = origin + np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), -1) * spacing
+    true = np.linalg.norm(pts - centre, axis=-1) - radius
+    vol = mask_to_sdf(true < 0, origin, spacing)
+    assert np.array_equal(vol.spacing, spacing) and np.array_equal(vol.origin, origin)
+    assert ((vol.values < 0) == (true < 0)).all()
+    v, _, _, _ = marching_cubes(vol.values, 0.0, spacing=tuple(spacing))
+    err = np.abs(np.linalg.norm(v + origin - centre, axis=1) - radius)
+    assert err.max() <= spacing.max() / 2 + 1e-9
+    near = np.abs(true) < 2.0
+    assert np.abs(vol.values[near] - true[near]).max() < spacing.max()
+
+
+def test_a_0_255_mask_is_a_mask_and_threshold_label_invert_read_intensities(tmp_path):
+    m = sphere_mask()
+    p = _nifti(tmp_path / "m.nii.gz", (m * 255).astype(np.uint8))
+    ref = mask_to_sdf(m)
+    assert np.array_equal(load_volume(p).values, ref.values)
+    assert np.array_equal(get_phantom(f"volume:{p}").volume().values, ref.values)
+    intensity = np.where(m, 300.0, 20.0) + np.random.default_rng(0).normal(0, 5, m.shape)
+    q = _nifti(tmp_path / "ct.nii.gz", intensity.astype(np.float32))
+    assert np.array_equal(get_phantom(f"volume:{q}?threshold=150").volume().values, ref.values)
+    labels = np.where(m, 3, 0).astype(np.int16)
+    labels[:4] = 7
+    r = _nifti(tmp_path / "lab.nii.gz", labels)
+    assert np.array_equal(get_phantom(f"volume:{r}?label=3").volume().values, ref.values)
+    inv = get_phantom(f"volume:{q}?threshold=150&invert=yes&pad=1").volume()
+    assert (inv.values[1:-1, 1:-1, 1:-1][m] > 0).all() and np.allclose(inv.origin, [-1, -1, -1])
+
+
+def test_bad_options_and_values_are_one_line(tmp_path):
+    m = sphere_mask()
+    ramp = np.linspace(0, 1, m.size).reshape(m.shape)             # an intensity image: many values, all > 0
+    q = _nifti(tmp_path / "ct.nii.gz", (np.where(m, 300.0, 20.0) + ramp).astype(np.float32))
+    lab = _nifti(tmp_path / "lab.nii.gz", np.where(m, 3, 0).astype(np.int16))
+    cases = [
+        (f"volume:{lab}?label=5", "label 5 does not occur in the image; labels present: 0, 3"),
+        (f"volume:{q}?threshold=1000", "threshold 1000 leaves no voxel inside"),
+        (f"volume:{q}?threshold=0", "threshold 0 leaves every voxel inside"),
+        (f"volume:{q}", "the values have no zero level set"),
+        (f"volume:{q}?colour=red", "unknown option 'colour'"),
+        (f"volume:{q}?pad=-1", "option pad='-1': expected an integer >= 0"),
+        (f"volume:{q}?threshold=abc", "option threshold='abc': expected a number"),
+        (f"volume:{q}?label=1&threshold=2", "either label= or threshold="),
+        (f"volume:{q}?mask=yes", "mask=yes but the image holds more than two values"),
+        (f"volume:{q}?threshold=100&truth={tmp_path / 'none.obj'}", "no such truth file"),
+        (f"volume:{tmp_path / 'missing.nii.gz'}", "no such file"),
+    ]
+    for spec, message in cases:
+        with pytest.raises(InputError) as err:
+            get_phantom(spec)
+        assert message in str(err.value) and "\n" not in str(err.value), (spec, str(err.value))
+
+
+def test_a_mask_touching_the_border_is_refused_and_pad_closes_it(tmp_path):
+    m = sphere_mask()
+    m[:, :, :3] = True
+    p = _nifti(tmp_path / "open.nii.gz", m.astype(np.uint8), spacing=(0.5, 0.5, 0.8), origin=(1, 2, 3))
+    with pytest.raises(InputError, match=r"open.nii.gz: the mask touches the image border \(faces .*z−\).*pad=1"):
+        get_phantom(f"volume:{p}")
+    vol = get_phantom(f"volume:{p}?pad=2").volume()
+    assert vol.shape == tuple(s + 4 for s in m.shape) and vol.is_closed()
+    assert np.allclose(vol.origin, [0.0, 1.0, 1.4])
+
+
+def test_boxes_in_world_coordinates_with_exact_truth_mesh_and_labels(tmp_path):
+    nii, obj = write_boxes(tmp_path)
+    ph = get_phantom(f"volume:{nii}")
+    assert not ph.has_truth and ph.ground_truth() is None
+    vol = ph.volume()
+    assert np.allclose(vol.origin, BOX_ORIGIN) and np.allclose(vol.spacing, BOX_SPACING)
+    with pytest.raises(InputError, match="has no ground truth"):
+        ph.truth(np.zeros((1, 3)))
+    withmesh = get_phantom(f"volume:{nii}?truth={obj}").ground_truth()
+    v, _ = voxel_surface(boxes_mask(), BOX_ORIGIN, BOX_SPACING)
+    assert np.allclose(withmesh.vertices.min(0), v.min(0)) and np.allclose(withmesh.scale, 1.0)
+    # a label image as truth: the zero level of its mask's distance — on the voxel faces exactly the exact
+    # mesh; at edges of an anisotropic grid within (s_max − s_min) / 2 of it (docs/PHANTOMS.md)
+    fromlabels = get_phantom(f"volume:{nii}?truth={nii}").ground_truth()
+    d = np.abs(withmesh.sdf(fromlabels.vertices))
+    assert np.median(d) < 1e-9 and d.max() <= (BOX_SPACING.max() - BOX_SPACING.min()) / 2 + 1e-6
+
+
+def test_truth_that_is_open_or_elsewhere_is_refused(tmp_path):
+    nii, obj = write_boxes(tmp_path)
+    box = trimesh.creation.box(extents=(2, 2, 2))
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-1], process=False)
+    open_box.export(str(tmp_path / "open.obj"))
+    with pytest.raises(InputError, match="truth mesh: .*not watertight"):
+        get_phantom(f"volume:{nii}?truth={tmp_path / 'open.obj'}")
+    box.export(str(tmp_path / "far.obj"))                    # centred on 0: the boxes are at x = 14 ... 25
+    with pytest.raises(InputError, match="the truth surface lies outside the volume"):
+        get_phantom(f"volume:{nii}?truth={tmp_path / 'far.obj'}")
+
+
+def test_resample_gives_the_grid_n_along_the_longest_axis(tmp_path):
+    nii, _ = write_boxes(tmp_path)
+    ph = get_phantom(f"volume:{nii}?resample=yes")
+    native = ph.volume()
+    assert native.shape == boxes_mask().shape and ph.native_n() == 30
+    vol = ph.volume(n=40)
+    span = native.upper - native.lower
+    assert max(vol.shape) == 40 and np.allclose(vol.spacing, span.max() / 39)
+    assert np.allclose(vol.origin, native.origin)
+    assert get_phantom(f"volume:{nii}").volume(n=40).shape == native.shape     # no resample: native
+
+
+def test_spec_parsing_and_tables():
+    assert parse_spec("volume:ct.nrrd?threshold=300&invert=yes") == ("ct.nrrd", {"threshold": 300.0, "invert": True})
+    assert parse_spec("volume:scan?.nii") == ("scan?.nii", {})                   # a glob's ? is not an option
+    assert format_spec("ct.nrrd", {"threshold": 300.0, "invert": True}) == "volume:ct.nrrd?invert=yes&threshold=300"
+    assert spec_from_table({"volume": "ct.nrrd", "threshold": 300}, "t") == "volume:ct.nrrd?threshold=300"
+    assert spec_from_table({"mesh": "a.obj"}, "t") == "mesh:a.obj"
+    with pytest.raises(InputError, match="needs volume"):
+        spec_from_table({"threshold": 3}, "grid.phantoms[0]")
+
+
+def test_globs_expand_to_one_phantom_per_file_named_by_stem(tmp_path):
+    for name in ("b", "a", "c"):
+        trimesh.creation.icosphere(1).export(str(tmp_path / f"{name}.obj"))
+    _nifti(tmp_path / "s1.nii.gz", sphere_mask().astype(np.uint8))
+    got = expand_phantoms(["sphere", f"mesh:{tmp_path}/*.obj", f"volume:{tmp_path}/*.nii.gz?pad=1"])
+    assert got == [("sphere", "sphere"), ("a", f"mesh:{tmp_path}/a.obj"), ("b", f"mesh:{tmp_path}/b.obj"),
+                   ("c", f"mesh:{tmp_path}/c.obj"), ("s1", f"volume:{tmp_path}/s1.nii.gz?pad=1")]
+    with pytest.raises(InputError, match=r"no file matches the pattern '.*\*.ply'"):
+        expand_phantoms([f"mesh:{tmp_path}/*.ply"])
+    (tmp_path / "sub").mkdir()
+    trimesh.creation.icosphere(1).export(str(tmp_path / "sub" / "a.obj"))
+    with pytest.raises(InputError, match="two phantoms are named 'a'"):
+        expand_phantoms([f"mesh:{tmp_path}/*.obj", f"mesh:{tmp_path}/sub/*.obj"])

@@ -23,6 +23,9 @@ def _cmd_phantoms(args) -> int:
         print(f"{name:<15} {cls.genus:>5} {str(cls.has_creases).lower():>7} {'-':>9}  data: {cls.data}")
         print(f"{'':<40}{cls.description}")
     print(f"{'mesh:PATH':<15} {'':>5} {'':>7} {'-':>9}  any closed triangle mesh file trimesh reads (OBJ, PLY, STL, OFF, ...)")
+    print(f"{'volume:PATH':<15} {'':>5} {'':>7} {'-':>9}  your volume: NIfTI, NRRD, MetaImage, DICOM folder, .npz/.npy; "
+          "?threshold=T, label=L, truth=FILE, ... (docs/PHANTOMS.md)")
+    print(f"{'':<40}a glob in PATH (mesh:shapes/*.obj) is one phantom per file")
     print(f"\nvariants: {', '.join(VARIANTS)} (default sdf); grid: N³ points over [-2.5, 2.5]³ (default N = 96)")
     return 0
 
@@ -38,7 +41,7 @@ def _cmd_volume(args) -> int:
             raise InputError(f"--snr is required for phantom {args.phantom!r} (no paper SNR)")
     vol, achieved = add_noise(vol, args.noise, snr, seed=args.seed)
     path = save_volume(args.output, vol)
-    print(f"wrote {path}: {args.phantom} ({args.variant}), N = {args.n}, spacing {vol.h:.6g}")
+    print(f"wrote {path}: {args.phantom} ({args.variant}), grid {'×'.join(map(str, vol.shape))}, spacing {vol.h:.6g}")
     if args.noise == "none":
         print("noise: none")
     else:
@@ -82,7 +85,7 @@ def register(sub) -> None:
     p = sub.add_parser("volume", help="write a phantom volume (.npz)",
                        description="Sample a phantom on an N³ grid, optionally add seeded noise, write .npz "
                                    "(keys values, origin, spacing) and print the achieved SNR.")
-    p.add_argument("phantom", help=f"one of: {', '.join(PHANTOMS)}")
+    p.add_argument("phantom", help=f"one of: {', '.join(PHANTOMS)}, a real shape, mesh:PATH or volume:PATH")
     p.add_argument("--n", type=int, default=96, help="grid points per axis (>= 8; default 96)")
     p.add_argument("--extent", type=_finite_float, default=2.5, help="grid covers [-E, E]³ (default 2.5)")
     p.add_argument("--variant", choices=VARIANTS, default="sdf", help="sdf (exact distance) or paper polynomial")
@@ -94,9 +97,10 @@ def register(sub) -> None:
     p.set_defaults(func=_cmd_volume)
 
     p = sub.add_parser("info", help="describe a volume file",
-                       description="Read a volume (.npz, .npy, .nii, .nii.gz; binary masks become signed "
-                                   "distance volumes) and print its shape, origin, spacing, value range and "
-                                   "whether its zero level set is closed inside the grid.")
-    p.add_argument("file")
+                       description="Read a volume (.npz, .npy, NIfTI, NRRD, MetaImage, a DICOM series folder, or "
+                                   "a volume:PATH?options spec; two-valued masks become signed distance volumes) "
+                                   "and print its shape, origin, spacing (RAS+ world coordinates), value range "
+                                   "and whether its zero level set is closed inside the grid.")
+    p.add_argument("file", help="a volume file, a DICOM folder or volume:PATH[?threshold=T&label=L&...]")
     p.add_argument("--mask", action="store_true", help="require the file to be a binary mask")
     p.set_defaults(func=_cmd_info)

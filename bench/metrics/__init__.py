@@ -184,9 +184,12 @@ def _start(fn, *args):
 
 def _distances(true_pts, band_pts, V, F):
     """(truth → mesh distances or None, band samples → mesh distances or None): the worker thread's share."""
-    d_tr = point_mesh_distance(true_pts, V, F) if true_pts is not None else None
-    d_band = point_mesh_distance(band_pts, V, F) if band_pts is not None else None
-    return d_tr, d_band
+    parts = [p for p in (true_pts, band_pts) if p is not None]
+    if not parts:
+        return None, None
+    d = point_mesh_distance(np.concatenate(parts) if len(parts) > 1 else parts[0], V, F)   # one mesh index
+    n_true = len(true_pts) if true_pts is not None else 0
+    return (d[:n_true] if true_pts is not None else None), (d[n_true:] if band_pts is not None else None)
 
 
 def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, crease_band=0.1,

@@ -27,7 +27,7 @@ from geometry.raster import grid_winding
 __all__ = ["fidelity_metrics", "band_query", "BAND_SAMPLES", "FIDELITY_NAMES"]
 
 #: at most this many grid samples of the band |φ| < 3h enter the SDF agreement
-BAND_SAMPLES = 20_000
+BAND_SAMPLES = 10_000
 FIDELITY_NAMES = ("sdf_rms_h", "sdf_p95_h", "phi_mean_h", "phi_p95_h", "sign_err_pct")
 
 

@@ -89,3 +89,45 @@ def test_evaluate_100k_faces_cylinder(benchmark, cylinder_mesh):
     out = _timed(benchmark, *cylinder_mesh)
     assert out["watertight"] and out["iou"] > 0.99
     assert np.isfinite(out["edge_chamfer"]) and out["edge_fscore"] > 0.5    # its rims are found
+
+
+@pytest.fixture(scope="module")
+def cell_n96():
+    """A cell's scoring at the paper's N = 96: marching cubes of the ellipsoid and the volume it came from."""
+    from methods import get_method
+
+    ph = get_phantom("ellipsoid")
+    vol = ph.volume(n=96)
+    return get_method("marching_cubes").reconstruct(vol).mesh, ph, vol
+
+
+@pytest.mark.benchmark(group="metrics")
+def test_evaluate_fidelity_cost_n96(benchmark, cell_n96):
+    """What the data-fidelity metrics add to a cell's scoring at N = 96: ``evaluate`` with the volume (the
+    benchmark) against the same call without it, in CPU time, the two interleaved round by round (issue target:
+    ≤ 20 % more; ``extra_info["fidelity_cpu_ratio"]``)."""
+    mesh, ph, vol = cell_n96
+    without: list = []
+    with_vol: list = []
+
+    def run():
+        c0 = time.process_time()
+        _evaluate(mesh, ph, vol.h, n_samples=100_000, seed=0)
+        without.append(time.process_time() - c0)
+        c0 = time.process_time()
+        res = _evaluate(mesh, ph, vol.h, volume=vol, n_samples=100_000, seed=0)
+        with_vol.append(time.process_time() - c0)
+        return res
+
+    run()                                                   # warm caches (numba kernels, truth structures)
+    without.clear()
+    with_vol.clear()
+    out = benchmark.pedantic(run, rounds=5, iterations=1, warmup_rounds=0)
+    ratio = float(np.median(np.array(with_vol) / np.array(without)))
+    benchmark.extra_info["fidelity_cpu_ratio"] = round(ratio, 3)
+    benchmark.extra_info["cpu_s_without"] = [round(c, 3) for c in without]
+    benchmark.extra_info["cpu_s_with"] = [round(c, 3) for c in with_vol]
+    print(f"\nfidelity metrics: CPU {np.median(with_vol):.3f} s with, {np.median(without):.3f} s without, "
+          f"ratio {ratio:.3f}, load average {os.getloadavg()[0]:.2f}")
+    assert np.isfinite(out["sdf_rms_h"]) and out["sign_err_pct"] == 0.0
+    assert ratio <= 1.2

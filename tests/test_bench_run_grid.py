@@ -78,3 +78,28 @@ def test_vary_one_at_a_time_sweeps_noise_at_the_first_n_and_n_at_the_first_noise
     assert config_from_dict(one.to_dict()).vary == "one_at_a_time"
     with pytest.raises(InputError, match="grid.vary"):
         config_from_dict({"grid": dict(grid, vary="sometimes"), "methods": [{"name": "marching_cubes"}]})
+
+
+def test_user_volumes_run_native_once_and_a_changed_file_changes_the_cell_ids(tmp_path):
+    """A volume phantom runs on its native grid (N = 0 in the cell: one N whatever grid.n says) unless
+    resample=yes; a glob names each file by its stem; editing a file gives its cells new identities."""
+    import os
+
+    import numpy as np
+
+    for name in ("a", "b"):
+        np.save(tmp_path / f"{name}.npy", np.pad(np.ones((4, 4, 4), np.uint8), 2))
+    cfg = config_from_dict({
+        "grid": {"phantoms": [f"volume:{tmp_path}/*.npy", {"volume": str(tmp_path / "a.npy"), "resample": True}],
+                 "n": [16, 24], "noise": [{"kind": "none"}]},
+        "methods": [{"name": "marching_cubes"}],
+    })
+    cfg.validate()
+    cells = expand_grid(cfg)
+    assert [(c["phantom"], c["n"]) for c in cells] == [("a", 0), ("b", 0), (f"volume:{tmp_path / 'a.npy'}?resample=yes", 16),
+                                                       (f"volume:{tmp_path / 'a.npy'}?resample=yes", 24)]
+    assert cells[0]["source"] == f"volume:{tmp_path / 'a.npy'}"
+    st = os.stat(tmp_path / "b.npy")
+    os.utime(tmp_path / "b.npy", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    again = expand_grid(cfg)
+    assert again[0]["cell_id"] == cells[0]["cell_id"] and again[1]["cell_id"] != cells[1]["cell_id"]

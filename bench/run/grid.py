@@ -37,10 +37,37 @@ def cell_id(cell: dict) -> str:
                                 "method", "params", "n_samples")}
     if cell.get("source", cell["phantom"]) != cell["phantom"]:
         key["source"] = cell["source"]
+    if cell.get("input"):
+        key["input"] = cell["input"]
     digest = hashlib.sha1(canonical_json(key).encode()).hexdigest()[:8]
     noise = cell["noise"] if cell["noise"] == "none" else f"{cell['noise']}{cell['snr_requested']:g}dB"
     return "_".join([slug(cell["phantom"]), cell["variant"], f"n{cell['n']}", slug(noise),
                      f"s{cell['seed']}", slug(cell["label"]), digest])
+
+
+def input_fingerprint(source: str) -> str | None:
+    """For a ``mesh:`` / ``volume:`` phantom, a hash of its files' sizes and modification times (the image, a DICOM
+    folder's files, a ``truth=`` file): part of the cell's identity, so ``--resume`` after the data changed
+    computes the cells anew instead of keeping results of the old file.  None for a built-in phantom."""
+    from pathlib import Path
+
+    from phantoms import is_file_phantom, phantom_path
+
+    if not is_file_phantom(source):
+        return None
+    paths = [Path(phantom_path(source)).expanduser()]
+    if source.startswith(VOLUME_PREFIX) and "truth" in parse_spec(source)[1]:
+        paths.append(Path(parse_spec(source)[1]["truth"]).expanduser())
+    stamps = []
+    for p in paths:
+        files = sorted(p.iterdir()) if p.is_dir() else [p]
+        for f in files:
+            try:
+                st = f.stat()
+                stamps.append((str(f.resolve()), st.st_size, st.st_mtime_ns))
+            except OSError:
+                stamps.append((str(f), None, None))
+    return hashlib.sha1(canonical_json(stamps).encode()).hexdigest()[:12]
 
 
 def grid_sizes(source: str, sizes) -> list[int]:
@@ -63,6 +90,7 @@ def expand_grid(cfg) -> list[dict]:
     cells = []
     one = getattr(cfg, "vary", "all") == "one_at_a_time"
     for phantom, source in expand_phantoms(cfg.phantoms):
+        fingerprint = input_fingerprint(source)
         for variant in cfg.variants:
             for n in grid_sizes(source, cfg.n):
                 for k, noise in enumerate(cfg.noise):
@@ -75,6 +103,7 @@ def expand_grid(cfg) -> list[dict]:
                             for label, params in spec.instances():
                                 cell = {
                                     "phantom": phantom, **({"source": source} if source != phantom else {}),
+                                    **({"input": fingerprint} if fingerprint else {}),
                                     "variant": variant, "n": int(n),
                                     "extent": float(cfg.extent), "noise": noise.kind,
                                     "snr_requested": snr, "seed": int(seed), "method": spec.name,

@@ -45,10 +45,15 @@ def test_best_rules_come_from_the_registry():
 
 
 def test_best_mask_min_max_target_and_too_few_values():
+    """Only a unique best is marked: a tie (also within the metric's resolution) marks nobody."""
     s = pd.Series([3.0, 1.0, np.nan, 1.0])
-    assert best_mask(s, "min").tolist() == [False, True, False, True]
+    assert not best_mask(s, "min").any()
+    assert best_mask(pd.Series([3.0, 1.0, np.nan, 2.0]), "min").tolist() == [False, True, False, False]
     assert best_mask(s, "max").tolist() == [True, False, False, False]
-    assert best_mask(pd.Series([0, 2, 4]), ("target", 3)).tolist() == [False, True, True]
+    assert not best_mask(pd.Series([0, 2, 4]), ("target", 3)).any()
+    assert best_mask(pd.Series([0, 2, 5]), ("target", 3)).tolist() == [False, True, False]
+    near = pd.Series([1.0, 1.02, 2.0])                      # 2 % apart: the same Hausdorff at its 5 % resolution
+    assert not best_mask(near, "min", metric="hausdorff_h").any() and best_mask(near, "min").tolist()[0]
     assert not best_mask(pd.Series([1.0, np.nan]), "min").any()                           # one value: no mark
     assert best_mask(pd.Series([True, False]), "max").tolist() == [True, False]
 
@@ -67,8 +72,8 @@ def test_one_table_per_phantom_and_noise_with_the_best_marked():
     # clean: b has the smaller distance, a the higher normal consistency and the sphere's Euler characteristic
     assert sorted(_marked(tables[0]["html"])) == sorted(["0.1", "0.99", "2"])
     assert "200" in tables[0]["html"] and "<span class=\"best\" title=\"best\">200" not in tables[0]["html"]
-    # gaussian: both have Euler 2 → both marked
-    assert _marked(tables[1]["html"]).count("2") == 2
+    # gaussian: both have Euler 2 → a shared best marks neither
+    assert _marked(tables[1]["html"]).count("2") == 0 and sorted(_marked(tables[1]["html"])) == ["0.3", "0.8"]
 
 
 def test_euler_target_follows_the_phantom_genus():

@@ -34,6 +34,7 @@ from phantoms import InputError
 from .baseline import read_json_file
 
 __all__ = ["QUALITY_FORMAT", "QUALITY_BASELINE", "QUALITY_CONFIGS", "TOLERANCES", "Tolerance", "run_quality",
+           "same_within_tolerance",
            "cells_from_rows", "load_quality", "save_quality", "quality_gate", "QualityResult",
            "format_quality"]
 
@@ -68,11 +69,25 @@ TOLERANCES: dict[str, Tolerance] = {
     "roughness_deg": Tolerance("min", 0.10, 0.1),
     "min_angle_deg": Tolerance("max", 0.10, 0.1),
     "pct_angle_lt_10": Tolerance("min", 0.10, 0.5),
+    "sdf_rms_h": Tolerance("min", 0.05, 0.005),
+    "sdf_p95_h": Tolerance("min", 0.05, 0.005),
+    "phi_mean_h": Tolerance("min", 0.05, 0.002),
+    "phi_p95_h": Tolerance("min", 0.05, 0.005),
+    "sign_err_pct": Tolerance("min", 0.05, 0.01),
     "self_intersections": Tolerance("count"),
     "euler": Tolerance("target"),
     "components": Tolerance("target"),
     "watertight": Tolerance("true"),
 }
+
+
+def same_within_tolerance(metric: str, a: float, b: float) -> bool:
+    """Whether two values of ``metric`` are the same at its resolution: ``|a − b| ≤ rel · max(|a|, |b|) + abs``
+    of its gate tolerance (integers and flags exactly; an ungated metric: 1e-9 relative)."""
+    tol = TOLERANCES.get(metric, Tolerance("min", 1e-9, 0.0))
+    if tol.better in ("count", "target", "true"):
+        return a == b
+    return abs(a - b) <= tol.rel * max(abs(a), abs(b)) + tol.abs
 
 
 def _finite(v) -> float | None:

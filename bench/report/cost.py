@@ -7,6 +7,8 @@ import html
 
 import numpy as np
 
+from .colours import method_colour
+
 from .render import png_uri
 from .tables import fmt_value
 
@@ -58,7 +60,7 @@ def _render_cost_chart(cf, labels: list[str], places: list[str], dpi: int = 90) 
             vals = [_value(cf, lab, p, col) for p in places]
             vals = [v if np.isfinite(v) else np.nan for v in vals]
             vals_all += [v for v in vals if np.isfinite(v) and v > 0]
-            ax.bar(x - 0.4 + (k + 0.5) * width, np.nan_to_num(vals, nan=0.0), width, label=lab, color=f"C{k % 10}")
+            ax.bar(x - 0.4 + (k + 0.5) * width, np.nan_to_num(vals, nan=0.0), width, label=lab, color=method_colour(lab))
         if vals_all and max(vals_all) / min(vals_all) > 30:
             ax.set_yscale("log")
         ax.set_xticks(x, places, fontsize=7, rotation=20 if len(places) > 3 else 0)

@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from .colours import method_colour
+
 __all__ = ["VIEW_FACES", "plotly_js", "viewer_payload", "robustness_figures", "pareto_figure", "breakdown"]
 
 #: faces of a decimated viewer mesh
@@ -184,7 +186,9 @@ def _curve_fig(title: str, xtitle: str, series: dict[str, list[tuple[float, floa
     for label, pts in sorted(series.items()):
         pts = sorted(pts)
         fig.add_trace(go.Scatter(x=[p[0] for p in pts], y=[p[1] for p in pts], mode="lines+markers", name=label,
-                                 marker={"symbol": ["circle" if p[2] else "x" for p in pts]}))
+                                 line={"color": method_colour(label)},
+                                 marker={"symbol": ["circle" if p[2] else "x" for p in pts],
+                                         "color": method_colour(label)}))
         b = breakdown([(p[0], p[2]) for p in pts])
         if b is not None:
             y = next(p[1] for p in pts if p[0] == b)
@@ -233,14 +237,20 @@ def robustness_figures(rows: list[dict], metric: str = "hausdorff_h") -> list[di
 
 
 def pareto_figure(rows: list[dict], metric: str = "hausdorff_h") -> dict | None:
-    """``metric`` against wall time, a point per (method label, phantom) — the mean over the phantom's cells."""
+    """``metric`` against wall time, a point per (method label, phantom, noise setting) — the mean over its
+    seeds' valid cells; circles clean, diamonds noisy, hollow where a cell was flagged; hover names the input."""
     import plotly.graph_objects as go
 
-    agg: dict[tuple[str, str], list] = {}
+    agg: dict[tuple[str, str, str], list] = {}
     for r in rows:
         if r.get("status") != "ok" or not (math.isfinite(_num(r, metric)) and _num(r, "wall_s") > 0):
             continue
-        agg.setdefault((str(r["label"]), str(r["phantom"])), []).append((_num(r, "wall_s"), _num(r, metric)))
+        noise = str(r.get("noise"))
+        if noise != "none" and math.isfinite(_snr(r)):
+            noise = f"{noise} {_snr(r):g} dB"
+        flagged = str(r.get("flags") or "").strip(" ;") not in ("", "nan")
+        agg.setdefault((str(r["label"]), str(r["phantom"]), noise), []).append(
+            (_num(r, "wall_s"), _num(r, metric), flagged))
     if not agg:
         return None
     fig = go.Figure()
@@ -248,10 +258,16 @@ def pareto_figure(rows: list[dict], metric: str = "hausdorff_h") -> dict | None:
         keys = sorted(k for k in agg if k[0] == label)
         xs = [float(np.mean([p[0] for p in agg[k]])) for k in keys]
         ys = [float(np.mean([p[1] for p in agg[k]])) for k in keys]
-        fig.add_trace(go.Scatter(x=xs, y=ys, mode="markers", name=label, text=[k[1] for k in keys],
-                                 hovertemplate="%{text}: %{y:.3g} at %{x:.3g} s"))
-    fig.update_layout(title=f"Accuracy against cost: {metric} vs wall time (a point per method and phantom, "
-                            "mean over its valid cells)", xaxis_title="wall time of the method (s)",
+        symbols = [("circle" if k[2] == "none" else "diamond") + ("-open" if any(p[2] for p in agg[k]) else "")
+                   for k in keys]
+        text = [f"{label}: {k[1]}, {'clean' if k[2] == 'none' else k[2]}"
+                + (" (flagged)" if any(p[2] for p in agg[k]) else "") for k in keys]
+        fig.add_trace(go.Scatter(x=xs, y=ys, mode="markers", name=label, text=text,
+                                 marker={"color": method_colour(label), "symbol": symbols, "size": 9,
+                                         "line": {"width": 2, "color": method_colour(label)}},
+                                 hovertemplate="%{text}<br>%{y:.3g} at %{x:.3g} s<extra></extra>"))
+    fig.update_layout(title=f"Accuracy against cost: {metric} vs wall time (a point per method, phantom and noise "
+                            "setting, mean over its valid cells; ○ clean, ◇ noisy, hollow: flagged)", xaxis_title="wall time of the method (s)",
                       yaxis_title=metric, xaxis_type="log", yaxis_type="log", height=420,
                       margin={"l": 60, "r": 20, "t": 50, "b": 50})
     return json.loads(fig.to_json())

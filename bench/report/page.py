@@ -18,6 +18,8 @@ from .cost import cost_section
 from .interactive import VIEW_FACES, pareto_figure, plotly_js, robustness_figures, viewer_payload
 from .paper import gallery_tables, paper_layout, paper_tables
 from .tables import BEST_DIRECTION, summary_tables
+from .verdicts import board_html, cd_figure, leaderboards
+from .colours import method_colour
 
 __all__ = ["TEMPLATE_DIR", "write_report"]
 
@@ -121,12 +123,26 @@ def _json_in_html(obj) -> str:
 def _interactive(df, arts: Artifacts, config: dict) -> dict:
     rows = df.to_dict("records") if len(df) else []
     extent = float(((config.get("grid") or {}).get("extent")) or 2.5)
-    charts = robustness_figures(rows)
+    boards = leaderboards(rows) if rows else []
+    colours = {str(lab): method_colour(lab) for lab in {r.get("label") for r in rows}}
+    verdict_charts = [cd_figure(b, colours) for b in boards]
+    for b, fig in zip(boards, verdict_charts):
+        b["html"] = board_html(b, colours)
+        b["chart"] = None
+    charts = [f for f in verdict_charts if f is not None]
+    k = 0
+    for b, fig in zip(boards, verdict_charts):
+        if fig is not None:
+            k += 1
+            b["chart"] = k
+    n_verdict = len(charts)
+    charts += robustness_figures(rows)
     pareto = pareto_figure(rows)
     if pareto is not None:
         charts.append(pareto)
     meshes = viewer_payload(rows, arts.get, extent=extent) if rows else {"cells": {}, "ranges": {}}
-    return {"plotly_js": plotly_js(), "meshes_json": _json_in_html(meshes), "charts": charts,
+    return {"plotly_js": plotly_js(), "meshes_json": _json_in_html(meshes), "charts": charts[n_verdict:],
+            "verdict_charts": charts[:n_verdict], "chart_offset": n_verdict, "boards": boards,
             "charts_json": _json_in_html(charts), "page_js": (TEMPLATE_DIR / "report.js").read_text("utf-8"),
             "view_faces": VIEW_FACES}
 

@@ -91,23 +91,34 @@ def _numeric(series):
     return pd.to_numeric(series.map(lambda x: float(x) if isinstance(x, (bool, np.bool_)) else x), errors="coerce")
 
 
-def best_mask(series, rule) -> np.ndarray:
-    """Which entries of ``series`` are best under ``rule`` (nothing is marked with fewer than 2 values)."""
+def best_mask(series, rule, metric: str | None = None) -> np.ndarray:
+    """Which entry of ``series`` is the unique best under ``rule``: one entry at most — nothing when the best is
+    shared (equal values, or with ``metric`` values equal at its resolution, the quality gate's tolerance) or
+    there are fewer than 2 values."""
     vals = _numeric(series).to_numpy(float)
     ok = np.isfinite(vals)
+    none = np.zeros(len(vals), bool)
     if ok.sum() < 2:
-        return np.zeros(len(vals), bool)
-    if rule == "min":
-        best = np.nanmin(np.where(ok, vals, np.nan))
-        return ok & np.isclose(vals, best, rtol=1e-9, atol=0)
-    if rule == "max":
-        best = np.nanmax(np.where(ok, vals, np.nan))
-        return ok & np.isclose(vals, best, rtol=1e-9, atol=0)
-    if isinstance(rule, tuple) and rule[0] == "target":
-        d = np.abs(vals - rule[1])
-        best = np.nanmin(np.where(ok, d, np.nan))
-        return ok & np.isclose(d, best, rtol=1e-9, atol=1e-12)
-    return np.zeros(len(vals), bool)
+        return none
+    if rule in ("min", "max"):
+        score = vals if rule == "min" else -vals
+    elif isinstance(rule, tuple) and rule[0] == "target":
+        score = np.abs(vals - rule[1])
+    else:
+        return none
+    score = np.where(ok, score, np.inf)
+    i = int(np.argmin(score))
+    others = np.delete(np.arange(len(vals)), i)
+    others = others[ok[others]]
+    if metric is not None:
+        from bench.perf.quality import same_within_tolerance
+
+        if any(same_within_tolerance(metric, vals[i], vals[j]) for j in others):
+            return none
+    if np.any(np.isclose(score[others], score[i], rtol=1e-9, atol=1e-12)):
+        return none
+    none[i] = True
+    return none
 
 
 def _status_text(g, ok) -> str:
@@ -204,13 +215,14 @@ def _marked_html(t, metrics: list[str], genus: int) -> str:
     import pandas as pd
 
     shown = pd.DataFrame({"method": [html.escape(str(x)) for x in t["method"]]})
+    # method, then status with its flag badges: the columns that say what a row is come first (sticky)
+    shown["status"] = [status_badges(s, f, v) for s, f, v in zip(t["status"], t["_flags"], t["_valid"])]
     for m in [c for c in metrics if c in t.columns]:
         rule = best_rule(m, genus)
         eligible = t[m].where(t["_valid"], np.nan)            # an invalid or failed result is never best
-        mask = best_mask(eligible, rule) if rule is not None else np.zeros(len(t), bool)
+        mask = best_mask(eligible, rule, metric=m) if rule is not None else np.zeros(len(t), bool)
         shown[m] = [f'<span class="best" title="best">{fmt_value(v, m)}</span>' if b else fmt_value(v, m)
                     for v, b in zip(t[m], mask)]
-    shown["status"] = [status_badges(s, f, v) for s, f, v in zip(t["status"], t["_flags"], t["_valid"])]
     return shown.to_html(index=False, escape=False, classes="summary", border=0, na_rep="–")
 
 

@@ -1,0 +1,263 @@
+"""Who wins: a leaderboard over the run's cells and whether the differences are significant.
+
+Ranking (:func:`block_ranks`)
+    A *block* is one input — (phantom, variant, N, noise, SNR, seed) — on which every method was run. Within a
+    block the methods are ranked on one key metric: values the same at the metric's resolution (the quality
+    gate's tolerance, :func:`bench.perf.quality.same_within_tolerance`) share the average of their ranks; a
+    cell that is not ``ok`` (invalid, failed, timeout) or has no value ranks last.  Ranks, never raw values,
+    are then averaged over blocks, so a shape with large distances does not outweigh one with small ones.
+
+Boards (:func:`leaderboards`)
+    One board for the cells with ground truth (key metrics: Hausdorff and mean distance, SDF agreement,
+    roughness) and one for truth-free cells (SDF agreement, |φ| on the mesh, roughness).  A method's row: its
+    mean rank per key metric, wins / ties / losses against the best on the board's first metric (win: alone at
+    the best value; tie: the best value shared), the share of its cells that are valid and unflagged, its median
+    time.  Only blocks every listed method has enter.
+
+Significance (:func:`significance`)
+    On the board's first metric: with three or more methods the Friedman test over methods × blocks and the
+    Nemenyi post-hoc critical difference CD = q_α √(k(k + 1) / 6N) (Demšar 2006; q_α from the studentized range
+    distribution, scipy.stats), with two methods the Wilcoxon signed-rank test; α = 0.05.  Methods whose mean
+    ranks differ by less than CD (two methods: p ≥ α) are joined by a bar: this run cannot tell them apart.
+    With fewer than :data:`MIN_BLOCKS` blocks no test is run and no bar is drawn.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from bench.metrics.registry import METRICS
+from bench.perf.quality import same_within_tolerance
+
+__all__ = ["BLOCK_KEYS", "TRUTH_KEYS", "FREE_KEYS", "MIN_BLOCKS", "ALPHA", "block_ranks", "leaderboards",
+           "significance", "cd_figure", "board_html"]
+
+BLOCK_KEYS = ("phantom", "variant", "N", "noise", "snr_requested", "seed")
+#: key metrics of the board with ground truth: (column, what it measures)
+TRUTH_KEYS = (("hausdorff_h", "distance (Hausdorff)"), ("mean_dist_h", "distance (mean)"),
+              ("sdf_rms_h", "data fidelity"), ("roughness_deg", "smoothness"))
+#: key metrics of the truth-free board
+FREE_KEYS = (("sdf_rms_h", "data fidelity (SDF)"), ("phi_mean_h", "data fidelity (|φ|)"),
+             ("roughness_deg", "smoothness"))
+MIN_BLOCKS = 10
+ALPHA = 0.05
+
+
+def _num(v) -> float:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return math.nan
+    return x if math.isfinite(x) else math.nan
+
+
+def _sign(metric: str) -> float:
+    """+1 when smaller is better, −1 when larger is (the registry's ``best``)."""
+    best = METRICS[metric].best if metric in METRICS else "min"
+    return -1.0 if best == "max" else 1.0
+
+
+def _rank_one(values: dict[str, float], metric: str) -> dict[str, float]:
+    """Ranks (1 = best) of one block's values; equal at the metric's resolution → the average rank; NaN last."""
+    s = _sign(metric)
+    ok = sorted((s * v, m) for m, v in values.items() if not math.isnan(v))
+    ranks: dict[str, float] = {}
+    i = 0
+    while i < len(ok):
+        j = i
+        while j + 1 < len(ok) and same_within_tolerance(metric, s * ok[i][0], s * ok[j + 1][0]):
+            j += 1
+        for k in range(i, j + 1):
+            ranks[ok[k][1]] = (i + j) / 2 + 1
+        i = j + 1
+    bad = [m for m, v in values.items() if math.isnan(v)]
+    for m in bad:
+        ranks[m] = len(ok) + (len(bad) + 1) / 2
+    return ranks
+
+
+def _flagged(r: dict) -> bool:
+    flags = str(r.get("flags") if r.get("flags") is not None else "").strip(" ;")
+    return flags not in ("", "nan", "None")
+
+
+def _is_true(v) -> bool:
+    return str(v).strip().lower() in ("true", "1", "1.0", "yes")
+
+
+def _blocks(rows: list[dict], labels: list[str]) -> dict[tuple, dict[str, dict]]:
+    """``{block key: {label: row}}`` for the blocks holding every label (the first row of a label wins)."""
+    blocks: dict[tuple, dict[str, dict]] = {}
+    for r in rows:
+        key = tuple(str(r.get(k)) for k in BLOCK_KEYS)
+        blocks.setdefault(key, {}).setdefault(str(r.get("label")), r)
+    return {k: v for k, v in blocks.items() if all(lab in v for lab in labels)}
+
+
+def _value(r: dict, metric: str) -> float:
+    return _num(r.get(metric)) if r.get("status") == "ok" else math.nan
+
+
+def block_ranks(rows: list[dict], metric: str, labels: list[str] | None = None) -> tuple[list[str], np.ndarray]:
+    """(labels, ranks array of shape (blocks, methods)) on ``metric`` over the blocks every label has."""
+    labels = labels or sorted({str(r.get("label")) for r in rows})
+    blocks = _blocks(rows, labels)
+    out = [[_rank_one({lab: _value(b[lab], metric) for lab in labels}, metric)[lab] for lab in labels]
+           for _, b in sorted(blocks.items())]
+    return labels, np.asarray(out, float).reshape(len(out), len(labels))
+
+
+def significance(ranks: np.ndarray, labels: list[str], values: np.ndarray | None = None) -> dict[str, Any]:
+    """The test on a (blocks × methods) rank matrix (see the module docstring): ``{"test", "n_blocks", "p",
+    "cd", "mean_ranks", "cliques", "note"}``; ``cliques``: groups of methods not told apart (lists of labels)."""
+    from scipy import stats
+
+    n, k = ranks.shape if ranks.ndim == 2 else (0, len(labels))
+    mean = {lab: float(ranks[:, i].mean()) if n else math.nan for i, lab in enumerate(labels)}
+    out: dict[str, Any] = {"test": None, "n_blocks": int(n), "p": None, "cd": None, "mean_ranks": mean,
+                           "cliques": [], "note": ""}
+    if k < 2:
+        out["note"] = "one method: nothing to compare"
+        return out
+    if n < MIN_BLOCKS:
+        out["note"] = (f"{n} shared cells: too few for a significance test (at least {MIN_BLOCKS} are needed); "
+                       "the ranks above are descriptive only")
+        return out
+    if k == 2:
+        d = (values[:, 0] - values[:, 1]) if values is not None else (ranks[:, 0] - ranks[:, 1])
+        d = d[np.isfinite(d)]
+        p = 1.0 if not np.any(d != 0) else float(stats.wilcoxon(d, zero_method="zsplit").pvalue)
+        out.update(test="Wilcoxon signed-rank (two methods)", p=p)
+        out["cliques"] = [list(labels)] if p >= ALPHA else []
+    else:
+        p = float(stats.friedmanchisquare(*[ranks[:, i] for i in range(k)]).pvalue) if np.ptp(ranks) > 0 else 1.0
+        q = float(stats.studentized_range.ppf(1 - ALPHA, k, np.inf)) / math.sqrt(2.0)
+        cd = q * math.sqrt(k * (k + 1) / (6.0 * n))
+        out.update(test="Friedman + Nemenyi (critical difference)", p=p, cd=cd)
+        order = sorted(labels, key=lambda lab: mean[lab])
+        if p >= ALPHA:
+            out["cliques"] = [order]
+        else:
+            cliques = []
+            for i, a in enumerate(order):
+                group = [b for b in order[i:] if mean[b] - mean[a] < cd]
+                if len(group) > 1 and not any(set(group) <= set(c) for c in cliques):
+                    cliques.append(group)
+            out["cliques"] = cliques
+    out["note"] = (f"{out['test']} on {n} shared cells, α = {ALPHA}: p = {out['p']:.3g}"
+                   + (f", CD = {out['cd']:.2f} ranks" if out["cd"] else "")
+                   + ("; methods joined by a bar cannot be told apart" if out["cliques"] else
+                      "; every difference is significant"))
+    return out
+
+
+def _wtl(ranks: np.ndarray, i: int) -> tuple[int, int, int]:
+    best = ranks.min(axis=1)
+    shared = (ranks == best[:, None]).sum(axis=1)
+    at_best = ranks[:, i] == best
+    return int((at_best & (shared == 1)).sum()), int((at_best & (shared > 1)).sum()), int((~at_best).sum())
+
+
+def _board(rows: list[dict], keys, title: str) -> dict | None:
+    keys = [(m, t) for m, t in keys if any(np.isfinite(_num(r.get(m))) for r in rows)]
+    labels = list(dict.fromkeys(str(r.get("label")) for r in rows))
+    if not keys or len(labels) < 1:
+        return None
+    first = keys[0][0]
+    _, ranks0 = block_ranks(rows, first, labels)
+    if not len(ranks0):
+        return None
+    table = []
+    for i, lab in enumerate(labels):
+        mine = [r for r in rows if str(r.get("label")) == lab]
+        good = [r for r in mine if r.get("status") == "ok" and not _flagged(r)]
+        times = [_num(r.get("wall_s")) for r in mine if np.isfinite(_num(r.get("wall_s")))]
+        rec = {"label": lab, "cells": len(mine), "valid_pct": 100.0 * len(good) / len(mine) if mine else math.nan,
+               "median_s": float(np.median(times)) if times else math.nan}
+        for m, _ in keys:
+            _, rk = block_ranks(rows, m, labels)
+            rec[m] = float(rk[:, i].mean()) if len(rk) else math.nan
+        rec["wins"], rec["ties"], rec["losses"] = _wtl(ranks0, i)
+        table.append(rec)
+    table.sort(key=lambda r: (r[first], r["label"]))
+    values = None
+    if len(labels) == 2:
+        blocks = _blocks(rows, labels)
+        values = np.array([[_sign(first) * _value(b[lab], first) for lab in labels] for _, b in sorted(blocks.items())])
+    return {"title": title, "keys": keys, "rows": table, "n_blocks": int(len(ranks0)),
+            "significance": significance(ranks0, labels, values), "metric": first}
+
+
+def leaderboards(rows: list[dict]) -> list[dict]:
+    """The boards of a run (see the module docstring): with ground truth, and truth-free (cells without)."""
+    truth = [r for r in rows if not _no_truth(r)]
+    free = [r for r in rows if _no_truth(r)]
+    boards = []
+    for sub, keys, title in ((truth, TRUTH_KEYS, "Cells with ground truth"),
+                             (free, FREE_KEYS, "Cells without ground truth (data fidelity only)")):
+        if sub:
+            b = _board(sub, keys, title)
+            if b is not None:
+                boards.append(b)
+    return boards
+
+
+def _no_truth(r: dict) -> bool:
+    v = r.get("has_truth")
+    if v is not None and str(v) not in ("", "nan", "None"):
+        return not _is_true(v)
+    return False
+
+
+def cd_figure(board: dict, colours: dict[str, str]) -> dict | None:
+    """A plotly figure of the critical-difference diagram of a board (mean ranks on an axis, cliques as bars);
+    None without a test."""
+    sig = board["significance"]
+    if sig["test"] is None:
+        return None
+    mean = sig["mean_ranks"]
+    order = sorted(mean, key=lambda lab: mean[lab])
+    k = len(order)
+    data = [{"type": "scatter", "mode": "markers+text", "x": [mean[lab]], "y": [0], "name": lab,
+             "text": [lab], "textposition": "top center", "hovertemplate": f"{lab}: mean rank %{{x:.2f}}<extra></extra>",
+             "marker": {"size": 11, "color": colours.get(lab, "#444")}, "showlegend": False} for lab in order]
+    for j, clique in enumerate(sig["cliques"]):
+        xs = [mean[lab] for lab in clique]
+        data.append({"type": "scatter", "mode": "lines", "x": [min(xs) - 0.03, max(xs) + 0.03], "y": [-0.3 - 0.25 * j] * 2,
+                     "line": {"width": 6, "color": "#333"}, "hoverinfo": "text", "showlegend": False,
+                     "text": "not distinguishable: " + ", ".join(clique)})
+    shapes = []
+    if sig["cd"]:
+        shapes.append({"type": "line", "x0": 1, "x1": 1 + sig["cd"], "y0": 0.6, "y1": 0.6, "line": {"width": 3}})
+    return {"data": data, "layout": {
+        "title": {"text": f"{board['title']}: mean rank on {board['metric']} ({sig['note']})", "font": {"size": 12}},
+        "xaxis": {"title": "mean rank (1 = best)", "range": [0.5, k + 0.5], "dtick": 1},
+        "yaxis": {"visible": False, "range": [-0.4 - 0.25 * max(1, len(sig["cliques"])), 1.0]},
+        "height": 240 + 20 * len(sig["cliques"]), "margin": {"t": 50, "b": 40}, "shapes": shapes,
+        "annotations": ([{"x": 1 + sig["cd"] / 2, "y": 0.75, "text": f"CD = {sig['cd']:.2f}", "showarrow": False}]
+                        if sig["cd"] else [])}}
+
+
+def _fmt(v, digits: str = ".2f") -> str:
+    return "–" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, digits)
+
+
+def board_html(board: dict, colours: dict[str, str]) -> str:
+    """A board as an HTML table (escaped): method, mean rank per key metric, W/T/L, valid %, median time."""
+    import html
+
+    head = ["method", *[f"{t}<br><small>mean rank on {html.escape(m)}</small>" for m, t in board["keys"]],
+            f"wins / ties / losses<br><small>on {html.escape(board['metric'])}</small>",
+            "valid &amp; unflagged", "median time"]
+    body = []
+    for r in board["rows"]:
+        colour = html.escape(colours.get(r["label"], "#444"))
+        cells = [f'<span class="swatch" style="background:{colour}"></span>{html.escape(r["label"])}',
+                 *[_fmt(r[m]) for m, _ in board["keys"]], f"{r['wins']} / {r['ties']} / {r['losses']}",
+                 f"{_fmt(r['valid_pct'], '.0f')} % of {r['cells']}", f"{_fmt(r['median_s'], '.3g')} s"]
+        body.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
+    return ('<table class="summary leaderboard"><thead><tr>' + "".join(f"<th>{h}</th>" for h in head)
+            + "</tr></thead><tbody>" + "".join(body) + "</tbody></table>")

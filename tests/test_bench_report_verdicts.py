@@ -1,0 +1,71 @@
+"""bench/report/verdicts.py: ranks within blocks with ties at the metric's resolution, the boards, and the
+significance test that separates a consistent winner and joins methods that alternate."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bench.report.verdicts import MIN_BLOCKS, block_ranks, leaderboards, significance
+
+
+def _rows(values: dict[str, list[float]], metric="hausdorff_h", **extra):
+    rows = []
+    for label, vals in values.items():
+        for i, v in enumerate(vals):
+            rows.append({"phantom": f"p{i}", "variant": "sdf", "N": 48, "noise": "none", "snr_requested": None,
+                         "seed": 0, "label": label, "status": "ok", "flags": "", "wall_s": 1.0, metric: v,
+                         "mean_dist_h": v / 4, **extra})
+    return rows
+
+
+def test_a_consistent_winner_ranks_first_and_is_separated():
+    rng = np.random.default_rng(0)
+    base = rng.uniform(0.5, 3.0, 12)                          # shapes of very different difficulty
+    rows = _rows({"B": list(base * 1.3 + 0.05), "A": list(base)})
+    board = leaderboards(rows)[0]
+    assert [r["label"] for r in board["rows"]] == ["A", "B"]
+    a = board["rows"][0]
+    assert a["hausdorff_h"] == 1.0 and (a["wins"], a["ties"], a["losses"]) == (12, 0, 0)
+    sig = board["significance"]
+    assert sig["n_blocks"] == 12 and sig["p"] < 0.05 and sig["cliques"] == []
+
+
+def test_methods_that_alternate_are_not_told_apart():
+    base = np.linspace(1.0, 2.0, 12)
+    a = [v * (1.3 if i % 2 else 1.0) for i, v in enumerate(base)]
+    b = [v * (1.0 if i % 2 else 1.3) for i, v in enumerate(base)]
+    sig = leaderboards(_rows({"A": a, "B": b}))[0]["significance"]
+    assert sig["p"] >= 0.05 and sig["cliques"] == [["A", "B"]]
+
+
+def test_three_methods_friedman_nemenyi_joins_the_two_that_alternate():
+    base = np.linspace(1.0, 3.0, 20)
+    vals = {"A": list(base * 0.5),
+            "B": [v * (1.3 if i % 2 else 1.0) for i, v in enumerate(base)],
+            "C": [v * (1.0 if i % 2 else 1.3) for i, v in enumerate(base)]}
+    labels, ranks = block_ranks(_rows(vals), "hausdorff_h", ["A", "B", "C"])
+    sig = significance(ranks, labels)
+    assert sig["p"] < 0.05 and sig["cd"] > 0
+    assert sig["mean_ranks"]["A"] == 1.0 and ["B", "C"] in sig["cliques"]
+    assert not any("A" in c for c in sig["cliques"])
+
+
+def test_ties_at_the_metrics_resolution_and_invalid_cells_rank_last():
+    rows = _rows({"A": [1.000], "B": [1.001], "C": [2.0], "D": [0.1]})
+    rows[-1]["status"] = "invalid"                              # D's value is never ranked
+    labels, ranks = block_ranks(rows, "hausdorff_h", ["A", "B", "C", "D"])
+    assert dict(zip(labels, ranks[0])) == {"A": 1.5, "B": 1.5, "C": 3.0, "D": 4.0}
+    rows = _rows({"A": [0.9], "B": [0.95]}, metric="fscore@h")  # larger is better for the F-score
+    labels, ranks = block_ranks(rows, "fscore@h", ["A", "B"])
+    assert list(ranks[0]) == [2.0, 1.0]
+
+
+def test_few_cells_give_no_bar_and_boards_split_by_truth():
+    rows = _rows({"A": [1.0, 2.0], "B": [1.5, 2.5]})
+    free = _rows({"A": [0.1] * 3, "B": [0.2] * 3}, metric="sdf_rms_h", has_truth=False)
+    for r in free:
+        r["phantom"] = "scan_" + r["phantom"]
+    boards = leaderboards(rows + free)
+    assert [b["title"].split(" ")[1] for b in boards] == ["with", "without"]
+    assert boards[0]["significance"]["cliques"] == [] and str(MIN_BLOCKS) in boards[0]["significance"]["note"]
+    assert boards[1]["metric"] == "sdf_rms_h" and boards[1]["rows"][0]["label"] == "A"

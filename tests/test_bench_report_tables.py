@@ -88,7 +88,7 @@ def test_seeds_are_averaged_over_ok_cells_and_the_status_says_so():
     for i, r in enumerate(rows):
         r["seed"] = i
     t = summary_tables(pd.DataFrame(rows))[0]
-    assert "<td>0.2</td>" in t["html"] and "50 % yes" in t["html"]
+    assert "<td>0.2 <span class=\"ci\"" in t["html"] and "<td>50 % yes</td>" in t["html"]
     assert "failed×1, ok×2 (mean of 2/3 seeds)" in t["html"]
 
 
@@ -107,3 +107,13 @@ def test_flags_and_invalid_rows_are_badges_named_in_text():
     assert 'class="best"' not in bad_row
     assert status_badges("failed", [], False).startswith('<span class="badge badge-failed"')
     assert status_badges("ok", ["x<y"], True) == 'ok <span class="badge badge-flag" title="suspect result">x&lt;y</span>'
+
+
+def test_several_seeds_show_the_mean_and_a_95_percent_interval():
+    rows = [_row("a", noise="gaussian", hausdorff=h, normal_consistency=0.9, euler=2, n_vertices=100)
+            for h in (0.1, 0.2, 0.3)]
+    for i, r in enumerate(rows):
+        r["seed"] = i
+    html_text = summary_tables(pd.DataFrame(rows))[0]["html"]
+    # mean 0.2, sd 0.1, t(0.975, 2) = 4.303: half-width 0.2484
+    assert "0.2 <span class=\"ci\"" in html_text and "± 0.2484" in html_text

@@ -12,7 +12,7 @@ import numpy as np
 
 from bench.metrics.registry import METRICS
 
-__all__ = ["NO_TRUTH_NOTE", "BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables", "fmt_value", "noise_title", "is_nan", "best_mask", "best_rule"]
+__all__ = ["ci_half_width", "NO_TRUTH_NOTE", "BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables", "fmt_value", "noise_title", "is_nan", "best_mask", "best_rule"]
 
 #: how a metric's best value is chosen ("min", "max", ("target", value)); unranked metrics are absent
 BEST_DIRECTION: dict[str, Any] = {k: m.best for k, m in METRICS.items() if m.best is not None}
@@ -152,6 +152,16 @@ def status_badges(status: str, flags, valid: bool) -> str:
     return text
 
 
+def ci_half_width(values: np.ndarray) -> float | None:
+    """Half-width of the 95 % confidence interval of the mean of ``values`` (Student t; None below 2 values or
+    when they are all equal)."""
+    if len(values) < 2 or np.ptp(values) == 0:
+        return None
+    from scipy import stats
+
+    return float(stats.t.ppf(0.975, len(values) - 1) * values.std(ddof=1) / np.sqrt(len(values)))
+
+
 def _method_rows(sub, metrics: list[str]):
     """One row per method label: the mean of each metric over its ok cells (over all when none is ok: such a row
     is shown, below the valid ones, and never marked best)."""
@@ -160,12 +170,14 @@ def _method_rows(sub, metrics: list[str]):
     rows = []
     for label, g in sub.groupby("label", sort=False):
         ok = g[g["status"] == "ok"]
-        rec: dict[str, Any] = {"method": label}
+        rec: dict[str, Any] = {"method": label, "_ci": {}}
         for m in metrics:
             if m not in g.columns:
                 continue
             vals = _numeric(ok[m] if len(ok) else g[m])
             rec[m] = float(vals.mean()) if vals.notna().any() else np.nan
+            if _dtype(m) != "bool":                     # a mean of yes/no is a share, shown as such
+                rec["_ci"][m] = ci_half_width(vals.dropna().to_numpy(float))
         flags = sorted({f for v in (ok if len(ok) else g).get("flags", pd.Series(dtype=object))
                         if isinstance(v, str) for f in v.split(";") if f})
         rec["status"] = _status_text(g, ok)
@@ -221,8 +233,10 @@ def _marked_html(t, metrics: list[str], genus: int) -> str:
         rule = best_rule(m, genus)
         eligible = t[m].where(t["_valid"], np.nan)            # an invalid or failed result is never best
         mask = best_mask(eligible, rule, metric=m) if rule is not None else np.zeros(len(t), bool)
-        shown[m] = [f'<span class="best" title="best">{fmt_value(v, m)}</span>' if b else fmt_value(v, m)
-                    for v, b in zip(t[m], mask)]
+        texts = [fmt_value(v, m) + (f' <span class="ci" title="95 % interval of the mean over seeds">± '
+                                    f'{fmt_value(ci[m], m)}</span>' if ci.get(m) else "")
+                 for v, ci in zip(t[m], t["_ci"])]
+        shown[m] = [f'<span class="best" title="best">{x}</span>' if b else x for x, b in zip(texts, mask)]
     return shown.to_html(index=False, escape=False, classes="summary", border=0, na_rep="–")
 
 

@@ -79,3 +79,73 @@ def test_the_report_loads_without_errors_and_every_chart_and_viewer_draws(report
     assert not errors, errors
     assert size_mb <= 15.0
     assert load_ms < 30_000     # a hang, not a speed test (the load time is printed above)
+
+
+def _launch(sync_api, p):
+    return p.chromium.launch(executable_path=_chromium(), args=CHROMIUM_ARGS)
+
+
+def test_method_status_and_flags_stay_in_view_at_1400_px(report, tmp_path, capsys):
+    """Every summary table scrolled fully sideways in a 1,400 px window still shows its method and status
+    columns (sticky), inside the window; a screenshot is kept in the test's folder."""
+    sync_api = pytest.importorskip("playwright.sync_api", reason="headless browser test skipped: playwright "
+                                                                 "is not installed")
+    with sync_api.sync_playwright() as p:
+        browser = _launch(sync_api, p)
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            page.goto(report.resolve().as_uri(), wait_until="load", timeout=120_000)
+            boxes = page.evaluate("""() => Array.from(document.querySelectorAll('div.summary-wrap')).map(w => {
+                w.scrollLeft = w.scrollWidth;
+                const wr = w.getBoundingClientRect(), row = w.querySelector('tbody tr');
+                const a = row.cells[0].getBoundingClientRect(), b = row.cells[1].getBoundingClientRect();
+                return {scrolls: w.scrollWidth > w.clientWidth, left: wr.left, right: wr.right,
+                        m: [a.left, a.right], s: [b.left, b.right], head: row.parentNode.parentNode
+                        .tHead.rows[0].cells[1].textContent.trim()};
+            })""")
+            page.evaluate("document.querySelector('div.summary-wrap').scrollIntoView()")
+            page.screenshot(path=str(tmp_path / "summary_1400px.png"), full_page=False)
+        finally:
+            browser.close()
+    assert boxes
+    for b in boxes:
+        assert b["head"] == "status"
+        assert b["left"] - 1 <= b["m"][0] and b["s"][1] <= min(b["right"], 1400) + 1, b
+    with capsys.disabled():
+        print(f"\n{len(boxes)} tables, {sum(b['scrolls'] for b in boxes)} scroll sideways; screenshot "
+              f"{tmp_path / 'summary_1400px.png'}")
+
+
+def test_a_5000_cell_report_stays_small_and_opens_a_viewer(tmp_path, capsys):
+    """A synthetic dataset run of 5,010 cells (167 shapes × clean + 5 noisy seeds × 5 methods): the report is at
+    most 50 MB (its time is a benchmark: tests/benchmarks/test_bench_report.py) and a table row opens its viewer."""
+    import time
+
+    from _synthetic_run import write_synthetic_run
+    from bench.report import write_report
+
+    sync_api = pytest.importorskip("playwright.sync_api", reason="headless browser test skipped: playwright "
+                                                                 "is not installed")
+    _chromium()
+    assert write_synthetic_run(tmp_path / "run", n_shapes=167) == 5010
+    t0 = time.perf_counter()
+    page_path = write_report(tmp_path / "run")
+    seconds = time.perf_counter() - t0
+    size_mb = page_path.stat().st_size / 2 ** 20
+    assert size_mb <= 50.0
+    with sync_api.sync_playwright() as p:
+        browser = _launch(sync_api, p)
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            page.goto(page_path.resolve().as_uri(), wait_until="load", timeout=180_000)
+            rows = page.query_selector_all("tr[data-cell]")
+            assert len(rows) >= 1000
+            rows[-1].scroll_into_view_if_needed()
+            rows[-1].click()
+            page.wait_for_function("window.lsbDrawn.viewers >= 1", timeout=60_000)
+            assert page.evaluate("document.querySelectorAll('#viewer canvas').length") > 0
+            assert page.query_selector("#leaderboard") is not None
+        finally:
+            browser.close()
+    with capsys.disabled():
+        print(f"\n5,010-cell report: {size_mb:.1f} MB, written in {seconds:.1f} s, {len(rows)} table rows")

@@ -17,9 +17,14 @@ __all__ = ["COST_COLUMNS", "cost_section"]
 COST_COLUMNS = (("wall_s", "time (s)"), ("peak_mem_mb", "memory (MiB)"))
 
 
+#: with more places (phantom × N) than this, the cost table and chart show one column over all phantoms
+MAX_PLACES = 16
+
+
 def _cost_frame(df):
     """Mean ``wall_s`` and ``peak_mem_mb`` of the ok cells per method label × phantom (× N when the run has
-    several): a DataFrame with columns label, where, wall_s, peak_mem_mb, cells."""
+    several; one place "all phantoms" beyond :data:`MAX_PLACES`): a DataFrame with columns label, where, wall_s,
+    peak_mem_mb, cells."""
     import pandas as pd
 
     if df.empty or not any(c in df.columns for c, _ in COST_COLUMNS):
@@ -27,6 +32,8 @@ def _cost_frame(df):
     d = df[df["status"] == "ok"].copy()
     many_n = "N" in d.columns and d["N"].nunique() > 1
     d["where"] = d["phantom"].astype(str) + (", N = " + d["N"].astype(str) if many_n else "")
+    if d["where"].nunique() > MAX_PLACES:
+        d["where"] = f"all {d['where'].nunique()} phantoms" + (" and N" if many_n else "")
     for c, _ in COST_COLUMNS:
         d[c] = pd.to_numeric(d[c], errors="coerce") if c in d.columns else np.nan
     g = d.groupby(["label", "where"], sort=False)
@@ -36,8 +43,11 @@ def _cost_frame(df):
 
 
 def _value(cf, label: str, where: str, col: str) -> float:
-    sel = cf[(cf["label"] == label) & (cf["where"] == where)][col]
-    return float(sel.iloc[0]) if len(sel) else np.nan
+    index = cf.attrs.get("_index")
+    if index is None:                                    # (label, where) → row, built once per frame
+        index = cf.attrs["_index"] = {(lab, w): i for i, (lab, w) in enumerate(zip(cf["label"], cf["where"]))}
+    i = index.get((label, where))
+    return float(cf[col].iloc[i]) if i is not None else np.nan
 
 
 def _render_cost_chart(cf, labels: list[str], places: list[str], dpi: int = 90) -> str | None:

@@ -89,13 +89,31 @@ def _facts(df, records: dict) -> list[dict]:
     return facts
 
 
+#: the picture tables (rendered images per phantom) cover at most this many phantoms, in grid order
+MAX_PICTURE_PHANTOMS = 8
+
+
+def _picture_subset(df):
+    """The rows of the first :data:`MAX_PICTURE_PHANTOMS` phantoms (the paper's four come first when present),
+    and a note when phantoms were left out (a dataset of hundreds of shapes would render thousands of images)."""
+    names = list(dict.fromkeys(df["phantom"]))
+    if len(names) <= MAX_PICTURE_PHANTOMS:
+        return df, ""
+    paper = [p for p in ("sphere", "ellipsoid", "fused_spheres", "cylinder") if p in names]
+    keep = (paper + [p for p in names if p not in paper])[:MAX_PICTURE_PHANTOMS]
+    note = (f"Pictures for {len(keep)} of the run's {len(names)} phantoms ({', '.join(keep)}); the summary tables "
+            "and their 3-D viewers cover every phantom.")
+    return df[df["phantom"].isin(keep)], note
+
+
 def _sections(df, arts: Artifacts, config: dict) -> dict:
     if not len(df):
-        return {"summaries": [], "paper_tables": [], "galleries": [],
+        return {"summaries": [], "paper_tables": [], "galleries": [], "picture_note": "",
                 "cost": {"html": "", "chart": None, "n_cells": 0}}
-    layout = paper_layout(config, df, arts)
-    return {"summaries": summary_tables(df), "paper_tables": paper_tables(df, arts, layout),
-            "galleries": gallery_tables(df, arts, layout), "cost": cost_section(df)}
+    pictures, note = _picture_subset(df)
+    layout = paper_layout(config, pictures, arts)
+    return {"summaries": summary_tables(df), "paper_tables": paper_tables(pictures, arts, layout),
+            "galleries": gallery_tables(pictures, arts, layout), "picture_note": note, "cost": cost_section(df)}
 
 
 def _claims(df, arts: Artifacts, config: dict) -> list:
@@ -120,7 +138,11 @@ def _json_in_html(obj) -> str:
     return json.dumps(_finite_only(obj), separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
 
 
-def _interactive(df, arts: Artifacts, config: dict) -> dict:
+#: at most this many meshes are embedded for the 3-D viewers (the cells the summary tables open, in table order)
+MAX_VIEWER_MESHES = 2000
+
+
+def _interactive(df, arts: Artifacts, config: dict, shown: list[str] | None = None) -> dict:
     rows = df.to_dict("records") if len(df) else []
     extent = float(((config.get("grid") or {}).get("extent")) or 2.5)
     boards = leaderboards(rows) if rows else []
@@ -140,7 +162,13 @@ def _interactive(df, arts: Artifacts, config: dict) -> dict:
     pareto = pareto_figure(rows)
     if pareto is not None:
         charts.append(pareto)
-    meshes = viewer_payload(rows, arts.get, extent=extent) if rows else {"cells": {}, "ranges": {}}
+    wanted = list(dict.fromkeys(shown if shown is not None else [r["cell_id"] for r in rows]))
+    embed = set(wanted[:MAX_VIEWER_MESHES])
+    view_rows = [r for r in rows if r["cell_id"] in embed]
+    meshes = viewer_payload(view_rows, arts.get, extent=extent) if view_rows else {"cells": {}, "ranges": {}}
+    meshes["note"] = (f"3-D meshes are embedded for the first {MAX_VIEWER_MESHES} of the {len(wanted)} table rows; "
+                      "the others: the cell's arrays in cells/<cell_id>.npz (or --save-meshes)"
+                      if len(wanted) > MAX_VIEWER_MESHES else "")
     return {"plotly_js": plotly_js(), "meshes_json": _json_in_html(meshes), "charts": charts[n_verdict:],
             "verdict_charts": charts[:n_verdict], "chart_offset": n_verdict, "boards": boards,
             "charts_json": _json_in_html(charts), "page_js": (TEMPLATE_DIR / "report.js").read_text("utf-8"),
@@ -149,15 +177,17 @@ def _interactive(df, arts: Artifacts, config: dict) -> dict:
 
 def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
     config = meta.get("config") or {}
+    sections = _sections(df, arts, config)
+    shown = [cid for t in sections["summaries"] for cid in t["cells"].values()]   # what a table row opens
     return {
         "title": f"levelset-bench — {config.get('name', 'run')}",
         "config_name": config.get("name", "run"),
         "description": config.get("description", ""),
         "n_rows": len(df), "n_total": (meta.get("cells") or {}).get("total", len(df)),
         "counts": df["status"].value_counts().to_dict() if len(df) else {},
-        **_sections(df, arts, config),
+        **sections,
         "claims": _claims(df, arts, config),
-        **_interactive(df, arts, config),
+        **_interactive(df, arts, config, shown),
         "failed": _failed(df, records),
         "facts": _facts(df, records),
         "meta": meta,

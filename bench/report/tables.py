@@ -4,6 +4,7 @@ registry (:data:`bench.metrics.registry.METRICS`)."""
 
 from __future__ import annotations
 
+import functools
 import html
 import math
 from typing import Any
@@ -91,43 +92,42 @@ def _numeric(series):
     return pd.to_numeric(series.map(lambda x: float(x) if isinstance(x, (bool, np.bool_)) else x), errors="coerce")
 
 
-def best_mask(series, rule, metric: str | None = None) -> np.ndarray:
-    """Which entry of ``series`` is the unique best under ``rule``: one entry at most — nothing when the best is
-    shared (equal values, or with ``metric`` values equal at its resolution, the quality gate's tolerance) or
-    there are fewer than 2 values."""
-    vals = _numeric(series).to_numpy(float)
+def _best_index(vals: np.ndarray, rule, metric: str | None = None) -> int | None:
+    """The index of the unique best of ``vals`` (float array, NaN = no value) under ``rule``; None when the best
+    is shared (equal values, or with ``metric`` equal at its resolution) or there are fewer than 2 values."""
     ok = np.isfinite(vals)
-    none = np.zeros(len(vals), bool)
     if ok.sum() < 2:
-        return none
+        return None
     if rule in ("min", "max"):
         score = vals if rule == "min" else -vals
     elif isinstance(rule, tuple) and rule[0] == "target":
         score = np.abs(vals - rule[1])
     else:
-        return none
+        return None
     score = np.where(ok, score, np.inf)
     i = int(np.argmin(score))
-    others = np.delete(np.arange(len(vals)), i)
-    others = others[ok[others]]
+    others = np.flatnonzero(ok)
+    others = others[others != i]
+    if np.any(np.isclose(score[others], score[i], rtol=1e-9, atol=1e-12)):
+        return None
     if metric is not None:
         from bench.perf.quality import same_within_tolerance
 
-        if any(same_within_tolerance(metric, vals[i], vals[j]) for j in others):
-            return none
-    if np.any(np.isclose(score[others], score[i], rtol=1e-9, atol=1e-12)):
-        return none
-    none[i] = True
-    return none
+        if any(same_within_tolerance(metric, float(vals[i]), float(vals[j])) for j in others):
+            return None
+    return i
 
 
-def _status_text(g, ok) -> str:
-    statuses = g["status"].tolist()
-    text = statuses[0] if len(set(statuses)) == 1 else ", ".join(f"{s}×{statuses.count(s)}"
-                                                                 for s in sorted(set(statuses)))
-    if len(g) > 1:
-        text += f" (mean of {len(ok)}/{len(g)} seeds)"
-    return text
+def best_mask(series, rule, metric: str | None = None) -> np.ndarray:
+    """Which entry of ``series`` is the unique best under ``rule``: one entry at most — nothing when the best is
+    shared (equal values, or with ``metric`` values equal at its resolution, the quality gate's tolerance) or
+    there are fewer than 2 values."""
+    vals = _numeric(series).to_numpy(float)
+    mask = np.zeros(len(vals), bool)
+    i = _best_index(vals, rule, metric)
+    if i is not None:
+        mask[i] = True
+    return mask
 
 
 #: what each flag means (the badge's tooltip); docs/METRICS.md has the definitions
@@ -157,42 +157,52 @@ def ci_half_width(values: np.ndarray) -> float | None:
     when they are all equal)."""
     if len(values) < 2 or np.ptp(values) == 0:
         return None
+    return float(_t975(len(values) - 1) * values.std(ddof=1) / np.sqrt(len(values)))
+
+
+@functools.lru_cache(maxsize=None)
+def _t975(dof: int) -> float:
     from scipy import stats
 
-    return float(stats.t.ppf(0.975, len(values) - 1) * values.std(ddof=1) / np.sqrt(len(values)))
+    return float(stats.t.ppf(0.975, dof))
 
 
-def _method_rows(sub, metrics: list[str]):
-    """One row per method label: the mean of each metric over its ok cells (over all when none is ok: such a row
-    is shown, below the valid ones, and never marked best)."""
-    import pandas as pd
-
+def _method_rows(d, idx: np.ndarray, num: dict[str, np.ndarray], metrics: list[str]) -> list[dict]:
+    """One row per method label of the table's rows ``idx``: the mean of each metric over its ok cells (over
+    all when none is ok: such a row is shown, below the valid ones, and never marked best); ``num``: the numeric
+    metric columns of the whole frame (converted once)."""
+    labels = d["label"].to_numpy()[idx]
+    status = d["status"].to_numpy()[idx]
+    flags_col = d["flags"].to_numpy()[idx] if "flags" in d.columns else np.array([""] * len(idx), object)
     rows = []
-    for label, g in sub.groupby("label", sort=False):
-        ok = g[g["status"] == "ok"]
+    for label in dict.fromkeys(labels):
+        mine = labels == label
+        ok = mine & (status == "ok")
+        use = idx[ok] if ok.any() else idx[mine]
         rec: dict[str, Any] = {"method": label, "_ci": {}}
         for m in metrics:
-            if m not in g.columns:
+            if m not in num:
                 continue
-            vals = _numeric(ok[m] if len(ok) else g[m])
-            rec[m] = float(vals.mean()) if vals.notna().any() else np.nan
+            vals = num[m][use]
+            vals = vals[np.isfinite(vals)]
+            rec[m] = float(vals.mean()) if len(vals) else np.nan
             if _dtype(m) != "bool":                     # a mean of yes/no is a share, shown as such
-                rec["_ci"][m] = ci_half_width(vals.dropna().to_numpy(float))
-        flags = sorted({f for v in (ok if len(ok) else g).get("flags", pd.Series(dtype=object))
-                        if isinstance(v, str) for f in v.split(";") if f})
-        rec["status"] = _status_text(g, ok)
-        rec["_flags"] = flags
-        rec["_valid"] = len(ok) > 0
-        rec["_unflagged"] = not flags
+                rec["_ci"][m] = ci_half_width(vals)
+        chosen = flags_col[ok] if ok.any() else flags_col[mine]
+        flags = sorted({f for v in chosen if isinstance(v, str) for f in v.split(";") if f})
+        statuses = list(status[mine])
+        text = statuses[0] if len(set(statuses)) == 1 else ", ".join(f"{x}×{statuses.count(x)}"
+                                                                     for x in sorted(set(statuses)))
+        if mine.sum() > 1:
+            text += f" (mean of {int(ok.sum())}/{int(mine.sum())} seeds)"
+        rec.update(status=text, _flags=flags, _valid=bool(ok.any()), _unflagged=not flags)
         rows.append(rec)
-    t = pd.DataFrame(rows)
     # validity first: valid unflagged methods, then valid flagged ones, then those without a valid result (only
     # valid ones can be "best")
-    if not len(t):
-        return t
-    return t.sort_values(["_valid", "_unflagged"], ascending=False, kind="stable").reset_index(drop=True)
+    return sorted(rows, key=lambda r: (not r["_valid"], not r["_unflagged"]))
 
 
+@functools.lru_cache(maxsize=256)
 def _genus(phantom: str) -> int:
     from phantoms import get_phantom
 
@@ -223,49 +233,59 @@ def _without_truth(sub) -> bool:
     return bool(truth_cols) and bool(sub[truth_cols].isna().all().all()) and bool((sub["status"] == "ok").any())
 
 
-def _marked_html(t, metrics: list[str], genus: int) -> str:
-    import pandas as pd
-
-    shown = pd.DataFrame({"method": [html.escape(str(x)) for x in t["method"]]})
-    # method, then status with its flag badges: the columns that say what a row is come first (sticky)
-    shown["status"] = [status_badges(s, f, v) for s, f, v in zip(t["status"], t["_flags"], t["_valid"])]
-    for m in [c for c in metrics if c in t.columns]:
+def _marked_html(t: list[dict], metrics: list[str], genus: int) -> str:
+    cols = [c for c in metrics if any(c in r for r in t)]
+    marks = {}
+    for m in cols:
         rule = best_rule(m, genus)
-        eligible = t[m].where(t["_valid"], np.nan)            # an invalid or failed result is never best
-        mask = best_mask(eligible, rule, metric=m) if rule is not None else np.zeros(len(t), bool)
-        texts = [fmt_value(v, m) + (f' <span class="ci" title="95 % interval of the mean over seeds">± '
-                                    f'{fmt_value(ci[m], m)}</span>' if ci.get(m) else "")
-                 for v, ci in zip(t[m], t["_ci"])]
-        shown[m] = [f'<span class="best" title="best">{x}</span>' if b else x for x, b in zip(texts, mask)]
-    return shown.to_html(index=False, escape=False, classes="summary", border=0, na_rep="–")
+        # an invalid or failed result is never best
+        vals = np.array([r.get(m, np.nan) if r["_valid"] else np.nan for r in t], float)
+        marks[m] = _best_index(vals, rule, metric=m) if rule is not None else None
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in ["method", "status", *cols])
+    body = []
+    for i, r in enumerate(t):
+        cells = [html.escape(str(r["method"])), status_badges(r["status"], r["_flags"], r["_valid"])]
+        for m in cols:
+            x = fmt_value(r.get(m, np.nan), m)
+            ci = r["_ci"].get(m)
+            if ci:
+                x += f' <span class="ci" title="95 % interval of the mean over seeds">± {fmt_value(ci, m)}</span>'
+            cells.append(f'<span class="best" title="best">{x}</span>' if marks[m] == i else x)
+        body.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
+    # method, then status with its flag badges: the columns that say what a row is come first (sticky)
+    return ('<table class="dataframe summary">\n<thead>\n<tr style="text-align: right;">' + head
+            + "</tr>\n</thead>\n<tbody>\n" + "\n".join(body) + "\n</tbody>\n</table>")
 
 
 def summary_tables(df) -> list[dict]:
     """One table per phantom × noise (× variant × N): ``[{"title", "phantom", "noise", "html", "n_methods",
     "cells", "note"}]`` (``cells``: method label → the cell id its row's mesh viewer shows, the first seed's;
     ``note``: :data:`NO_TRUTH_NOTE` for a phantom without ground truth — its truth columns are left out)."""
+    from bench.metrics.registry import METRICS
+
     metrics = _metric_columns(df)
     keys = ["phantom", "noise", "snr_requested", "variant", "N"]
-    d = df.copy()
+    d = df.reset_index(drop=True).copy()
     d["snr_requested"] = d["snr_requested"].astype(object).where(d["snr_requested"].notna(), None)
+    num = {m: _numeric(d[m]).to_numpy(float) for m in metrics if m in d.columns}
     groups: dict[tuple, list[int]] = {}
-    for i, r in d.iterrows():
-        groups.setdefault(tuple(r[k] for k in keys), []).append(i)
+    for i, key in enumerate(zip(*(d[k].tolist() for k in keys))):
+        groups.setdefault(key, []).append(i)
     multi_variant = d["variant"].nunique() > 1 or d["N"].nunique() > 1
+    truth_kinds = ("distance", "distance_h", "truth")
     tables = []
     for (phantom, noise, snr, variant, n), idx in groups.items():
-        sub = d.loc[idx]
+        idx = np.asarray(idx)
+        sub = d.iloc[idx]
         no_truth = _without_truth(sub)
-        shown = metrics
-        if no_truth:            # the truth columns would be dashes only
-            from bench.metrics.registry import METRICS
-
-            shown = [m for m in metrics if m not in METRICS or METRICS[m].kind not in ("distance", "distance_h", "truth")]
-        t = _method_rows(sub, shown)
+        shown = [m for m in metrics if not (no_truth and m in METRICS and METRICS[m].kind in truth_kinds)]
+        t = _method_rows(d, idx, num, shown)
         title = f"{phantom} — {noise_title(noise, snr)}"
         if multi_variant:
             title += f" — {variant}, N = {n}"
-        cells = {str(lab): str(g["cell_id"].iloc[0]) for lab, g in sub.groupby("label", sort=False)}
+        cells = {}
+        for lab, cid in zip(sub["label"], sub["cell_id"]):
+            cells.setdefault(str(lab), str(cid))
         tables.append({"title": title, "phantom": phantom, "noise": noise,
                        "html": _marked_html(t, shown, 0 if no_truth else _genus(_source(sub))),
                        "n_methods": len(t), "cells": cells, "note": NO_TRUTH_NOTE if no_truth else ""})

@@ -170,6 +170,10 @@ def _board(rows: list[dict], keys, title: str) -> dict | None:
     _, ranks0 = block_ranks(rows, first, labels)
     if not len(ranks0):
         return None
+    mean_ranks = {}
+    for m, _ in keys:
+        _, rk = block_ranks(rows, m, labels)
+        mean_ranks[m] = rk.mean(axis=0) if len(rk) else np.full(len(labels), math.nan)
     table = []
     for i, lab in enumerate(labels):
         mine = [r for r in rows if str(r.get("label")) == lab]
@@ -178,8 +182,7 @@ def _board(rows: list[dict], keys, title: str) -> dict | None:
         rec = {"label": lab, "cells": len(mine), "valid_pct": 100.0 * len(good) / len(mine) if mine else math.nan,
                "median_s": float(np.median(times)) if times else math.nan}
         for m, _ in keys:
-            _, rk = block_ranks(rows, m, labels)
-            rec[m] = float(rk[:, i].mean()) if len(rk) else math.nan
+            rec[m] = float(mean_ranks[m][i])
         rec["wins"], rec["ties"], rec["losses"] = _wtl(ranks0, i)
         table.append(rec)
     table.sort(key=lambda r: (r[first], r["label"]))

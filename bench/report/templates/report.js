@@ -1,8 +1,9 @@
 // levelset-bench report: sortable / foldable summary tables, the 3-D mesh viewer, the charts. No network.
 (function () {
   "use strict";
-  var KEY = ["method", "hausdorff_h", "hausdorff_95_h", "hausdorff_90_h", "mean_dist_h", "normal_consistency",
-             "fscore@h", "roughness_deg", "self_intersections", "euler", "components", "iou", "wall_s", "status"];
+  var KEY = ["method", "status", "hausdorff_h", "hausdorff_95_h", "hausdorff_90_h", "mean_dist_h", "normal_consistency",
+             "fscore@h", "sdf_rms_h", "phi_mean_h", "sign_err_pct", "roughness_deg", "self_intersections", "euler",
+             "components", "iou", "wall_s"];
   var meshesCache = null;
   function allMeshes() {   // parsed on the first click, not while the page loads
     if (meshesCache === null) meshesCache = JSON.parse(document.getElementById("lsb-meshes").textContent || "{}");
@@ -82,7 +83,7 @@
     var meshes = allMeshes(), m = meshes.cells ? meshes.cells[cid] : null;
     var panel = document.getElementById("viewer-panel");
     if (!m) { panel.hidden = false; document.getElementById("viewer-title").textContent =
-        title + ": no mesh stored for this cell"; Plotly.purge("viewer"); return; }
+        title + ": " + (meshes.note || "no mesh stored for this cell"); Plotly.purge("viewer"); return; }
     current = {cid: cid, group: group, title: title};
     unpack(m);
     var what = colourBy.value, use = m[what] ? what : "H";

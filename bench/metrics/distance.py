@@ -38,7 +38,10 @@ import pymeshlab
 
 from geometry.topology import sample_surface
 
-__all__ = ["sample_mesh_surface", "point_mesh_distance", "distance_metrics", "DISTANCE_LIBRARY"]
+__all__ = ["sample_mesh_surface", "point_mesh_distance", "distance_metrics", "DISTANCE_LIBRARY", "COVERAGE_RADIUS"]
+
+#: ``coverage_pct``: the share of the true surface's samples within this many h of the mesh
+COVERAGE_RADIUS = 2.0
 
 DISTANCE_LIBRARY = "pymeshlab (VCG) compute_scalar_by_distance_from_another_mesh_per_vertex"
 
@@ -100,4 +103,6 @@ def distance_metrics(d_rt_samples: np.ndarray, d_rt_max: float, d_tr: np.ndarray
     precision = float(np.mean(a <= h))
     recall = float(np.mean(b <= h))
     out["fscore@h"] = 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
+    # how much of the true surface the mesh covers: a dropped limb shows here whatever the method reports
+    out["coverage_pct"] = 100.0 * float(np.mean(b <= COVERAGE_RADIUS * h))
     return out

@@ -5,6 +5,8 @@
   (a phantom knows its own: ``genus`` and ``n_components``; one component unless it says otherwise);
 * ``dropped_components`` — fewer components than the truth (a method that kept only its largest part);
 * ``self_intersecting`` — at least one pair of non-adjacent faces intersects;
+* ``missing_parts`` — more than 0.5 % of the true surface lies farther than 2 h from the mesh (``coverage_pct``
+  below 99.5): a part of the object is missing, whatever the method says (a dropped limb, an eroded thin part);
 * ``not_converged`` — the method stopped on ``max_iter``, ``line_search_floor``, ``diverged`` or
   ``sign_guard`` (the shape gradient rolled back to a checkpoint: its result is an early iterate).
 """
@@ -15,7 +17,9 @@ import math
 
 __all__ = ["result_flags", "FLAGS"]
 
-FLAGS = ("topology_mismatch", "dropped_components", "self_intersecting", "not_converged")
+FLAGS = ("topology_mismatch", "dropped_components", "missing_parts", "self_intersecting", "not_converged")
+#: ``missing_parts`` below this ``coverage_pct``
+MIN_COVERAGE_PCT = 99.5
 _NOT_CONVERGED = ("max_iter", "line_search_floor", "diverged", "sign_guard")
 
 
@@ -39,6 +43,9 @@ def result_flags(row: dict, phantom=None) -> list[str]:
             flags.append("topology_mismatch")
         if int(comps) < n_true:
             flags.append("dropped_components")
+    coverage = _number(row, "coverage_pct")
+    if coverage is not None and coverage < MIN_COVERAGE_PCT:
+        flags.append("missing_parts")
     if (_number(row, "self_intersections") or 0) > 0:
         flags.append("self_intersecting")
     if row.get("stop_reason") in _NOT_CONVERGED:

@@ -45,6 +45,7 @@ _ROWS = [
     *(Metric(f"{k}_h", "min", "float", f"{k} divided by the grid spacing h", "h", "distance_h") for k in _DISTANCES),
     Metric("normal_consistency", "max", "float", "mean |n_mesh · n_true| at the closest true point", ""),
     Metric("fscore@h", "max", "float", "F-score of the two sample sets at threshold h", ""),
+    Metric("coverage_pct", "max", "float", "share of the true surface's samples within 2h of the mesh", "%"),
     Metric("edge_fscore", "max", "float", "F-score of the sharp-edge samples at threshold h", ""),
     Metric("iou", "max", "float", "volumetric intersection over union of the inside regions", ""),
     Metric("H_rms_err", "min", "float", "RMS error of the vertex mean curvature away from creases", "1/world units"),

@@ -64,6 +64,7 @@ TOLERANCES: dict[str, Tolerance] = {
     "rms_dist_h": Tolerance("min", 0.05, 0.002),
     "normal_consistency": Tolerance("max", 0.0, 0.002),
     "fscore@h": Tolerance("max", 0.0, 0.01),
+    "coverage_pct": Tolerance("max", 0.0, 0.1),
     "H_rms_err": Tolerance("min", 0.10, 0.01),
     "K_rms_err": Tolerance("min", 0.10, 0.01),
     "roughness_deg": Tolerance("min", 0.10, 0.1),

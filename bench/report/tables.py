@@ -134,6 +134,7 @@ def best_mask(series, rule, metric: str | None = None) -> np.ndarray:
 FLAG_TITLES = {
     "topology_mismatch": "Euler characteristic or number of components differs from the truth's",
     "dropped_components": "fewer components than the truth (a part was dropped)",
+    "missing_parts": "more than 0.5 % of the true surface is farther than 2 h from the mesh (coverage_pct < 99.5): never marked best",
     "self_intersecting": "some non-adjacent faces intersect",
     "not_converged": "the method stopped on max_iter, line_search_floor, diverged or sign_guard (rolled back to an earlier iterate)",
 }
@@ -239,7 +240,8 @@ def _marked_html(t: list[dict], metrics: list[str], genus: int) -> str:
     for m in cols:
         rule = best_rule(m, genus)
         # an invalid or failed result is never best
-        vals = np.array([r.get(m, np.nan) if r["_valid"] else np.nan for r in t], float)
+        vals = np.array([r.get(m, np.nan) if r["_valid"] and "missing_parts" not in r["_flags"] else np.nan
+                         for r in t], float)
         marks[m] = _best_index(vals, rule, metric=m) if rule is not None else None
     head = "".join(f"<th>{html.escape(c)}</th>" for c in ["method", "status", *cols])
     body = []

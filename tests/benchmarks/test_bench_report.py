@@ -5,11 +5,15 @@ skipped by ``python -m bench perf --quick``."""
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
 
 import pytest
 
-from _synthetic_run import write_synthetic_run
 from bench.report import write_report
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))      # tests/: the shared test helpers
+from _synthetic_run import write_synthetic_run  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -40,14 +40,14 @@ KNOWN_FAILURES: dict[str, str] = {}      # none at the moment (dual contouring a
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=KNOWN_FAILURES[n], strict=True))
                                   if n in KNOWN_FAILURES else n for n in BUILTIN_METHODS])
 def test_every_builtin_method_passes(name, capsys):
-    t0 = time.perf_counter()
     code = main(["check-method", name])
     out = capsys.readouterr().out
     assert code == 0, out
     assert out.strip().splitlines()[-1].startswith("ok: 5 cases honour the method contract")
     for case in ("sphere", "anisotropic", "noisy", "torus", "no_surface"):
         assert re.search(rf"^  {case}\s+ok ", out, re.M), (case, out)
-    assert time.perf_counter() - t0 < 60   # a few seconds each on an idle machine
+    # (its time is not asserted: a unit test on a shared 2-core machine measures the load, not the method;
+    # speed is the benchmarks' job)
 
 
 @pytest.mark.parametrize("name, violation, cases", [

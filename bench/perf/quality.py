@@ -130,10 +130,9 @@ def _commit() -> dict:
 def run_quality(configs=None, *, jobs: int | None = 2, progress: bool = False) -> dict:
     """Run each grid of ``configs`` (built-in names or paths of .toml files) in a temporary folder and return
     the quality summary (``"format": "levelset-bench-quality/1"``)."""
-    import pandas as pd
-
     from ..config import CONFIG_DIR, load_config
     from ..run import run_grid
+    from ..run.store import read_results
 
     cells: dict[str, dict] = {}
     names = []
@@ -142,7 +141,7 @@ def run_quality(configs=None, *, jobs: int | None = 2, progress: bool = False) -
         names.append(cfg.name)
         with tempfile.TemporaryDirectory(prefix="lsb-quality-") as tmp:
             run_grid(cfg, Path(tmp) / "run", jobs=jobs, progress=progress, argv=["perf", "--quality"])
-            df = pd.read_csv(Path(tmp) / "run" / "results.csv", keep_default_na=True)
+            df = read_results(Path(tmp) / "run")
         rows = df.astype(object).where(df.notna(), None).to_dict("records")
         cells.update(cells_from_rows(rows, cfg.name))
     return {"format": QUALITY_FORMAT, "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),

@@ -89,3 +89,17 @@ def test_the_html_page_escapes_every_text(tmp_path):
     page = comparison_html(compare_frames(a, b, "A<b>", "B"))
     assert "<script>" not in page and "&lt;script&gt;" in page and "A&lt;b&gt;" in page
     assert "hausdorff_h" in page
+
+
+@pytest.mark.parametrize("phantom, b_euler, verdict", [
+    ("sphere", 2, "better"),     # back to the sphere's 2 − 2·0
+    ("sphere", 1, "better"),
+    ("sphere", -2, "worse"),
+    ("torus", 0, "better"),      # the torus's target is 0 (2 − 2·1), not the sphere's 2
+    ("torus", 4, "worse"),
+])
+def test_a_topology_flagged_baseline_is_judged_against_the_phantoms_own_euler(tmp_path, phantom, b_euler, verdict):
+    a = _run(tmp_path / "a", [_row(phantom=phantom, euler=-1, flags="topology_mismatch")])
+    b = _run(tmp_path / "b", [_row(phantom=phantom, euler=b_euler, flags="topology_mismatch")])
+    got = {v["metric"]: v["verdict"] for v in compare_frames(a, b).values}
+    assert got["euler"] == verdict

@@ -24,6 +24,7 @@ from pathlib import Path
 from bench.perf.quality import TOLERANCES, cells_from_rows, compare_value, stable_cell_id
 
 from ..run.store import read_results
+from .export import phantom_genus
 from .tables import best_rule
 
 __all__ = ["MATCH_KEY", "Comparison", "compare_runs", "compare_frames", "format_comparison", "comparison_html"]
@@ -138,20 +139,9 @@ def _parameters_text(pa, pb) -> str:
     return f"{pa} → {pb}"
 
 
-_genus_cache: dict[str, int] = {}
-
-
 def _truth_value(metric: str, row: dict) -> float | None:
     """The truth's value of a target metric (Euler characteristic 2 − 2·genus, one component)."""
-    source = str(row.get("source") or row.get("phantom"))
-    if source not in _genus_cache:
-        from phantoms import get_phantom
-
-        try:
-            _genus_cache[source] = int(getattr(get_phantom(source), "genus", 0) or 0)
-        except Exception:  # noqa: BLE001 — an unresolvable phantom: the gate's genus-0 default
-            _genus_cache[source] = 0
-    rule = best_rule(metric, _genus_cache[source])
+    rule = best_rule(metric, phantom_genus(str(row.get("source") or row.get("phantom"))))
     return float(rule[1]) if isinstance(rule, tuple) else None
 
 

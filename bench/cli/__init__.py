@@ -1,7 +1,8 @@
 """The command line: ``python -m bench <command> ...`` — argument parsing and exit codes only.
 
 Each room registers its subcommands (``register(subparsers)``): :mod:`.volumes` (phantoms, volume, info),
-:mod:`.run` (run, report), :mod:`.methods` (methods, reconstruct), :mod:`.check` (check-method), :mod:`.perf` (perf).  Errors a user can fix
+:mod:`.run` (run, report), :mod:`.methods` (methods, reconstruct), :mod:`.check` (check-method), :mod:`.perf` (perf),
+:mod:`.compare` (compare), :mod:`.table` (table).  Errors a user can fix
 (:class:`phantoms.InputError`) print one line on stderr and exit with code 2, never a traceback.
 """
 
@@ -14,9 +15,11 @@ from methods import ReconstructionFailed
 from phantoms import InputError
 
 from . import check as _check
+from . import compare as _compare
 from . import methods as _methods
 from . import perf as _perf
 from . import run as _run
+from . import table as _table
 from . import volumes as _volumes
 
 EXIT_USAGE = 2
@@ -28,7 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                  "level-set volumes.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for room in (_volumes, _run, _methods, _check, _perf):
+    for room in (_volumes, _run, _methods, _check, _perf, _compare, _table):
         room.register(sub)
     return parser
 

@@ -36,7 +36,7 @@ from .baseline import read_json_file
 __all__ = ["QUALITY_FORMAT", "QUALITY_BASELINE", "QUALITY_CONFIGS", "TOLERANCES", "Tolerance", "run_quality",
            "same_within_tolerance",
            "cells_from_rows", "load_quality", "save_quality", "quality_gate", "QualityResult",
-           "format_quality"]
+           "format_quality", "compare_value", "stable_cell_id"]
 
 QUALITY_FORMAT = "levelset-bench-quality/1"
 #: the committed quality baseline the CI gate compares with (package data)
@@ -113,7 +113,7 @@ def _flags(v) -> list[str]:
     return sorted(f for f in str(v).split(";") if f.strip())
 
 
-def _stable_id(cell_id: str) -> str:
+def stable_cell_id(cell_id: str) -> str:
     """The cell id without its parameter hash: a new method parameter (which changes every hash) must not turn
     the whole baseline into "missing" cells; the label, phantom, N, noise and seed still name the cell."""
     return re.sub(r"_[0-9a-f]{8}$", "", cell_id)
@@ -129,7 +129,7 @@ def cells_from_rows(rows: list[dict], prefix: str) -> dict[str, dict]:
             if name not in r:
                 continue
             metrics[name] = _truthy(r[name]) if tol.better == "true" else _finite(r[name])
-        key = f"{prefix}/{_stable_id(str(r['cell_id']))}"
+        key = f"{prefix}/{stable_cell_id(str(r['cell_id']))}"
         out[key] = {"status": str(r.get("status") or "?"), "flags": _flags(r.get("flags")), "metrics": metrics}
     return out
 
@@ -146,10 +146,9 @@ def _commit() -> dict:
 def run_quality(configs=None, *, jobs: int | None = 2, progress: bool = False) -> dict:
     """Run each grid of ``configs`` (built-in names or paths of .toml files) in a temporary folder and return
     the quality summary (``"format": "levelset-bench-quality/1"``)."""
-    import pandas as pd
-
     from ..config import CONFIG_DIR, load_config
     from ..run import run_grid
+    from ..run.store import read_results
 
     cells: dict[str, dict] = {}
     names = []
@@ -158,7 +157,7 @@ def run_quality(configs=None, *, jobs: int | None = 2, progress: bool = False) -
         names.append(cfg.name)
         with tempfile.TemporaryDirectory(prefix="lsb-quality-") as tmp:
             run_grid(cfg, Path(tmp) / "run", jobs=jobs, progress=progress, argv=["perf", "--quality"])
-            df = pd.read_csv(Path(tmp) / "run" / "results.csv", keep_default_na=True)
+            df = read_results(Path(tmp) / "run")
         rows = df.astype(object).where(df.notna(), None).to_dict("records")
         cells.update(cells_from_rows(rows, cfg.name))
     return {"format": QUALITY_FORMAT, "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
@@ -198,16 +197,24 @@ class QualityResult:
         return not self.failures
 
 
-def _target(metric: str, cell: dict, base_value) -> float:
+def _target(metric: str, flags, base_value, truth: float | None) -> float:
     # the truth's value: 2 − 2g for euler is not in the results; the baseline's own value when the baseline
-    # had no topology flag, else the sphere's (2 / 1) — the gated cells are genus 0
-    if "topology_mismatch" not in cell.get("flags", []) and base_value is not None:
+    # had no topology flag, else ``truth`` or the sphere's (2 / 1) — the gated cells are genus 0
+    if "topology_mismatch" not in (flags or []) and base_value is not None:
         return float(base_value)
+    if truth is not None:
+        return float(truth)
     return 2.0 if metric == "euler" else 1.0
 
 
-def _compare(metric: str, tol: Tolerance, base, cur, cell: dict) -> tuple[str, bool, float | None]:
-    """(status, failed, limit) of one value."""
+def compare_value(metric: str, tol: Tolerance, base, cur, base_flags=(), truth: float | None = None
+                  ) -> tuple[str, bool, float | None]:
+    """``(status, failed, limit)`` of one value ``cur`` against ``base`` under ``tol``: status ``"ok"`` (within
+    the tolerance), ``"better"``, ``"worse"`` (then failed), ``"no baseline"`` or ``"missing value"``.
+
+    ``base_flags`` are the baseline cell's flags and ``truth`` the truth's value of a ``"target"`` metric (Euler
+    characteristic, components): it is the target only when the baseline was flagged ``topology_mismatch``
+    (else the baseline's own value is; without ``truth`` the sphere's)."""
     if base is None:
         return "no baseline", False, None
     if cur is None:
@@ -217,7 +224,7 @@ def _compare(metric: str, tol: Tolerance, base, cur, cell: dict) -> tuple[str, b
     if tol.better == "count":
         return ("worse", True, base) if cur > base else (("better" if cur < base else "ok"), False, base)
     if tol.better == "target":
-        t = _target(metric, cell, base)
+        t = _target(metric, base_flags, base, truth)
         d0, d1 = abs(base - t), abs(cur - t)
         return ("worse", True, base) if d1 > d0 else (("better" if d1 < d0 else "ok"), False, base)
     slack = tol.rel * abs(base) + tol.abs
@@ -250,7 +257,7 @@ def quality_gate(baseline: dict, current: dict, tolerances: dict[str, Tolerance]
             base, cur = b["metrics"].get(metric), c.get("metrics", {}).get(metric)
             if metric not in b["metrics"]:
                 continue
-            status, failed, limit = _compare(metric, tol, base, cur, b)
+            status, failed, limit = compare_value(metric, tol, base, cur, b.get("flags", []))
             rows.append({"cell": key, "metric": metric, "baseline": base, "value": cur, "limit": limit,
                          "status": status, "failed": failed})
     for key in sorted(set(cur_cells) - set(baseline.get("cells", {}))):

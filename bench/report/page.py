@@ -1,5 +1,5 @@
-"""``index.html`` of a run folder: load ``results.csv``, ``run.json`` and the cells' records, build the
-template's context from the report's sections and write the page atomically."""
+"""``index.html`` of a run folder: load the results table (:func:`bench.run.store.read_results`), ``run.json``
+and the cells' records, build the template's context from the report's sections and write the page atomically."""
 
 from __future__ import annotations
 
@@ -9,9 +9,8 @@ import sys
 from pathlib import Path
 
 from geometry.files import atomic_write
-from phantoms import InputError
 
-from ..run.store import scan_cells
+from ..run.store import read_results, scan_cells
 from .artifacts import Artifacts
 from .claims import check_claims
 from .cost import cost_section
@@ -35,19 +34,7 @@ def warn(message: str) -> None:
 
 
 def _load_results(out: Path):
-    import pandas as pd
-
-    path = out / "results.csv"
-    try:
-        df = pd.read_csv(path, keep_default_na=True)
-    except (OSError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise InputError(f"{str(path)!r} is not a readable results table ({type(exc).__name__}: "
-                         f"{str(exc).strip().splitlines()[0] if str(exc).strip() else 'empty'}); rerun the grid "
-                         "with --resume to rewrite it") from None
-    missing = [c for c in ("cell_id", "status", "label") if c not in df.columns]
-    if missing:
-        raise InputError(f"{str(path)!r} is not a results table of levelset-bench (no column "
-                         f"{', '.join(missing)}); rerun the grid with --resume to rewrite it")
+    df = read_results(out)
     for col in _TEXT_COLUMNS:
         if col in df.columns:
             df[col] = df[col].astype(object).where(df[col].notna(), "").astype(str)
@@ -201,7 +188,7 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
 
 
 def write_report(out: str | Path) -> Path:
-    """Render ``out/index.html`` from ``out/results.csv``, ``out/cells`` and ``out/run.json``."""
+    """Render ``out/index.html`` from the results table, ``out/cells`` and ``out/run.json``."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -7,18 +7,25 @@ A run folder ``DIR`` holds::
     cells/<cell_id>.json   one finished cell: its results.csv row, the cell, the traceback of a failure
     cells/<cell_id>.npz    its arrays: mesh, per-vertex H, energy history, snapshots (written first)
     results.csv            one row per finished cell, in grid order (rewritten after every cell)
+    results.parquet        the same table with typed columns (bool / int / float / string), written with it
     meshes/<cell_id>.ply   with --save-meshes
     cache/                 clean phantom volumes shared by the cells (removed when the run is complete)
     index.html             the report (bench.report), rendered from the files above
 
 A cell's ``.json`` is written last, so its presence marks the cell done.  Every file is written to a hidden
 temporary name in the same folder and renamed into place, so a reader never sees half a file.
+
+Readers of the results table (``compare``, ``table``, the report) go through :func:`read_results`: the parquet
+file when it matches results.csv (it records the CSV's SHA-1), else results.csv (a folder of an older suite
+version, or a CSV rewritten since), typed the same way.
 """
 
 from __future__ import annotations
 
 import csv
 import datetime as _dt
+import hashlib
+import io
 import json
 import math
 import os
@@ -34,13 +41,16 @@ from .values import plain
 
 __all__ = [
     "CELLS_DIR", "MESHES_DIR", "CACHE_DIR", "ID_COLUMNS", "RUNNER_COLUMNS", "TAIL_COLUMNS",
-    "atomic_path", "write_atomic", "save_cell", "load_cells", "result_columns", "write_results_csv",
+    "RESULTS_CSV", "RESULTS_PARQUET", "TEXT_COLUMNS", "atomic_path", "write_atomic", "save_cell", "load_cells",
+    "result_columns", "write_results_csv", "results_table", "read_results", "column_kind",
     "check_output_dir", "write_json", "read_json", "scan_cells", "clean_temp_files", "TMP_GLOB",
 ]
 
 CELLS_DIR = "cells"
 MESHES_DIR = "meshes"
 CACHE_DIR = "cache"
+RESULTS_CSV = "results.csv"
+RESULTS_PARQUET = "results.parquet"
 
 #: the leading columns of results.csv (then every metric, then the runner's columns, then the tail)
 ID_COLUMNS = ["cell_id", "phantom", "variant", "N", "noise", "snr_requested", "snr_achieved", "seed",
@@ -211,15 +221,191 @@ def _csv_value(v: Any) -> Any:
     return v
 
 
+def _csv_text(cols: list[str], rows: list[dict]) -> str:
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(cols)
+    for r in rows:
+        w.writerow([_csv_value(r.get(c)) for c in cols])
+    return buf.getvalue()
+
+
 def write_results_csv(out: Path, cells: list[dict], records: dict[str, dict]) -> Path:
-    """``results.csv``: one row per finished cell of the grid, in grid order."""
+    """``results.csv`` and ``results.parquet``: one row per finished cell of the grid, in grid order (the
+    parquet file written second, recording the CSV's SHA-1)."""
     rows = [records[c["cell_id"]]["row"] for c in cells if c["cell_id"] in records]
     cols = result_columns(rows)
-    path = Path(out) / "results.csv"
-    with atomic_path(path, fsync=True) as tmp:
-        with open(tmp, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(cols)
-            for r in rows:
-                w.writerow([_csv_value(r.get(c)) for c in cols])
+    path = Path(out) / RESULTS_CSV
+    data = _csv_text(cols, rows).encode("utf-8")
+    write_atomic(path, data)
+    _write_parquet(Path(out) / RESULTS_PARQUET, results_table(rows, cols), hashlib.sha1(data).hexdigest())
     return path
+
+
+# ---------------------------------------------------------------------------------------------- typed table
+#: columns stored as text (everything else is typed by the metric registry, or by what the values are)
+TEXT_COLUMNS = ("cell_id", "phantom", "variant", "noise", "method", "label", "parameters", "source",
+                "stop_reason", "flags", "status", "error")
+_ID_KINDS = {"N": "int", "seed": "int", "snr_requested": "float", "snr_achieved": "float", "h": "float",
+             "has_truth": "bool"}
+#: the parquet file's metadata key holding the SHA-1 of the results.csv written with it
+_CSV_SHA1 = b"levelset-bench.results_csv_sha1"
+_INFERRED = {"boolean": "bool", "integer": "int", "floating": "float", "mixed-integer-float": "float",
+             "decimal": "float", "empty": "float"}
+
+
+def column_kind(name: str, values: list) -> str:
+    """``"bool"``, ``"int"``, ``"float"`` or ``"string"``: the registry's dtype for a metric, fixed kinds for
+    the identifying columns, what the values are for any other column (a plug-in's info)."""
+    from bench.metrics.registry import METRICS
+
+    if name in TEXT_COLUMNS:
+        return "string"
+    if name in _ID_KINDS:
+        return _ID_KINDS[name]
+    if name in METRICS:
+        return METRICS[name].dtype
+    import pandas as pd
+
+    return _INFERRED.get(pd.api.types.infer_dtype(values, skipna=True), "string")
+
+
+def _missing(v: Any) -> bool:
+    return v is None or (isinstance(v, float) and math.isnan(v))
+
+
+def _number(v: Any) -> float | None:
+    if v is None or isinstance(v, str) and not v.strip():
+        return None
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return None
+
+
+def _boolean(v: Any) -> bool | None:
+    if _missing(v):
+        return None
+    if isinstance(v, str):
+        return {"true": True, "1": True, "1.0": True, "yes": True,
+                "false": False, "0": False, "0.0": False, "no": False}.get(v.strip().lower())
+    return bool(v)
+
+
+def _arrow_column(values: list, kind: str):
+    import pyarrow as pa
+
+    if kind == "bool":
+        return pa.array([_boolean(v) for v in values], pa.bool_())
+    if kind == "int":
+        nums = [_number(v) for v in values]
+        nums = [None if x is None or math.isnan(x) else x for x in nums]
+        if all(x is None or (math.isfinite(x) and x.is_integer()) for x in nums):
+            return pa.array([None if x is None else int(x) for x in nums], pa.int64())
+        kind = "float"  # a non-integral value in an integer column is kept, not truncated
+    if kind == "float":
+        return pa.array([_number(v) for v in values], pa.float64())
+    return pa.array([None if _missing(v) else str(v) for v in values], pa.string())
+
+
+def results_table(rows: list[dict], cols: list[str] | None = None):
+    """The rows as a :class:`pyarrow.Table` with one typed column each (``cols``: default
+    :func:`result_columns`); NaN stays NaN, a missing value is null, an empty text stays empty."""
+    import pyarrow as pa
+
+    cols = result_columns(rows) if cols is None else cols
+    arrays = {}
+    for c in cols:
+        values = [r.get(c) for r in rows]
+        arrays[c] = _arrow_column(values, column_kind(c, values))
+    return pa.table(arrays)
+
+
+def _write_parquet(path: Path, table, csv_sha1: str) -> None:
+    import pyarrow.parquet as pq
+
+    table = table.replace_schema_metadata({**(table.schema.metadata or {}), _CSV_SHA1: csv_sha1.encode()})
+    with atomic_path(path, fsync=True) as tmp:
+        pq.write_table(table, tmp)
+
+
+def _read_parquet(path: Path, csv_path: Path):
+    """The parquet table, or None when it is missing, unreadable or not the one written with results.csv."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    if not path.is_file():
+        return None
+    try:
+        table = pq.read_table(path)
+        if csv_path.is_file():
+            recorded = (table.schema.metadata or {}).get(_CSV_SHA1, b"").decode()
+            if recorded != hashlib.sha1(csv_path.read_bytes()).hexdigest():
+                return None  # results.csv was rewritten since (an older suite version, an edit): it wins
+    except (OSError, pa.ArrowException, UnicodeDecodeError):
+        return None
+    return table
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else "empty"
+
+
+def _read_csv_table(path: Path):
+    import pandas as pd
+
+    try:
+        df = pd.read_csv(path, keep_default_na=True)
+    except (OSError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise InputError(f"{str(path)!r} is not a readable results table ({type(exc).__name__}: "
+                         f"{_first_line(exc)}); rerun the grid with --resume to rewrite it") from None
+    return _table_of_frame(df)
+
+
+def _table_of_frame(df):
+    import pyarrow as pa
+
+    arrays = {}
+    for c in df.columns:
+        values = df[c].tolist()
+        arrays[str(c)] = _arrow_column(values, column_kind(str(c), values))
+    return pa.table(arrays)
+
+
+def read_results(out: str | Path):
+    """The results table of the run folder ``out`` as a :class:`pandas.DataFrame`, one row per finished cell.
+
+    Read from ``results.parquet`` when it is the one written with ``results.csv``, else from ``results.csv``
+    (typed the same way: the registry's bool / int / float columns, text columns as text).  A missing value is
+    NaN in every column (as pandas reads a CSV; an integer column with one becomes float); an empty text stays
+    ``""`` from the parquet file.
+
+    Raises
+    ------
+    InputError
+        ``out`` holds no results table, or one that does not read or lacks ``cell_id`` / ``status`` / ``label``
+        (one line, naming the file).
+    """
+    import numpy as np
+
+    out = Path(out)
+    csv_path, pq_path = out / RESULTS_CSV, out / RESULTS_PARQUET
+    if not csv_path.is_file() and not pq_path.is_file():
+        raise InputError(f"{str(out)!r} is not a run folder (no {RESULTS_PARQUET} or {RESULTS_CSV} in it)")
+    table = _read_parquet(pq_path, csv_path)
+    path = pq_path if table is not None else csv_path
+    if table is None:
+        if not csv_path.is_file():
+            raise InputError(f"{str(pq_path)!r} is not a readable results table; rerun the grid with --resume "
+                             "to rewrite it")
+        table = _read_csv_table(csv_path)
+    missing = [c for c in ("cell_id", "status", "label") if c not in table.column_names]
+    if missing:
+        raise InputError(f"{str(path)!r} is not a results table of levelset-bench (no column "
+                         f"{', '.join(missing)}); rerun the grid with --resume to rewrite it")
+    df = table.to_pandas()
+    for c in df.columns:
+        if df[c].dtype == object:
+            df[c] = df[c].where(df[c].notna(), np.nan)
+    return df

@@ -1,0 +1,54 @@
+"""``python -m bench table RUN --format markdown|latex|csv [--metric M,...] [--by phantom,noise] [-o FILE]``:
+a run's summary tables for a paper or a README.
+
+The tables are :mod:`bench.report.export`'s; this room parses the arguments and writes the text (stdout, or
+``-o FILE`` atomically); exit 2 on bad input (not a run folder, an unknown metric or grouping).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from geometry.files import atomic_write, check_writable
+
+HELP = """\
+Print the run's summary tables: one per group of cells (default: phantom x noise, and variant / N when the run
+varies them), methods as rows, metrics as columns, each value the mean over the group's ok cells (its seeds);
+`cells` = ok cells / cells. The best value of a column is bold where it is unique. markdown: GitHub pipe tables;
+latex: booktabs tables (\\usepackage{booktabs}), units in the header; csv: the means at full precision."""
+
+
+def _names(values) -> list[str] | None:
+    if not values:
+        return None
+    return [x.strip() for v in values for x in v.split(",") if x.strip()]
+
+
+def register(subparsers) -> None:
+    from ..report.export import DEFAULT_METRICS, FORMATS, GROUP_KEYS
+
+    p = subparsers.add_parser("table", help="a run's summary tables as markdown, LaTeX or CSV", description=HELP)
+    p.add_argument("run", metavar="RUN", help="a run folder")
+    p.add_argument("--format", choices=FORMATS, default="markdown", help="output format (default markdown)")
+    p.add_argument("--metric", action="append", metavar="M[,M...]",
+                   help=f"metric columns (repeatable; default: {', '.join(DEFAULT_METRICS)}, those the run has)")
+    p.add_argument("--by", metavar="K[,K...]",
+                   help=f"one table per value of these ({', '.join(GROUP_KEYS)}; default phantom,noise)")
+    p.add_argument("-o", "--output", metavar="FILE", help="write to FILE instead of stdout")
+    p.set_defaults(func=_cmd_table)
+
+
+def _cmd_table(args) -> int:
+    from ..report.export import group_tables, to_csv, to_latex, to_markdown
+    from ..run.store import read_results
+
+    if args.output:
+        check_writable(args.output)
+    by = _names([args.by]) if args.by is not None else None
+    tables = group_tables(read_results(Path(args.run)), metrics=_names(args.metric), by=by)
+    text = {"markdown": to_markdown, "latex": to_latex, "csv": to_csv}[args.format](tables)
+    if args.output:
+        print(f"wrote {atomic_write(args.output, text)}")
+    else:
+        print(text, end="")
+    return 0

@@ -1,0 +1,99 @@
+"""bench.cli.compare: ``bench compare`` on two runs of the quick grid, one with a method parameter changed."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from bench.cli import main
+
+GRID = ["run", "--quick", "--n", "24", "--n-samples", "2000", "--jobs", "2", "--no-report",
+        "--method", "marching_cubes"]
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Run A: marching cubes + Taubin with 30 passes; run B: the same with 5 (the default labels differ too)."""
+    root = tmp_path_factory.mktemp("compare")
+    a, b = root / "a", root / "b"
+    assert main([*GRID, "--add-method", "mc_taubin:iterations=30", "--out", str(a)]) == 0
+    assert main([*GRID, "--add-method", "mc_taubin:iterations=5", "--out", str(b)]) == 0
+    return a, b
+
+
+def _sections(out: str) -> dict[str, list[str]]:
+    """The indented lines under each ``worse (...)`` / ``better (...)`` / ... heading of the output."""
+    found: dict[str, list[str]] = {}
+    current = None
+    for line in out.splitlines():
+        if line.startswith("  ") and current:
+            found[current].append(line.strip())
+        else:
+            current = line.split(" (")[0].rstrip(":")
+            found.setdefault(current, [])
+    return found
+
+
+def test_a_changed_parameter_names_the_changed_method_cells_and_metrics(runs, capsys):
+    a, b = runs
+    capsys.readouterr()
+    assert main(["compare", str(a), str(b)]) == 0
+    out = capsys.readouterr().out
+    assert "changed: mc_taubin[iterations=30] → mc_taubin[iterations=5] (mc_taubin, 4 cells): iterations: 30 → 5" in out
+    sections = _sections(out)
+    changed = sections.get("worse", []) + sections.get("better", [])
+    assert changed, out
+    # only the Taubin cells changed; marching cubes computed the same thing in both runs
+    assert all("_mc_taubin_" in line for line in changed)
+    assert not any("marching_cubes" in line for line in changed)
+    named = {line.split()[0] for line in changed}
+    assert len(named) == 4                                          # the four Taubin cells of the grid
+    # fewer smoothing passes move the distances to the truth: named with both values
+    assert any(re.search(r"mean_dist_h: [\d.]+ → [\d.]+", line) for line in sections["worse"])
+    summary = out.strip().splitlines()[-1]
+    assert summary.startswith("compare: 8 cells matched — ") and "0 only in A, 0 only in B" in summary
+    assert "no change" not in out
+
+
+def test_fail_on_worse_exits_1_when_something_got_worse(runs, capsys):
+    a, b = runs
+    assert main(["compare", str(a), str(b), "--fail-on-worse"]) == 1
+    assert main(["compare", str(a), str(a), "--fail-on-worse"]) == 0
+
+
+def test_a_run_and_itself_is_no_change_and_exits_0(runs, capsys):
+    a, _ = runs
+    capsys.readouterr()
+    assert main(["compare", str(a), str(a)]) == 0
+    out = capsys.readouterr().out
+    assert out.strip().splitlines()[-1].startswith("no change: 8 cells matched")
+    assert "worse" not in _sections(out) and "better" not in _sections(out) and "changed:" not in out
+
+
+def test_html_page_has_the_same_content_and_loads_nothing(runs, tmp_path, capsys):
+    a, b = runs
+    page = tmp_path / "cmp.html"
+    capsys.readouterr()
+    assert main(["compare", str(a), str(b), "--html", str(page)]) == 0
+    out = capsys.readouterr().out
+    html = page.read_text()
+    summary = [line for line in out.splitlines() if line.startswith("compare: ")][0]
+    assert summary in html.replace("&#x27;", "'")
+    for cell in {line.split()[0] for line in _sections(out)["worse"]}:
+        assert cell in html
+    assert "iterations: 30 → 5" in html
+    assert "http" not in html and "src=" not in html                # self-contained
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["{tmp}", "{a}"], "is not a run folder (no results.parquet or results.csv"),
+    (["{a}", "{a}", "--html", "{tmp}"], "it is a directory"),
+])
+def test_bad_input_is_one_line_exit_2(runs, tmp_path, capsys, argv, message):
+    a, _ = runs
+    argv = [x.format(tmp=tmp_path, a=a) for x in argv]
+    capsys.readouterr()
+    assert main(["compare", *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and message in err[0]

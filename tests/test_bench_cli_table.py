@@ -1,0 +1,163 @@
+"""bench.cli.table: ``bench table`` as LaTeX (compiled when pdflatex is here, parsed always), markdown (a GitHub
+pipe table, rendered) and CSV, with the numbers of results.parquet."""
+
+from __future__ import annotations
+
+import io
+import re
+import shutil
+import subprocess
+
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from bench.cli import main
+from bench.report.export import DEFAULT_METRICS, DIGITS
+
+METRICS = ["hausdorff_h", "mean_dist_h", "fscore@h", "roughness_deg", "self_intersections", "wall_s"]
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """Quick grid at N = 24, two seeds (the noisy cells' means are over two seeds), two methods."""
+    out = tmp_path_factory.mktemp("table") / "run"
+    assert main(["run", "--quick", "--n", "24", "--n-samples", "2000", "--seeds", "0,1", "--jobs", "2",
+                 "--no-report", "--method", "marching_cubes", "--add-method", "mc_taubin", "--out", str(out)]) == 0
+    return out
+
+
+def _expected(run) -> dict[tuple, float]:
+    """``{(table title part, label, metric): mean}`` computed straight from results.parquet."""
+    df = pq.read_table(run / "results.parquet").to_pandas()
+    ok = df[df["status"] == "ok"].copy()
+    ok["snr"] = ok["snr_requested"].fillna(-1)
+    means = ok.groupby(["phantom", "noise", "snr", "label"], sort=False)[METRICS].mean()
+    return {(p, "clean" if n == "none" else f"{s:g} dB", lab, m): float(means.loc[(p, n, s, lab), m])
+            for (p, n, s, lab) in means.index for m in METRICS}
+
+
+def _table(argv, capsys) -> str:
+    capsys.readouterr()
+    assert main(["table", *argv]) == 0
+    return capsys.readouterr().out
+
+
+def _check_numbers(blocks: dict[str, list[list[str]]], expected: dict, header_of) -> int:
+    """Every printed number equals the parquet mean at DIGITS significant digits; returns how many were checked."""
+    checked = 0
+    for title, rows in blocks.items():
+        phantom = title.split(" ")[0]
+        noise = "clean" if "clean" in title else re.search(r"SNR ([\d.]+ dB)", title).group(1)
+        header = rows[0]
+        for r in rows[1:]:
+            label = r[0].replace("\\_", "_")
+            for col, m in header_of(header).items():
+                text = re.sub(r"\\textbf\{(.*)\}|\*\*(.*)\*\*", lambda x: x.group(1) or x.group(2), r[col])
+                want = expected[(phantom, noise, label, m)]
+                assert text == f"{want:.{DIGITS}g}" or (want.is_integer() and text == str(int(want))), (title, r, m)
+                checked += 1
+    return checked
+
+
+def test_markdown_is_a_github_table_with_the_parquet_numbers(run, capsys):
+    md = _table([str(run), "--format", "markdown"], capsys)
+    blocks: dict[str, list[list[str]]] = {}
+    for chunk in md.strip().split("\n\n### "):
+        title, _, table = chunk.lstrip("# ").partition("\n\n")
+        lines = table.splitlines()
+        assert re.fullmatch(r"\|(:?-{3,}:?\|)+", lines[1]), lines[1]          # the header separator
+        width = lines[0].count(" | ") + 1
+        assert all(line.startswith("| ") and line.endswith(" |") and line.count(" | ") + 1 == width
+                   for line in lines[:1] + lines[2:])
+        blocks[title] = [[c.strip() for c in line.strip("| ").split(" | ")] for line in lines[:1] + lines[2:]]
+    assert len(blocks) == 4 and all(len(rows) == 3 for rows in blocks.values())   # 2 phantoms x 2 noises, 2 methods
+    assert blocks["sphere — clean"][0][:3] == ["method", "cells", "hausdorff_h (h)"]
+
+    def header_of(header):
+        return {i: h.split(" (")[0] for i, h in enumerate(header) if h.split(" (")[0] in METRICS}
+
+    assert _check_numbers(blocks, _expected(run), header_of) == 4 * 2 * len(METRICS)
+    markdown_it = pytest.importorskip("markdown_it", reason="markdown-it-py (dev extra) renders GitHub tables")
+    page = markdown_it.MarkdownIt("commonmark").enable("table").render(md)
+    assert page.count("<table>") == 4 and page.count("<tr>") == 4 * 3 and "|" not in page
+
+
+def _latex_blocks(tex: str) -> dict[str, list[list[str]]]:
+    """Structural parse: balanced environments, one set of booktabs rules per tabular, the same number of
+    columns (from the column spec) in every row."""
+    envs = re.findall(r"\\(begin|end)\{(\w+)\}", tex)
+    stack = []
+    for kind, name in envs:
+        if kind == "begin":
+            stack.append(name)
+        else:
+            assert stack and stack.pop() == name
+    assert not stack
+    blocks = {}
+    for caption, spec, body in re.findall(r"\\caption\{(.*?)\}.*?\\begin\{tabular\}\{(\w+)\}(.*?)\\end\{tabular\}",
+                                          tex, re.S):
+        assert body.count(r"\toprule") == body.count(r"\midrule") == body.count(r"\bottomrule") == 1
+        inner = body.split(r"\toprule")[1].split(r"\bottomrule")[0].replace(r"\midrule", "")
+        rows = [r.strip() for r in inner.split(r"\\") if r.strip()]
+        assert all(len(re.split(r"(?<!\\)&", r)) == len(spec) for r in rows), rows
+        blocks[caption.replace("---", "—")] = [[c.strip() for c in re.split(r"(?<!\\)&", r)] for r in rows]
+    return blocks
+
+
+def test_latex_has_booktabs_units_and_the_parquet_numbers_and_compiles(run, capsys, tmp_path):
+    tex = _table([str(run), "--format", "latex"], capsys)
+    blocks = _latex_blocks(tex)
+    assert len(blocks) == 4
+    header = blocks["sphere — clean"][0]
+    assert header[:3] == ["method", "cells", r"hausdorff\_h (h)"] and r"roughness\_deg ($^\circ$)" in header
+
+    def header_of(h):
+        names = {c.split(" (")[0].replace("\\_", "_"): i for i, c in enumerate(h)}
+        return {i: m for m, i in names.items() if m in METRICS}
+
+    assert _check_numbers(blocks, _expected(run), header_of) == 4 * 2 * len(METRICS)
+    if not (shutil.which("pdflatex") and shutil.which("kpsewhich")
+            and subprocess.run(["kpsewhich", "booktabs.sty"], capture_output=True).stdout.strip()):
+        pytest.skip("pdflatex with booktabs is not installed (apt-get install texlive-latex-recommended); "
+                    "parsed only")
+    doc = tmp_path / "t.tex"
+    doc.write_text("\\documentclass{article}\n\\usepackage{booktabs}\n\\begin{document}\n" + tex + "\\end{document}\n")
+    res = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", doc.name], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stdout[-2000:]
+    assert (tmp_path / "t.pdf").stat().st_size > 0
+    assert "Missing character" not in (tmp_path / "t.log").read_text()   # every glyph exists (units, dashes)
+
+
+def test_csv_holds_the_parquet_means_at_full_precision_and_goes_to_a_file(run, capsys, tmp_path):
+    out = tmp_path / "t.csv"
+    assert "wrote" in _table([str(run), "--format", "csv", "-o", str(out)], capsys)
+    got = pd.read_csv(out)
+    expected = _expected(run)
+    assert len(got) == 8
+    for _, r in got.iterrows():
+        noise = "clean" if r["noise"] == "none" else f"{r['snr_requested']:g} dB"
+        for m in METRICS:
+            assert r[m] == expected[(r["phantom"], noise, r["method"], m)]        # exact: no rounding
+
+
+def test_metric_and_by_options_choose_columns_and_groups(run, capsys):
+    md = _table([str(run), "--metric", "euler", "--metric", "iou,sdf_rms_h", "--by", "noise"], capsys)
+    assert md.count("### ") == 3                        # clean; the two phantoms' SNRs differ
+    assert "| method | cells | euler | iou | sdf_rms_h (h) |" in md
+    default = _table([str(run)], capsys)
+    assert all(m in default for m in DEFAULT_METRICS)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["{tmp}"], "is not a run folder"),
+    (["{run}", "--metric", "nope"], "--metric nope: not a column of this run"),
+    (["{run}", "--by", "colour"], "--by colour: unknown"),
+    (["{run}", "-o", "{tmp}"], "it is a directory"),
+])
+def test_bad_input_is_one_line_exit_2(run, tmp_path, capsys, argv, message):
+    capsys.readouterr()
+    assert main(["table", *[a.format(run=run, tmp=tmp_path) for a in argv]]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and message in err[0]

@@ -1,0 +1,105 @@
+"""bench.report.compare: matching, the quality gate's verdicts, status / flag changes, unmatched cells, escaping."""
+
+from __future__ import annotations
+
+import re
+import zlib
+
+import pytest
+
+from bench.perf.quality import TOLERANCES, cells_from_rows, quality_gate
+from bench.report.compare import compare_frames, compare_runs, comparison_html, format_comparison
+from bench.run.store import read_results, write_results_csv
+
+
+def _row(label="mc", seed=0, params='{"k":1}', **metrics) -> dict:
+    cid = f"sphere_sdf_n24_none_s{seed}_{label}_{zlib.crc32(params.encode()):08x}"
+    return {"cell_id": cid, "phantom": "sphere", "variant": "sdf", "N": 24, "noise": "none", "snr_requested": None,
+            "seed": seed, "method": "mc", "label": label, "parameters": params, "hausdorff_h": 1.0,
+            "self_intersections": 0, "watertight": True, "euler": 2, "flags": "", "status": "ok", "error": "",
+            **metrics}
+
+
+def _seed(name: str) -> str:
+    return re.search(r"_s(\d+)_", name).group(1)
+
+
+def _run(folder, rows):
+    """A run folder's results table written by the store itself, read back as compare reads it."""
+    folder.mkdir(parents=True, exist_ok=True)
+    cells = [{"cell_id": r["cell_id"]} for r in rows]
+    write_results_csv(folder, cells, {r["cell_id"]: {"row": r} for r in rows})
+    return read_results(folder)
+
+
+@pytest.mark.parametrize("b_value, verdict", [
+    (1.0 + 0.05 * 1.0 + 0.01 - 1e-9, "same"),      # just inside the gate's 5 % + 0.01 h
+    (1.0 + 0.05 * 1.0 + 0.01 + 1e-9, "worse"),     # just outside
+    (1.0 - 0.05 * 1.0 - 0.01 - 1e-9, "better"),
+])
+def test_a_distance_is_judged_with_the_quality_gates_tolerance(tmp_path, b_value, verdict):
+    a = _run(tmp_path / "a", [_row()])
+    b = _run(tmp_path / "b", [_row(hausdorff_h=b_value)])
+    cmp = compare_frames(a, b)
+    got = {v["metric"]: v["verdict"] for v in cmp.values}
+    assert got["hausdorff_h"] == verdict and set(got) <= set(TOLERANCES)
+    # the gate itself says the same of these two cells
+    gate = quality_gate({"cells": cells_from_rows([_row()], "q")},
+                        {"cells": cells_from_rows([_row(hausdorff_h=b_value)], "q")})
+    row = [r for r in gate.rows if r["metric"] == "hausdorff_h"][0]
+    assert (row["status"] == "worse") == (verdict == "worse") and (row["status"] == "better") == (verdict == "better")
+    assert cmp.worse == (verdict == "worse")
+
+
+def test_a_changed_parameter_is_matched_by_label_and_listed(tmp_path):
+    a = _run(tmp_path / "a", [_row(params='{"k":1}')])
+    b = _run(tmp_path / "b", [_row(params='{"k":2}')])
+    cmp = compare_frames(a, b)
+    assert cmp.matched == 1 and not cmp.only_a and not cmp.only_b
+    assert cmp.parameters == [{"label": "mc", "method": "mc", "change": "k: 1 → 2", "cells": 1}]
+    assert not cmp.unchanged and not cmp.worse
+
+
+def test_status_and_flag_changes_and_unmatched_cells_are_listed(tmp_path):
+    a = _run(tmp_path / "a", [_row(seed=0), _row(seed=1), _row(seed=2), _row(seed=3, status="invalid")])
+    b = _run(tmp_path / "b", [_row(seed=0, status="failed", hausdorff_h=None), _row(seed=1, flags="self_intersecting"),
+                              _row(seed=3), _row(seed=4)])
+    cmp = compare_frames(a, b, "A", "B")
+    states = {_seed(s["cell"]): (s["status"], s["flags"], s["verdict"]) for s in cmp.states}
+    assert states == {"0": ("ok → failed", "", "worse"), "1": ("ok → ok", "+self_intersecting", "worse"),
+                      "3": ("invalid → ok", "", "better")}
+    assert [_seed(c) for c in cmp.only_a] == ["2"] and [_seed(c) for c in cmp.only_b] == ["4"]
+    assert cmp.worse
+    text = format_comparison(cmp)
+    assert "only in A (1 cells):" in text and "only in B (1 cells):" in text
+    assert text.splitlines()[-1] == cmp.summary_line() and "3 status / flag changes" in cmp.summary_line()
+
+
+def test_the_same_table_twice_is_no_change(tmp_path):
+    a = _run(tmp_path / "a", [_row(seed=0), _row(seed=1, hausdorff_h=float("nan"))])
+    cmp = compare_runs(tmp_path / "a", tmp_path / "a")
+    assert cmp.unchanged and not cmp.worse and cmp.summary_line().startswith("no change: 2 cells matched")
+    assert len(a) == 2
+
+
+def test_the_html_page_escapes_every_text(tmp_path):
+    label = "<script>alert(1)</script>"
+    a = _run(tmp_path / "a", [_row(label=label)])
+    b = _run(tmp_path / "b", [_row(label=label, hausdorff_h=9.0)])
+    page = comparison_html(compare_frames(a, b, "A<b>", "B"))
+    assert "<script>" not in page and "&lt;script&gt;" in page and "A&lt;b&gt;" in page
+    assert "hausdorff_h" in page
+
+
+@pytest.mark.parametrize("phantom, b_euler, verdict", [
+    ("sphere", 2, "better"),     # back to the sphere's 2 − 2·0
+    ("sphere", 1, "better"),
+    ("sphere", -2, "worse"),
+    ("torus", 0, "better"),      # the torus's target is 0 (2 − 2·1), not the sphere's 2
+    ("torus", 4, "worse"),
+])
+def test_a_topology_flagged_baseline_is_judged_against_the_phantoms_own_euler(tmp_path, phantom, b_euler, verdict):
+    a = _run(tmp_path / "a", [_row(phantom=phantom, euler=-1, flags="topology_mismatch")])
+    b = _run(tmp_path / "b", [_row(phantom=phantom, euler=b_euler, flags="topology_mismatch")])
+    got = {v["metric"]: v["verdict"] for v in compare_frames(a, b).values}
+    assert got["euler"] == verdict

@@ -161,3 +161,27 @@ def test_bad_input_is_one_line_exit_2(run, tmp_path, capsys, argv, message):
     assert main(["table", *[a.format(run=run, tmp=tmp_path) for a in argv]]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and message in err[0]
+
+
+def test_the_leaderboard_exports_with_its_ranks_and_compiles(run, capsys, tmp_path):
+    """``--leaderboard``: one row per method with its mean ranks (the run's own board), markdown and LaTeX."""
+    from bench.report.verdicts import leaderboards
+    from bench.run.store import read_results
+
+    board = leaderboards(read_results(run).to_dict("records"))[0]
+    md = _table([str(run), "--leaderboard"], capsys)
+    rows = [ln for ln in md.splitlines() if ln.startswith("| ") and not ln.startswith("| method")]
+    assert len(rows) == len(board["rows"]) == 2
+    for r, line in zip(board["rows"], rows):
+        cells = [c.strip().strip("*") for c in line.strip("|").split("|")]
+        assert cells[0] == r["label"] and float(cells[2]) == pytest.approx(r["hausdorff_h"], abs=5e-4)
+    tex = _table([str(run), "--leaderboard", "--format", "latex"], capsys)
+    assert r"\toprule" in tex and "rank hausdorff\\_h" in tex and "\\%" in tex
+    if not shutil.which("pdflatex"):
+        pytest.skip("pdflatex is not installed; parsed only")
+    doc = tmp_path / "l.tex"
+    doc.write_text("\\documentclass{article}\n\\usepackage{booktabs}\n\\begin{document}\n" + tex + "\\end{document}\n")
+    res = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", doc.name], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stdout[-2000:]
+    assert "Missing character" not in (tmp_path / "l.log").read_text()

@@ -34,18 +34,21 @@ def register(subparsers) -> None:
                    help=f"metric columns (repeatable; default: {', '.join(DEFAULT_METRICS)}, those the run has)")
     p.add_argument("--by", metavar="K[,K...]",
                    help=f"one table per value of these ({', '.join(GROUP_KEYS)}; default phantom,noise)")
+    p.add_argument("--leaderboard", action="store_true",
+                   help="the leaderboards instead (mean rank per key metric, wins / ties / losses, the test's note)")
     p.add_argument("-o", "--output", metavar="FILE", help="write to FILE instead of stdout")
     p.set_defaults(func=_cmd_table)
 
 
 def _cmd_table(args) -> int:
-    from ..report.export import group_tables, to_csv, to_latex, to_markdown
+    from ..report.export import group_tables, leaderboard_tables, to_csv, to_latex, to_markdown
     from ..run.store import read_results
 
     if args.output:
         check_writable(args.output)
     by = _names([args.by]) if args.by is not None else None
-    tables = group_tables(read_results(Path(args.run)), metrics=_names(args.metric), by=by)
+    df = read_results(Path(args.run))
+    tables = leaderboard_tables(df) if args.leaderboard else group_tables(df, metrics=_names(args.metric), by=by)
     text = {"markdown": to_markdown, "latex": to_latex, "csv": to_csv}[args.format](tables)
     if args.output:
         print(f"wrote {atomic_write(args.output, text)}")

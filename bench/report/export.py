@@ -19,7 +19,8 @@ from phantoms import InputError
 
 from .tables import best_mask, best_rule, noise_title
 
-__all__ = ["DEFAULT_METRICS", "GROUP_KEYS", "DIGITS", "GroupTable", "group_tables", "phantom_genus",
+__all__ = ["DEFAULT_METRICS", "GROUP_KEYS", "DIGITS", "GroupTable", "group_tables", "leaderboard_tables",
+           "phantom_genus",
            "format_number", "to_markdown", "to_latex", "to_csv", "FORMATS"]
 
 #: the metrics a table shows unless told otherwise (those the run has)
@@ -132,10 +133,37 @@ def group_tables(df, metrics=None, by=None) -> list[GroupTable]:
         best = {}
         for m in metrics:
             rule = best_rule(m, genus)
-            mask = best_mask(t[m].where(t["_valid"], np.nan), rule) if rule is not None else np.zeros(len(t), bool)
+            mask = (best_mask(t[m].where(t["_valid"], np.nan), rule, metric=m) if rule is not None
+                    else np.zeros(len(t), bool))
             best[m] = mask if mask.sum() == 1 else np.zeros(len(t), bool)    # bold only a unique best
         tables.append(GroupTable(_title(group), group, t.drop(columns="_valid"), best))
     return tables
+
+
+def leaderboard_tables(df) -> list[GroupTable]:
+    """The report's leaderboards (:func:`bench.report.verdicts.leaderboards`) as tables: one row per method, its
+    mean rank per key metric (1 = best; the unique best in bold), wins / ties / losses on the board's first
+    metric and its median time; ``cells`` = the share of its cells valid and unflagged."""
+    import pandas as pd
+
+    from .verdicts import leaderboards
+
+    if not len(df):
+        raise InputError("the run has no finished cells: no leaderboard to make")
+    out = []
+    for b in leaderboards(df.to_dict("records")):
+        recs = []
+        for r in b["rows"]:
+            rec = {"method": r["label"], "cells": f"{r['valid_pct']:.0f} % of {r['cells']}"}
+            rec.update({f"rank {m}": r[m] for m, _ in b["keys"]})
+            rec.update(wins=float(r["wins"]), ties=float(r["ties"]), losses=float(r["losses"]), median_s=r["median_s"])
+            recs.append(rec)
+        frame = pd.DataFrame(recs)
+        best = {c: (best_mask(frame[c], "min") if c.startswith("rank ") else np.zeros(len(frame), bool))
+                for c in frame.columns if c not in ("method", "cells")}
+        title = f"{b['title']}: {b['n_blocks']} inputs; {b['significance']['note']}"
+        out.append(GroupTable(title, {}, frame, best))
+    return out
 
 
 def format_number(v, metric: str, missing: str = "–") -> str:
@@ -179,7 +207,7 @@ def to_markdown(tables: list[GroupTable]) -> str:
 # ---------------------------------------------------------------------------------------------- LaTeX
 _LATEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",
           "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}", "°": r"$^\circ$", "²": r"$^2$",
-          "³": r"$^3$", "−": "-", "–": "--", "—": "---", "×": r"$\times$", "<": r"\textless{}",
+          "³": r"$^3$", "α": r"$\alpha$", "−": "-", "–": "--", "—": "---", "×": r"$\times$", "<": r"\textless{}",
           ">": r"\textgreater{}", "|": r"\textbar{}"}
 
 
@@ -198,7 +226,8 @@ def to_latex(tables: list[GroupTable]) -> str:
         metrics = [c for c in t.frame.columns if c not in ("method", "cells")]
         head = ["method", "cells"] + [latex_text(n) + (f" ({latex_text(u)})" if u else "")
                                       for n, u in map(_header, metrics)]
-        shown = pd.DataFrame({"method": [latex_text(x) for x in t.frame["method"]], "cells": t.frame["cells"],
+        shown = pd.DataFrame({"method": [latex_text(x) for x in t.frame["method"]],
+                              "cells": [latex_text(x) for x in t.frame["cells"]],
                               **{h: [format_number(v, m, "--") for v in t.frame[m]]
                                  for h, m in zip(head[2:], metrics)}})
         shown.columns = head

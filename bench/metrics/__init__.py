@@ -83,7 +83,8 @@ METRIC_NAMES = list(METRICS)
 
 
 def evaluate(mesh, truth, spacing: float, *, n_samples: int = 100_000, seed: int = 0,
-             crease_band: float = 0.1) -> dict:
+             crease_band: float = 0.1, timings: dict | None = None, vertex_H: dict | None = None,
+             truth_points: np.ndarray | None = None) -> dict:
     """All METRICS.md metrics of ``mesh`` against the phantom ``truth`` (or the truth-free subset).
 
     Parameters
@@ -103,13 +104,23 @@ def evaluate(mesh, truth, spacing: float, *, n_samples: int = 100_000, seed: int
     crease_band : float
         Vertices whose closest true point is closer than this to a crease/rim are left out of the
         curvature errors, of ``H_std`` and (edges touching them) of ``roughness_deg``.
+    timings : dict, optional
+        Filled with the seconds spent per phase (sampling, distances, curvature, ...).
+    vertex_H : dict, optional
+        Filled with ``"H"`` and ``"K"``: the per-vertex mean and Gaussian curvature the curvature metrics used,
+        one value per vertex of ``mesh`` as given (NaN for a vertex no face uses) — for pictures and the report,
+        so nobody fits them twice.
+    truth_points : (n_samples, 3) array, optional
+        ``truth.sample_surface(n_samples, seed)[0]`` computed before (a cache: the same for every mesh
+        scored against this truth).
 
     Returns
     -------
     dict with the keys of :data:`METRIC_NAMES` except :data:`RUNNER_NAMES` (plain Python floats, ints,
     bools; NaN where a metric is undefined, e.g. ``H_std`` on the ellipsoid).
     """
-    return _evaluate(mesh, truth, spacing, n_samples=n_samples, seed=seed, crease_band=crease_band)
+    return _evaluate(mesh, truth, spacing, n_samples=n_samples, seed=seed, crease_band=crease_band,
+                     timings=timings, vertex_H=vertex_H, truth_points=truth_points)
 
 
 def _check_inputs(mesh, spacing, n_samples, crease_band):
@@ -168,7 +179,8 @@ def _start(fn, *args):
     return wait
 
 
-def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.1, timings=None) -> dict:
+def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.1, timings=None,
+              vertex_H=None, truth_points=None) -> dict:
     """:func:`evaluate`, optionally recording the seconds spent per phase in ``timings``."""
     t = time.perf_counter()
     tm = timings if timings is not None else {}
@@ -185,7 +197,7 @@ def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.
     f_all = drop_degenerate_index_faces(faces)
     if len(f_all) == 0:
         raise InputError("mesh has no (non-degenerate) faces")
-    V, F, _ = compact(vertices, f_all)
+    V, F, kept = compact(vertices, f_all)
     fn = face_normals(V, F)
     tri = V[F]
     area = float(0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
@@ -198,7 +210,9 @@ def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.
     pending = None
     if truth is not None:
         # truth -> recon distances (pymeshlab, C++) run in a worker thread while numpy does the rest
-        true_pts, _ = truth.sample_surface(n_samples, seed)
+        true_pts = truth.sample_surface(n_samples, seed)[0] if truth_points is None else truth_points
+        if len(true_pts) != n_samples:
+            raise InputError(f"truth_points holds {len(true_pts)} points, not n_samples = {n_samples}")
         lap("truth_samples")
         pending = _start(point_mesh_distance, true_pts, V, F)
 
@@ -211,6 +225,10 @@ def _evaluate(mesh, truth, spacing, *, n_samples=100_000, seed=0, crease_band=0.
     lap("self_intersections")
 
     H, K, _ = vertex_curvature(V, F, h, outward=outward)
+    if vertex_H is not None:
+        for key, values in (("H", H), ("K", K)):
+            vertex_H[key] = np.full(len(vertices), np.nan)
+            vertex_H[key][kept] = values
     lap("curvature_fit")
 
     if truth is None:

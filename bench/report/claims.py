@@ -218,7 +218,8 @@ def _ellipsoid_K(g, arrays, extent: float) -> tuple:
             h = 2.0 * extent / (float(r["N"]) - 1)          # the grid spacing of a cubic ±extent grid
         except (TypeError, ValueError, ZeroDivisionError):
             continue
-        _, K, _ = vertex_curvature(np.asarray(a["vertices"], float), np.asarray(a["faces"], np.int64), h)
+        K = np.asarray(a["K"], float) if len(a.get("K", ())) == len(a["vertices"]) else \
+            vertex_curvature(np.asarray(a["vertices"], float), np.asarray(a["faces"], np.int64), h)[1]
         K = K[np.isfinite(K)]
         if K.size == 0:
             continue

@@ -144,14 +144,14 @@ def _method_rows(sub, metrics: list[str]):
     import pandas as pd
 
     rows = []
+    present = [m for m in metrics if m in sub.columns]
+    numbers = sub[present].apply(_numeric)                    # once for the table, not per label and metric
     for label, g in sub.groupby("label", sort=False):
         ok = g[g["status"] == "ok"]
         rec: dict[str, Any] = {"method": label}
-        for m in metrics:
-            if m not in g.columns:
-                continue
-            vals = _numeric(ok[m] if len(ok) else g[m])
-            rec[m] = float(vals.mean()) if vals.notna().any() else np.nan
+        means = numbers.loc[(ok if len(ok) else g).index].mean()   # NaN where no value
+        for m in present:
+            rec[m] = float(means[m])
         flags = sorted({f for v in (ok if len(ok) else g).get("flags", pd.Series(dtype=object))
                         if isinstance(v, str) for f in v.split(";") if f})
         rec["status"] = _status_text(g, ok)

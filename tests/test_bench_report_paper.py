@@ -202,3 +202,25 @@ def test_uniform_label_alone_keeps_the_fallback_columns(tmp_path):
     layout, _, galleries = _tables(out)
     assert len(layout.columns) == 6 and layout.uniform_labels == ("sg",)
     assert [g["title"] for g in galleries] == ["Marching Cube [mc]", "Shape gradient [sg] on uniform noise"]
+
+
+def test_captions_name_each_columns_variant_and_where_a_run_stopped_early(tmp_path):
+    out = tmp_path / "run"
+    _write_run(out, {"name": "t", "report": PAPER_SECTION}, parameters=json.dumps({"preset": "paper"}))
+    _, tables, _ = _tables(out)
+    cap = tables[0]["caption"]
+    assert cap.startswith("Columns drawn from sg_beta0: the paper's algorithm as printed (preset=paper); sg: the "
+                          "paper's algorithm as printed")
+    # sg kept iterations up to 5; sg_beta0 stopped at 3: the caption says so, and why
+    assert "β = 0 stopped at iteration 3 (converged: the energy or the surface stopped changing" in cap
+    assert "β = 1 stopped" not in cap
+
+
+def test_a_uniform_table_of_two_labels_shows_both_side_by_side(tmp_path):
+    out = tmp_path / "run"
+    _write_run(out, {"name": "t", "report": dict(PAPER_SECTION, uniform_label=["sg", "sg_beta0"])})
+    _, _, galleries = _tables(out)
+    uni = galleries[-1]
+    assert uni["title"] == "Shape gradient [sg] (β = 1) and Shape gradient [sg_beta0] (β = 0) on uniform noise"
+    assert uni["heads"] == ["final mesh [sg]", "energy [sg]", "final mesh [sg_beta0]", "energy [sg_beta0]"]
+    assert len(uni["rows"]) == 2 and all(len(r["cells"]) == 4 for r in uni["rows"])

@@ -218,7 +218,7 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
     (:mod:`bench.run.limits`)."""
     from bench.metrics import evaluate
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     row = _id_row(cell)
     artifacts: dict = {}
     tb = None
@@ -285,6 +285,7 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
         row["error"] = f"{stage}: {error_text(exc)}"
         tb = traceback.format_exc()
     row["cell_s"] = time.perf_counter() - t0
+    row["cpu_s"] = time.process_time() - c0        # all threads of the cell: its cost whatever the machine's load
     return {"row": row, "artifacts": artifacts, "traceback": tb}
 
 

@@ -262,6 +262,10 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
                                truth_points=truth_samples(cell, ph, cache_dir))
         except Exception:
             if not invalid:
+                try:                                   # the row fails; its pictures are still worth keeping
+                    artifacts = _artifacts(rec, vol.h, None, getattr(ph, "sdf", None))
+                except Exception:  # noqa: BLE001
+                    pass
                 raise
             metrics = {}                               # an invalid mesh keeps what can be computed
         row.update(plain(dict(metrics)))

@@ -155,3 +155,13 @@ def test_each_variant_gets_its_own_verdict_and_the_row_says_why_they_differ():
     agree = check_claims(mc + [_variant_row(v, "sphere", "none", mean_dist_h=0.05)
                                for v in ("printed", "corrected", "default")])
     assert {c.id: c for c in agree}["beats_mc"].why == ""          # all three hold: nothing to explain
+
+
+def test_the_paper_variants_may_stop_on_their_iteration_count_or_line_search_other_flags_still_count():
+    ok = dict(_variant_row("corrected", "sphere", "gaussian", hausdorff_h=0.1), flags="not_converged",
+              stop_reason="line_search_floor")
+    assert _verdicts([ok])["robust_noise"] == "holds"
+    assert _verdicts([dict(ok, flags="not_converged;self_intersecting")])["robust_noise"] == "does not hold"
+    default = dict(_variant_row("default", "sphere", "gaussian", hausdorff_h=0.1), flags="not_converged",
+                   stop_reason="line_search_floor")
+    assert {c.id: c for c in check_claims([default])}["robust_noise"].by_variant["default"].verdict == "does not hold"

@@ -93,14 +93,14 @@ def _visible_faces(v: np.ndarray, f: np.ndarray, elev: float, azim: float):
 
 
 def _image_uri(img: np.ndarray) -> str:
-    """An RGB uint8 image as a ``data:image/webp`` URI (lossy, quality 70: ≈ 6 KB for a mesh picture, a tenth of
+    """An RGB uint8 image as a ``data:image/webp`` URI (lossy, quality 60: ≈ 6 KB for a mesh picture, a tenth of
     the PNG); PNG where Pillow has no WebP."""
     from PIL import Image, features
 
     buf = io.BytesIO()
     pic = Image.fromarray(img, "RGB")
     if features.check("webp"):
-        pic.save(buf, format="WEBP", quality=70, method=4)
+        pic.save(buf, format="WEBP", quality=60, method=4)
         kind = "webp"
     else:  # pragma: no cover - Pillow wheels ship WebP
         pic.save(buf, format="PNG", optimize=True)

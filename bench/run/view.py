@@ -14,7 +14,7 @@ import numpy as np
 __all__ = ["VIEW_FACES", "decimate", "view_arrays"]
 
 #: faces of a decimated viewer mesh
-VIEW_FACES = 1200
+VIEW_FACES = 1000
 
 
 def decimate(v: np.ndarray, f: np.ndarray, faces: int = VIEW_FACES) -> tuple[np.ndarray, np.ndarray]:

@@ -6,9 +6,8 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
     description = "..."
 
     [grid]
-    phantoms = ["sphere", "ellipsoid"]      # names from `python -m bench phantoms`, "mesh:PATH",
-                                            # "volume:PATH?threshold=300" or { volume = "PATH", threshold = 300 };
-                                            # a glob in PATH is one phantom per file
+    phantoms = ["sphere", "ellipsoid"]      # `python -m bench phantoms`, "mesh:PATH", "volume:PATH?threshold=3"
+                                            # or { volume = "PATH", threshold = 3 }; a glob: one per file
     variants = ["sdf"]                      # sdf | paper
     n = 96                                  # grid points per axis; a number or a list
     extent = 2.5                            # the grid covers [-extent, extent]^3
@@ -24,23 +23,17 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
     label = "shape_gradient"                # optional, unique; default: the name
     params = { alpha = 5.0, beta = 1.0 }    # fixed parameters
     sweep = { beta = [0.0, 1.0] }           # optional: one cell per combination (Cartesian product)
+    noise = ["none"]                        # optional: the noise kinds it runs on (default: every one)
     [methods.phantom_params.fused_spheres]  # optional: parameters for one phantom only
     max_iter = 150
-
     [metrics]
     n_samples = 100000                      # surface samples per direction for the distances
-
     [run]
     timeout = 3600                          # seconds per cell (0 or absent: none)
     method_timeout = 600                    # seconds for method.reconstruct alone; score_timeout: for scoring
     imports = ["my_package.my_methods"]     # modules imported first (e.g. to register_method plug-ins)
-
-    [report]                                # optional: what the report shows side by side
-    paper_columns = [                       # the paper-style tables of an iterative method: one column
-      { title = "β = 0", label = "sg_beta0", noise = "none" },   # per entry (a method label of this
-      { title = "β = 1", label = "shape_gradient", noise = "none" },   # config and a noise kind), rows
-    ]                                       # its snapshots
-    uniform_label = "shape_gradient"        # the label whose uniform-noise table is shown
+    [report]                                # optional: paper_columns = [{ title, label, noise }, ...] (the
+    uniform_label = "shape_gradient"        # paper-style tables: a column per entry), the uniform-noise label(s)
 
 Everything is validated before any work starts (:func:`load_config` / :func:`RunConfig.validate`): unknown
 keys, phantoms, variants, noise kinds, methods and parameters raise :class:`phantoms.InputError`, which the
@@ -78,7 +71,7 @@ _GRID_KEYS = {"phantoms", "variants", "n", "extent", "seeds", "noise", "vary"}
 #: noise setting — a robustness sweep without the product's cost)
 VARY = ("all", "one_at_a_time")
 _NOISE_KEYS = {"kind", "snr"}
-_METHOD_KEYS = {"name", "label", "params", "sweep", "phantom_params"}
+_METHOD_KEYS = {"name", "label", "params", "sweep", "phantom_params", "noise"}
 _METRICS_KEYS = {"n_samples"}
 _RUN_KEYS = {"timeout", "method_timeout", "score_timeout", "imports"}
 _REPORT_KEYS = {"paper_columns", "uniform_label"}
@@ -149,6 +142,10 @@ class MethodSpec:
     params: dict = field(default_factory=dict)
     sweep: dict = field(default_factory=dict)
     phantom_params: dict = field(default_factory=dict)
+    noise: tuple = ()          # the noise kinds this method runs on; empty: every kind of the grid
+
+    def runs_on(self, kind: str) -> bool:
+        return not self.noise or kind in self.noise
 
     def instances(self) -> list[tuple[str, dict]]:
         """``[(label, params), ...]``: one per sweep combination (label gets ``[k=v,...]``)."""
@@ -174,6 +171,8 @@ class MethodSpec:
             d["sweep"] = copy.deepcopy(self.sweep)
         if self.phantom_params:
             d["phantom_params"] = copy.deepcopy(self.phantom_params)
+        if self.noise:
+            d["noise"] = list(self.noise)
         return d
 
 
@@ -294,9 +293,10 @@ class RunConfig:
                 raise InputError(f"report.paper_columns[{i}]: label {col['label']!r} is not a method label of "
                                  f"this config; labels: {', '.join(labels)}")
         uniform = self.report.get("uniform_label")
-        if uniform is not None and uniform not in labels:
-            raise InputError(f"report.uniform_label: {uniform!r} is not a method label of this config; "
-                             f"labels: {', '.join(labels)}")
+        for u in ([uniform] if isinstance(uniform, str) else uniform or []):
+            if u not in labels:
+                raise InputError(f"report.uniform_label: {u!r} is not a method label of this config; "
+                                 f"labels: {', '.join(labels)}")
 
 
 # ---------------------------------------------------------------------- parsing
@@ -378,8 +378,9 @@ def _report_from(table: Any, where: str) -> dict:
                                  f"{', '.join(NOISE_KINDS)}")
             out["paper_columns"].append({"title": col["title"], "label": col["label"], "noise": noise})
     if "uniform_label" in table:
-        if not isinstance(table["uniform_label"], str):
-            raise InputError("report.uniform_label: expected a method label (a string)")
+        u = table["uniform_label"]
+        if not (isinstance(u, str) or (isinstance(u, list) and u and all(isinstance(x, str) for x in u))):
+            raise InputError("report.uniform_label: expected a method label (a string) or a list of them")
         out["uniform_label"] = table["uniform_label"]
     return out
 
@@ -421,8 +422,11 @@ def _method_from(m: Any, where: str) -> MethodSpec:
     pp = m.get("phantom_params", {})
     if not isinstance(pp, dict) or not all(isinstance(v, dict) for v in pp.values()):
         raise InputError(f"{where}.phantom_params: expected tables [methods.phantom_params.<phantom>]")
+    kinds = m.get("noise", [])
+    if not isinstance(kinds, list) or not all(k in NOISE_KINDS for k in kinds):
+        raise InputError(f"{where}.noise: expected a list of noise kinds ({', '.join(NOISE_KINDS)}); got {kinds!r}")
     return MethodSpec(name=name, label=label, params=dict(params), sweep=dict(sweep),
-                      phantom_params={k: dict(v) for k, v in pp.items()})
+                      phantom_params={k: dict(v) for k, v in pp.items()}, noise=tuple(kinds))
 
 
 def load_config(path: str | Path) -> RunConfig:

@@ -181,6 +181,10 @@ class Method:
     def reconstruct(self, volume: Volume) -> Reconstruction:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    #: rough cost of one run relative to marching cubes + scoring at the same N (the runner starts the dearest
+    #: cells first, so that two workers finish together); a plug-in may set its own
+    relative_cost: ClassVar[float] = 1.0
+
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.config.items())
         return f"{type(self).__name__}({args})"

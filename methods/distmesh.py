@@ -44,6 +44,7 @@ from geometry.topology import edges_unique
 
 from phantoms import InputError, Volume
 
+from . import distmesh_loop
 from .base import Method, Param, Reconstruction, check_volume
 from .marching_cubes import marching_cubes_mesh, mesh_facts, orient_outward
 
@@ -63,8 +64,25 @@ def triangle_quality(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray)
     return np.where(l2 > 0, q, 0.0), cr
 
 
+def _flip_candidates(p, a, b, c, d, qmax: float, gain: float) -> tuple[np.ndarray, np.ndarray]:
+    """(flip wanted, quality gain) per edge (a, b) with opposite corners c, d (numpy; the reference of
+    :func:`methods.distmesh_loop.flip_candidates`)."""
+    q1, n1 = triangle_quality(p, a, b, c)
+    q2, n2 = triangle_quality(p, b, a, d)
+    qold = np.minimum(q1, q2)
+    r1, m1 = triangle_quality(p, a, d, c)
+    r2, m2 = triangle_quality(p, d, b, c)
+    qnew = np.minimum(r1, r2)
+    nold = n1 + n2
+    cand = ((qold < qmax) & (qnew > qold + gain)
+            & (np.einsum("ij,ij->i", m1, m2) > 0)
+            & (np.einsum("ij,ij->i", m1, nold) > 0)
+            & (np.einsum("ij,ij->i", m2, nold) > 0))
+    return cand, np.where(qold < qmax, qnew - qold, 0.0)
+
+
 def flip_edges(p: np.ndarray, t: np.ndarray, *, qmax: float = 0.9, gain: float = 0.025,
-               max_rounds: int = 200) -> tuple[np.ndarray, int, int]:
+               max_rounds: int = 200, compiled: bool = True) -> tuple[np.ndarray, int, int]:
     """Edge-flip sweep on a closed, consistently oriented triangle mesh.
 
     Returns ``(faces, flips, rounds)``; the input faces are not modified.  Only edges shared by exactly two
@@ -96,30 +114,20 @@ def flip_edges(p: np.ndarray, t: np.ndarray, *, qmax: float = 0.9, gain: float =
         a, b, c, d, f1, f2 = a[keep], b[keep], c[keep], d[keep], f1[keep], f2[keep]
         if not len(a):
             break
-        q1, n1 = triangle_quality(p, a, b, c)
-        q2, n2 = triangle_quality(p, b, a, d)
-        qold = np.minimum(q1, q2)
-        pre = qold < qmax
-        if not pre.any():
-            break
-        a, b, c, d, f1, f2, qold, n1, n2 = (x[pre] for x in (a, b, c, d, f1, f2, qold, n1, n2))
-        r1, m1 = triangle_quality(p, a, d, c)
-        r2, m2 = triangle_quality(p, d, b, c)
-        qnew = np.minimum(r1, r2)
-        nold = n1 + n2
-        cand = ((qnew > qold + gain)
-                & (np.einsum("ij,ij->i", m1, m2) > 0)
-                & (np.einsum("ij,ij->i", m1, nold) > 0)
-                & (np.einsum("ij,ij->i", m2, nold) > 0))
+        if compiled and distmesh_loop.AVAILABLE:
+            cand, improve = distmesh_loop.flip_candidates(p, a, b, c, d, qmax, gain)
+        else:
+            cand, improve = _flip_candidates(p, a, b, c, d, qmax, gain)
         if cand.any():
-            # the new edge must not exist already (else the mesh would become non-manifold)
+            # the new edge must not exist already (else the mesh would become non-manifold); ks is sorted
             newkey = np.minimum(c, d) * n + np.maximum(c, d)
-            cand &= ~np.isin(newkey, ks)
+            pos = np.minimum(np.searchsorted(ks, newkey), len(ks) - 1)
+            cand &= ks[pos] != newkey
         if not cand.any():
             break
         idx = np.flatnonzero(cand)
+        improve = improve[idx]
         a, b, c, d, f1, f2 = (x[idx] for x in (a, b, c, d, f1, f2))
-        improve = (qnew - qold)[idx]
         # independent set: a flip wins when it has the largest improvement around both of its triangles
         rank = np.empty(len(idx), dtype=np.int64)
         rank[np.argsort(improve, kind="stable")] = np.arange(1, len(idx) + 1)
@@ -138,16 +146,17 @@ def flip_edges(p: np.ndarray, t: np.ndarray, *, qmax: float = 0.9, gain: float =
     return t, total, rounds
 
 
-def _bar_system(t: np.ndarray, n: int, rng: np.random.Generator):
+def _bar_system(t: np.ndarray, n: int, rng: np.random.Generator, incidence: bool = True):
     """The bars (unique edges) of faces ``t``, the signed node-bar incidence (n, bars) — the force sum is
     then one sparse product per iteration — and a fixed random unit direction per bar (for zero-length
     bars)."""
     bars = edges_unique(t)
     nb = len(bars)
-    rows = np.r_[bars[:, 0], bars[:, 1]]
-    cols = np.r_[np.arange(nb), np.arange(nb)]
-    signs = np.r_[np.ones(nb), -np.ones(nb)]
-    incidence = sparse.csr_matrix((signs, (rows, cols)), shape=(n, nb))
+    if incidence:                   # (the compiled iterations sum the forces bar by bar: no matrix)
+        rows = np.r_[bars[:, 0], bars[:, 1]]
+        cols = np.r_[np.arange(nb), np.arange(nb)]
+        signs = np.r_[np.ones(nb), -np.ones(nb)]
+        incidence = sparse.csr_matrix((signs, (rows, cols)), shape=(n, nb))
     fallback = rng.standard_normal((nb, 3))
     fallback /= np.linalg.norm(fallback, axis=1, keepdims=True)
     return bars, incidence, fallback
@@ -155,6 +164,7 @@ def _bar_system(t: np.ndarray, n: int, rng: np.random.Generator):
 
 class DistMesh(Method):
     name = "distmesh"
+    relative_cost = 4.0
     description = ("Persson's distmeshsurface (2012) on the trilinear volume: MC start on an h0 grid, edge "
                    "flips, repulsive bar forces, Newton projection")
     params = {
@@ -174,6 +184,9 @@ class DistMesh(Method):
                                  "stop the nodes from oscillating there)", type=int, min=1, max=20),
         "history": Param(True, "record the max move of every iteration in info['max_move_history']",
                          type=bool),
+        "compiled": Param(True, "run the iterations compiled (methods/distmesh_loop.py, numba: ≈ 40× faster); "
+                                "False: the numpy form, the reference (the same steps; nodes equal to rounding)",
+                          type=bool),
     }
 
     # ------------------------------------------------------------------
@@ -210,43 +223,72 @@ class DistMesh(Method):
         check_volume(volume, self.name)
         cfg = self.config
         h0 = self._h0(volume)
-        dptol, ttol, fscale, deltat = cfg["dptol"], cfg["ttol"], cfg["fscale"], cfg["deltat"]
-        max_iter = cfg["max_iter"]
         t_start = time.perf_counter()
-
         mesh0 = self._initial_mesh(volume, h0)
         p = np.array(mesh0.vertices, dtype=np.float64)
         t = np.array(mesh0.faces, dtype=np.int64)
-        n = len(p)
-        lo, hi = volume.lower, volume.upper
         sampler = volume.sampler(1)
-        newton_steps = cfg["newton_steps"]
         # |∇φ|² below this counts as "no gradient": such nodes are not projected (guard against ∇φ ≈ 0)
         g2_floor = 1e-12 * max(float(np.median((sampler.flat[:, 1:] ** 2).sum(1))), 1e-300)
+        iterate = self._iterate_compiled if cfg["compiled"] and distmesh_loop.AVAILABLE else self._iterate_numpy
+        p, t, run = iterate(volume, p, t, sampler, h0, g2_floor)
+        return self._finish(volume, mesh0, p, t, sampler, h0, t_start, run)
+
+    def _iterate_compiled(self, volume: Volume, p, t, sampler, h0: float, g2_floor: float):
+        """The iterations in :mod:`methods.distmesh_loop`; back here only for each retriangulation."""
+        cfg = self.config
+        rng = np.random.default_rng(12345)         # deterministic fallback directions for zero-length bars
+        prm = (h0, cfg["ttol"], cfg["dptol"], cfg["fscale"], cfg["deltat"], cfg["max_growth"], g2_floor, 1e-9 * h0)
+        state = np.array([np.nan, np.inf, np.inf])  # lrms, lrms_min, max_move
+        history = np.zeros(cfg["max_iter"])
+        counts = np.zeros(2, np.int64)              # flat-gradient nodes, capped Newton steps
+        n_retri = n_flips = 0
+        it, code = 1, distmesh_loop.RETRIANGULATE
+        while code == distmesh_loop.RETRIANGULATE:
+            pold = p.copy()
+            t, flips, _ = flip_edges(p, t)
+            n_flips += flips
+            n_retri += 1
+            bars, _, fallback = _bar_system(t, len(p), rng, incidence=False)
+            code, it = distmesh_loop.relax(p, pold, bars, fallback, sampler, (volume.lower, volume.upper), prm,
+                                           cfg["newton_steps"], it, cfg["max_iter"], state, history, counts)
+        done = it if code != distmesh_loop.DIVERGED else it - 1   # iterations whose max move was recorded
+        run = dict(it=it, converged=code == distmesh_loop.CONVERGED, diverged=code == distmesh_loop.DIVERGED,
+                   max_move=float(state[2]), lrms=float(state[0]), lrms_min=float(state[1]),
+                   history=history[:done].tolist() if cfg["history"] else [], retriangulations=n_retri,
+                   flips=n_flips, flat=int(counts[0]), capped=int(counts[1]))
+        return p, t, run
+
+    def _iterate_numpy(self, volume: Volume, p, t, sampler, h0: float, g2_floor: float):
+        """The iterations in numpy (the reference of the compiled form)."""
+        cfg = self.config
+        dptol, ttol, fscale, deltat = cfg["dptol"], cfg["ttol"], cfg["fscale"], cfg["deltat"]
+        n = len(p)
+        lo, hi = volume.lower, volume.upper
+        newton_steps = cfg["newton_steps"]
 
         def phi_grad(points):
             s = sampler(points)
             return s.phi, s.grad
 
-        # deterministic fallback directions for zero-length bars
-        rng = np.random.default_rng(12345)
+        rng = np.random.default_rng(12345)         # deterministic fallback directions for zero-length bars
         tiny = 1e-9 * h0
-
         pold = np.full_like(p, np.inf)
         bars = None
         history: list[float] = []
         n_retri = n_flips = n_flat = n_capped = 0
         converged = diverged = False
         lrms_min = np.inf
+        lrms = np.nan
         it = 0
         max_move = np.inf
-        for it in range(1, max_iter + 1):
+        for it in range(1, cfg["max_iter"] + 1):
             p0 = p.copy()
             # 3. retriangulation by edge flips when anything moved by more than ttol·h0
             dp = p - pold
             if bars is None or np.einsum("ij,ij->i", dp, dp).max() > (ttol * h0) ** 2:
                 pold = p.copy()
-                t, flips, _ = flip_edges(p, t)
+                t, flips, _ = flip_edges(p, t, compiled=False)
                 n_flips += flips
                 n_retri += 1
                 bars, incidence, fallback = _bar_system(t, n, rng)
@@ -278,17 +320,14 @@ class DistMesh(Method):
             # 8. termination: every node moved less than dptol·h0
             dp = p - p0
             max_move = float(np.sqrt(np.einsum("ij,ij->i", dp, dp).max())) / h0
-            if not np.isfinite(max_move):  # pragma: no cover - guarded above
-                raise InputError(f"method {self.name!r}: node positions became non-finite at iteration {it}")
             if cfg["history"]:
                 history.append(max_move)
             if max_move < dptol:
                 converged = True
                 break
-
         run = dict(it=it, converged=converged, diverged=diverged, max_move=max_move, lrms=lrms, lrms_min=lrms_min,
                    history=history, retriangulations=n_retri, flips=n_flips, flat=n_flat, capped=n_capped)
-        return self._finish(volume, mesh0, p, t, sampler, h0, t_start, run)
+        return p, t, run
 
     def _finish(self, volume: Volume, mesh0, p: np.ndarray, t: np.ndarray, sampler, h0: float, t_start: float,
                 run: dict) -> Reconstruction:
@@ -298,7 +337,7 @@ class DistMesh(Method):
         it, converged, diverged, max_move = run["it"], run["converged"], run["diverged"], run["max_move"]
         lrms, lrms_min, n_flips = run["lrms"], run["lrms_min"], run["flips"]
         # a last sweep so the output has the quality the final positions allow
-        t, flips, _ = flip_edges(p, t)
+        t, flips, _ = flip_edges(p, t, compiled=cfg["compiled"])
         n_flips += flips
         mesh = trimesh.Trimesh(p, t, process=False)
         mesh.remove_unreferenced_vertices()

@@ -113,7 +113,8 @@ class _Page(HTMLParser):
         if tag == "h3" and "summary-title" in (a.get("class") or ""):
             self._in_title = True
             self.summary_titles.append("")
-        if tag == "img" and (a.get("src") or "").startswith("data:image/png;base64,"):
+        if tag == "img" and (a.get("src") or "").startswith(("data:image/webp;base64,", "data:image/png;base64,",
+                                                              "data:image/svg+xml;base64,")):
             self.images += 1
         if tag == "table":
             self.tables += 1

@@ -19,8 +19,11 @@ def test_method_and_noise_specs():
 def test_report_section_round_trips_and_is_checked_against_the_labels():
     cfg = builtin_config("paper")
     cols = cfg.report["paper_columns"]
-    assert [c["label"] for c in cols] == ["shape_gradient_beta0", "shape_gradient", "shape_gradient"]
-    assert [c["noise"] for c in cols] == ["none", "none", "gaussian"]
+    assert [c["label"] for c in cols] == ["shape_gradient[paper,beta=0]", "shape_gradient[paper]",
+                                          "shape_gradient[paper]", "shape_gradient[paper+fixes,beta=0]",
+                                          "shape_gradient[paper+fixes]", "shape_gradient[paper+fixes]"]
+    assert [c["noise"] for c in cols] == ["none", "none", "gaussian"] * 2
+    assert cfg.report["uniform_label"] == ["shape_gradient[paper]", "shape_gradient[paper+fixes]"]
     assert config_from_dict(cfg.to_dict()).report == cfg.report
     cfg.validate()
     data = cfg.to_dict()
@@ -63,3 +66,41 @@ def test_a_key_in_both_params_and_sweep_is_refused(tmp_path, capsys):
     path.write_text(toml.replace("alpha = 5.0, beta = 1.0", "alpha = 5.0"))   # the same without the clash runs
     assert main(["run", "--config", str(path), "--dry-run"]) == 0
     assert "2 cells" in capsys.readouterr().out
+
+
+def test_the_paper_grid_labels_name_every_variant_and_its_non_default_settings():
+    """No row runs non-default parameters under a default-looking label: the plain `shape_gradient` row is the
+    suite's default, the paper rows name their preset (and β = 0), and the β = 0 ablations run on clean volumes
+    only, as in the paper's tables."""
+    from bench.run import expand_grid
+
+    cells = expand_grid(builtin_config("paper"))
+    by_label: dict = {}
+    for c in cells:
+        by_label.setdefault(c["label"], []).append(c)
+    assert {c["params"].get("preset") for c in by_label["shape_gradient[paper]"]} == {"paper"}
+    assert {c["params"].get("preset") for c in by_label["shape_gradient[paper+fixes]"]} == {"paper+fixes"}
+    assert all(c["params"] == {} for c in by_label["shape_gradient"])
+    for label in ("shape_gradient[paper,beta=0]", "shape_gradient[paper+fixes,beta=0]"):
+        assert {c["noise"] for c in by_label[label]} == {"none"} and all(c["params"]["beta"] == 0 for c in by_label[label])
+    fused = [c for c in by_label["shape_gradient[paper]"] if c["phantom"] == "fused_spheres"]
+    assert all(c["params"]["max_iter"] == 150 and c["params"]["snapshots"] == [1, 75, 150] for c in fused)
+    assert not {"reach_for_the_spheres", "flying_edges", "dual_contouring"} & {c["method"] for c in cells}
+    quick = expand_grid(builtin_config("quick"))
+    assert all(c["params"] == {} for c in quick if c["label"] == "shape_gradient")
+
+
+def test_a_method_can_be_limited_to_some_noise_kinds():
+    data = {"name": "t", "grid": {"phantoms": ["sphere"], "n": 24, "noise": [{"kind": "none"}, {"kind": "gaussian",
+                                                                                          "snr": 30}]},
+            "methods": [{"name": "marching_cubes", "noise": ["gaussian"]}, {"name": "mc_taubin"}]}
+    from bench.run import expand_grid
+
+    cfg = config_from_dict(data)
+    cfg.validate()
+    got = [(c["method"], c["noise"]) for c in expand_grid(cfg)]
+    assert got == [("mc_taubin", "none"), ("marching_cubes", "gaussian"), ("mc_taubin", "gaussian")]
+    assert config_from_dict(cfg.to_dict()).methods[0].noise == ("gaussian",)
+    data["methods"][0]["noise"] = ["pink"]
+    with pytest.raises(InputError, match=r"noise: expected a list of noise kinds"):
+        config_from_dict(data)

@@ -100,10 +100,15 @@ def test_the_report_page_shows_every_claim_with_its_verdict_from_a_real_run(tmp_
     # one clean phantom, no noise, no β = 0 and no DistMesh: those claims are not measured; the others are
     import re
 
-    verdicts = dict(re.findall(r'id="claim-(\w+)".*?class="verdict v-[\w-]+">([\w ]+)<', page, re.S))
+    verdicts = dict(re.findall(r'id="claim-(\w+)".*?data-variant="(?:default|all)"><span class="verdict v-[\w-]+">'
+                               r'([\w ]+)<', page, re.S))
     assert verdicts["smoother"] == verdicts["robust_noise"] == verdicts["distmesh_unstable"] == "not measured"
     assert verdicts["beats_mc"] in ("holds", "does not hold") and verdicts["diffeomorphic"] != "not measured"
     assert verdicts["energy"] != "not measured"
+    printed = dict(re.findall(r'id="claim-(\w+)".*?data-variant="printed"><span class="verdict v-[\w-]+">([\w ]+)<',
+                              page, re.S))
+    assert set(printed.values()) == {"not measured"}           # the run has no preset=paper cells
+    assert "The paper ran its algorithm as printed" in page
 
 
 def test_cells_are_compared_only_at_the_same_snr_and_n():
@@ -113,3 +118,50 @@ def test_cells_are_compared_only_at_the_same_snr_and_n():
     mc40 = dict(mc20, snr_requested=40.0, cell_id="mc40")
     got = {c.id: c for c in check_claims([sg40, mc20, mc40])}["beats_mc"]
     assert got.verdict == "holds" and "40 dB" in got.numbers and got.cells == [sg40["cell_id"], "mc40"]
+
+
+def _variant_row(variant, phantom, noise, beta=1.0, **metrics):
+    preset = {"printed": "paper", "corrected": "paper+fixes", "default": "none"}[variant]
+    r = _row("shape_gradient", phantom, noise, beta, **metrics)
+    r.update(parameters=json.dumps({"beta": beta, "preset": preset}), cell_id=f"{phantom}_{noise}_{variant}_{beta}",
+             label=f"sg_{variant}_{beta}")
+    return r
+
+
+def test_each_variant_gets_its_own_verdict_and_the_row_says_why_they_differ():
+    """A results table in which the printed algorithm loses to marching cubes, the corrected experiment beats it,
+    and the suite default beats it on one phantom of two: three columns, three verdicts."""
+    mc = [_row("marching_cubes", ph, "none", mean_dist_h=0.1) for ph in ("sphere", "cube")]
+    rows = mc + [
+        _variant_row("printed", "sphere", "none", mean_dist_h=0.3), _variant_row("printed", "cube", "none", mean_dist_h=0.2),
+        _variant_row("corrected", "sphere", "none", mean_dist_h=0.05),
+        _variant_row("corrected", "cube", "none", mean_dist_h=0.08),
+        _variant_row("default", "sphere", "none", mean_dist_h=0.09), _variant_row("default", "cube", "none", mean_dist_h=0.2),
+        _variant_row("printed", "sphere", "gaussian", hausdorff_h=2.0, status="invalid"),
+        _variant_row("corrected", "sphere", "gaussian", hausdorff_h=0.6)]
+    claims = {c.id: c for c in check_claims(rows)}
+    beats = claims["beats_mc"]
+    assert {k: v.verdict for k, v in beats.by_variant.items()} == {
+        "printed": "does not hold", "corrected": "holds", "default": "partly"}
+    assert "0.300 h vs 0.100 h" in beats.by_variant["printed"].numbers
+    assert beats.verdict == "does not hold"                      # the paper's own variant comes first
+    assert "marching cubes' surface" in beats.why and beats.why.count(";") == 2
+    robust = claims["robust_noise"]
+    assert {k: v.verdict for k, v in robust.by_variant.items()} == {
+        "printed": "does not hold", "corrected": "holds", "default": "not measured"}
+    assert "no cell of this variant can test it" in robust.why
+    same = claims["distmesh_unstable"]                           # no shape-gradient variant involved
+    assert same.shared and same.why == "" and len({id(v) for v in same.by_variant.values()}) == 1
+    agree = check_claims(mc + [_variant_row(v, "sphere", "none", mean_dist_h=0.05)
+                               for v in ("printed", "corrected", "default")])
+    assert {c.id: c for c in agree}["beats_mc"].why == ""          # all three hold: nothing to explain
+
+
+def test_the_paper_variants_may_stop_on_their_iteration_count_or_line_search_other_flags_still_count():
+    ok = dict(_variant_row("corrected", "sphere", "gaussian", hausdorff_h=0.1), flags="not_converged",
+              stop_reason="line_search_floor")
+    assert _verdicts([ok])["robust_noise"] == "holds"
+    assert _verdicts([dict(ok, flags="not_converged;self_intersecting")])["robust_noise"] == "does not hold"
+    default = dict(_variant_row("default", "sphere", "gaussian", hausdorff_h=0.1), flags="not_converged",
+                   stop_reason="line_search_floor")
+    assert {c.id: c for c in check_claims([default])}["robust_noise"].by_variant["default"].verdict == "does not hold"

@@ -19,7 +19,11 @@ def test_cost_section_table_and_chart():
                  "wall_s": np.nan, "peak_mem_mb": np.nan})
     sec = cost_section(pd.DataFrame(rows))
     assert sec["n_cells"] == 8
-    assert sec["chart"].startswith("data:image/png;base64,")
+    assert sec["chart"].startswith("data:image/svg+xml;base64,")
+    import base64
+
+    svg = base64.b64decode(sec["chart"].split(",", 1)[1]).decode()
+    assert svg.count("<rect x=") >= 2 * 4 and "marching_cubes: 0.15" in svg and "time (s)" in svg
     h = sec["html"]
     assert h.count("<tr><td>") == 2 and "distmesh" not in h          # failed cells have no cost
     assert "sphere" in h and "ellipsoid" in h and "time (s)" in h and "memory (MiB)" in h

@@ -109,7 +109,7 @@ def test_configured_columns_are_the_config_section_in_its_order(configured):
     layout, tables, _ = _tables(out)
     assert layout.columns == (Column("sg_beta0", "none", "β = 0"), Column("sg", "none", "β = 1"),
                               Column("sg", "gaussian", "β = 1, Gaussian noise"))
-    assert layout.uniform_label == "sg"
+    assert layout.uniform_labels == ("sg",)
     assert [t["phantom"] for t in tables] == PHANTOMS
     assert tables[0]["heads"] == ["β = 0 [sg_beta0]", "β = 1 [sg]", "β = 1, Gaussian noise, SNR 40 dB [sg]"]
 
@@ -170,7 +170,7 @@ def test_fallback_columns_are_the_labels_with_snapshots_per_noise_in_row_order(b
     out, _ = bare
     layout, tables, galleries = _tables(out)
     assert layout.columns == tuple(Column(lab, nz) for nz, _ in NOISES for lab in ("sg", "sg_beta0"))
-    assert layout.uniform_label is None
+    assert layout.uniform_labels == ()
     assert tables[0]["heads"][:3] == ["sg, clean", "sg_beta0, clean", "sg, gaussian noise, SNR 40 dB"]
     assert [g["title"] for g in galleries] == ["Marching Cube [mc]"]
 
@@ -200,5 +200,27 @@ def test_uniform_label_alone_keeps_the_fallback_columns(tmp_path):
     out = tmp_path / "run"
     _write_run(out, {"report": {"uniform_label": "sg"}})
     layout, _, galleries = _tables(out)
-    assert len(layout.columns) == 6 and layout.uniform_label == "sg"
+    assert len(layout.columns) == 6 and layout.uniform_labels == ("sg",)
     assert [g["title"] for g in galleries] == ["Marching Cube [mc]", "Shape gradient [sg] on uniform noise"]
+
+
+def test_captions_name_each_columns_variant_and_where_a_run_stopped_early(tmp_path):
+    out = tmp_path / "run"
+    _write_run(out, {"name": "t", "report": PAPER_SECTION}, parameters=json.dumps({"preset": "paper"}))
+    _, tables, _ = _tables(out)
+    cap = tables[0]["caption"]
+    assert cap.startswith("Columns drawn from sg_beta0: the paper's algorithm as printed (preset=paper); sg: the "
+                          "paper's algorithm as printed")
+    # sg kept iterations up to 5; sg_beta0 stopped at 3: the caption says so, and why
+    assert "β = 0 stopped at iteration 3 (converged: the energy or the surface stopped changing" in cap
+    assert "β = 1 stopped" not in cap
+
+
+def test_a_uniform_table_of_two_labels_shows_both_side_by_side(tmp_path):
+    out = tmp_path / "run"
+    _write_run(out, {"name": "t", "report": dict(PAPER_SECTION, uniform_label=["sg", "sg_beta0"])})
+    _, _, galleries = _tables(out)
+    uni = galleries[-1]
+    assert uni["title"] == "Shape gradient [sg] (β = 1) and Shape gradient [sg_beta0] (β = 0) on uniform noise"
+    assert uni["heads"] == ["final mesh [sg]", "energy [sg]", "final mesh [sg_beta0]", "energy [sg_beta0]"]
+    assert len(uni["rows"]) == 2 and all(len(r["cells"]) == 4 for r in uni["rows"])

@@ -13,11 +13,14 @@ TETRA_V = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], float)
 TETRA_F = np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]])
 
 
-def _png_bytes(uri: str) -> bytes:
-    assert uri.startswith("data:image/png;base64,")
-    data = base64.b64decode(uri.split(",", 1)[1])
-    assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    return data
+def _image(uri: str) -> np.ndarray:
+    """The RGB pixels of a ``data:image/webp`` (or png) URI."""
+    import io
+
+    from PIL import Image
+
+    assert uri.startswith(("data:image/webp;base64,", "data:image/png;base64,"))
+    return np.asarray(Image.open(io.BytesIO(base64.b64decode(uri.split(",", 1)[1]))).convert("RGB"))
 
 
 def test_view_extent_covers_every_mesh_and_scales_with_it():
@@ -36,9 +39,32 @@ def test_colour_range_is_robust_and_widens_a_constant():
     assert colour_range([]) == (-1.0, 1.0)
 
 
-def test_render_mesh_and_energy_give_png_data_uris():
+def test_render_mesh_draws_the_mesh_and_its_colour_strip_and_energy_is_svg():
     img = render_mesh(TETRA_V, TETRA_F, np.arange(4.0), vmin=0, vmax=3, extent=view_extent([TETRA_V]),
                       title="t")
-    assert len(_png_bytes(img)) > 1000
-    assert _png_bytes(render_mesh(TETRA_V, TETRA_F, None, vmin=0, vmax=1, extent=(0, 0, 2))) != _png_bytes(img)
-    assert len(_png_bytes(render_energy([3.0, 2.0, 1.5], marks=[1], ylim=(1, 4)))) > 1000
+    px = _image(img)
+    assert px.shape == (180, 198, 3)
+    mesh = px[:, :180]
+    covered = (np.abs(mesh.astype(int) - 255).sum(axis=2) > 30).mean()
+    assert 0.2 < covered < 0.95                                  # the tetrahedron fills its frame, not all of it
+    strip = px[20:160, 186:194].astype(int)
+    assert strip[0, 0, 0] > strip[0, 0, 2] and strip[-1, 0, 2] > strip[-1, 0, 0]   # red on top, blue below
+    grey = _image(render_mesh(TETRA_V, TETRA_F, None, vmin=0, vmax=1, extent=(0, 0, 2)))
+    assert np.abs(grey.astype(int) - px.astype(int)).mean() > 1
+    svg = base64.b64decode(render_energy([3.0, 2.0, 1.5], marks=[1], ylim=(1, 4)).split(",", 1)[1]).decode()
+    assert svg.startswith("<svg") and "<polyline" in svg and svg.count("<circle") == 1 and "1e0" in svg
+
+
+def test_rasterize_fills_the_pixels_inside_the_triangles_in_order():
+    from geometry.picture import rasterize
+
+    # a 10 × 10 pixel square of two triangles at (5, 5)-(15, 15) in a 20 × 20 image, then a red triangle on top
+    sq = np.array([[[5, 5], [15, 5], [15, 15]], [[5, 5], [15, 15], [5, 15]], [[0, 0], [4, 0], [0, 4]]], float)
+    col = np.array([[0, 0, 1], [0, 0, 1], [1, 0, 0]], float)
+    img = rasterize(sq, col, 20, 20, supersample=1)
+    blue = (img[..., 2] == 255) & (img[..., 0] == 0)
+    assert blue.sum() == 100 and blue[5:15, 5:15].all()          # y up: pixel rows 19 - 14 .. 19 - 5
+    red = (img[..., 0] == 255) & (img[..., 2] == 0)
+    assert 6 <= red.sum() <= 10 and red[19, 0]                   # ~8 px below the diagonal x + y = 4
+    smooth = rasterize(sq, col, 20, 20, supersample=2)
+    assert ((smooth[..., 2] > 0) & (smooth[..., 2] < 255)).any()  # anti-aliased borders

@@ -88,7 +88,8 @@ METRIC_NAMES = list(METRICS)
 
 
 def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_000, seed: int = 0,
-             crease_band: float = 0.1) -> dict:
+             crease_band: float = 0.1, timings: dict | None = None, vertex_H: dict | None = None,
+             truth_points: np.ndarray | None = None) -> dict:
     """All METRICS.md metrics of ``mesh`` against the phantom ``truth`` (or the truth-free subset).
 
     Parameters
@@ -111,6 +112,15 @@ def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_0
     crease_band : float
         Vertices whose closest true point is closer than this to a crease/rim are left out of the
         curvature errors, of ``H_std`` and (edges touching them) of ``roughness_deg``.
+    timings : dict, optional
+        Filled with the seconds spent per phase (sampling, distances, curvature, ...).
+    vertex_H : dict, optional
+        Filled with ``"H"`` and ``"K"``: the per-vertex mean and Gaussian curvature the curvature metrics used,
+        one value per vertex of ``mesh`` as given (NaN for a vertex no face uses) — for pictures and the report,
+        so nobody fits them twice.
+    truth_points : (n_samples, 3) array, optional
+        ``truth.sample_surface(n_samples, seed)[0]`` computed before (a cache: the same for every mesh
+        scored against this truth).
 
     Returns
     -------
@@ -123,7 +133,8 @@ def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_0
     InputError
         A mesh without faces, non-finite vertices, faces indexing missing vertices, a bad spacing.
     """
-    return _evaluate(mesh, truth, spacing, volume=volume, n_samples=n_samples, seed=seed, crease_band=crease_band)
+    return _evaluate(mesh, truth, spacing, volume=volume, n_samples=n_samples, seed=seed, crease_band=crease_band,
+                     timings=timings, vertex_H=vertex_H, truth_points=truth_points)
 
 
 def _check_inputs(mesh, spacing, n_samples, crease_band):
@@ -192,8 +203,8 @@ def _distances(true_pts, band_pts, V, F):
     return (d[:n_true] if true_pts is not None else None), (d[n_true:] if band_pts is not None else None)
 
 
-def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, crease_band=0.1,
-              timings=None) -> dict:
+def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, crease_band=0.1, timings=None,
+              vertex_H=None, truth_points=None) -> dict:
     """:func:`evaluate`, optionally recording the seconds spent per phase in ``timings``."""
     t = time.perf_counter()
     tm = timings if timings is not None else {}
@@ -210,7 +221,7 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     f_all = drop_degenerate_index_faces(faces)
     if len(f_all) == 0:
         raise InputError("mesh has no (non-degenerate) faces")
-    V, F, _ = compact(vertices, f_all)
+    V, F, kept = compact(vertices, f_all)
     fn = face_normals(V, F)
     tri = V[F]
     area = float(0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
@@ -222,7 +233,9 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
 
     true_pts = band = band_pts = None
     if truth is not None:
-        true_pts, _ = truth.sample_surface(n_samples, seed)
+        true_pts = truth.sample_surface(n_samples, seed)[0] if truth_points is None else truth_points
+        if len(true_pts) != n_samples:
+            raise InputError(f"truth_points holds {len(true_pts)} points, not n_samples = {n_samples}")
         lap("truth_samples")
     if volume is not None:
         band, band_pts = band_query(volume, seed)
@@ -239,6 +252,10 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     lap("self_intersections")
 
     H, K, _ = vertex_curvature(V, F, h, outward=outward)
+    if vertex_H is not None:
+        for key, values in (("H", H), ("K", K)):
+            vertex_H[key] = np.full(len(vertices), np.nan)
+            vertex_H[key][kept] = values
     lap("curvature_fit")
 
     def fidelity(pts):

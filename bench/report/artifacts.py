@@ -63,7 +63,12 @@ class Artifacts:
         if iteration in self.snapshot_iterations(cid):
             v = a[f"snap{iteration}_vertices"]
             f = a.get(f"snap{iteration}_faces", a["faces"])
-            return v, f, a.get(f"snap{iteration}_H"), None
+            H = a.get(f"snap{iteration}_H")
+            if H is None and "spacing" in a:   # fitted here, for the snapshots a table draws
+                from ..run.cell import vertex_mean_curvature
+
+                H = a[f"snap{iteration}_H"] = vertex_mean_curvature(v, f, float(a["spacing"]))
+            return v, f, H, None
         return None
 
     def energy(self, cid: str):

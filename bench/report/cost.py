@@ -8,8 +8,6 @@ import html
 import numpy as np
 
 from .colours import method_colour
-
-from .render import png_uri
 from .tables import fmt_value
 
 __all__ = ["COST_COLUMNS", "cost_section"]
@@ -23,8 +21,7 @@ MAX_PLACES = 16
 
 def _cost_frame(df):
     """Mean ``wall_s`` and ``peak_mem_mb`` of the ok cells per method label × phantom (× N when the run has
-    several; one place "all phantoms" beyond :data:`MAX_PLACES`): a DataFrame with columns label, where, wall_s,
-    peak_mem_mb, cells."""
+    several): a DataFrame with columns label, where, wall_s, peak_mem_mb, cells."""
     import pandas as pd
 
     if df.empty or not any(c in df.columns for c, _ in COST_COLUMNS):
@@ -50,36 +47,67 @@ def _value(cf, label: str, where: str, col: str) -> float:
     return float(cf[col].iloc[i]) if i is not None else np.nan
 
 
-def _render_cost_chart(cf, labels: list[str], places: list[str], dpi: int = 90) -> str | None:
-    """Grouped bars: time and memory, one group per phantom, one bar per method (log scale when the values
-    span more than 30×)."""
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def _bars_svg(cf, labels: list[str], places: list[str], col: str, name: str, x0: float, w: float, h: float) -> str:
+    """One panel of grouped bars (one group per place, one bar per label; log scale when the values span more
+    than 30×) as SVG elements at x0."""
+    import math
+
+    vals = {(lab, p): _value(cf, lab, p, col) for lab in labels for p in places}
+    pos = [v for v in vals.values() if np.isfinite(v) and v > 0]
+    if not pos:
+        return ""
+    log = max(pos) / min(pos) > 30
+    lo = math.floor(math.log10(min(pos))) if log else 0.0
+    hi = math.ceil(math.log10(max(pos))) if log else max(pos) * 1.1
+    top, bottom, left = 18, 34, 38
+
+    def y(v: float) -> float:
+        f = (math.log10(v) - lo) / (hi - lo) if log else v / hi
+        return top + (h - top - bottom) * (1 - min(max(f, 0.0), 1.0))
+
+    out = [f'<text x="{x0 + w / 2:.0f}" y="12" text-anchor="middle">{html.escape(name)}</text>',
+           f'<rect x="{x0 + left}" y="{top}" width="{w - left - 4}" height="{h - top - bottom}" fill="none" '
+           f'stroke="#999"/>']
+    ticks = [10.0 ** k for k in range(int(lo), int(hi) + 1)] if log else list(np.linspace(0, hi, 5))
+    for t in ticks:
+        out.append(f'<text x="{x0 + left - 3}" y="{y(t) + 3:.1f}" text-anchor="end">{t:.3g}</text>')
+    group = (w - left - 4) / max(1, len(places))
+    bar = 0.8 * group / max(1, len(labels))
+    for i, p in enumerate(places):
+        gx = x0 + left + i * group + 0.1 * group
+        out.append(f'<text x="{gx + 0.4 * group:.1f}" y="{h - bottom + 12}" text-anchor="middle">'
+                   f'{html.escape(p)}</text>')
+        for k, lab in enumerate(labels):
+            v = vals[(lab, p)]
+            if np.isfinite(v) and v > 0:
+                yy = y(v)
+                out.append(f'<rect x="{gx + k * bar:.1f}" y="{yy:.1f}" width="{bar:.1f}" '
+                           f'height="{h - bottom - yy:.1f}" fill="{method_colour(lab)}">'
+                           f'<title>{html.escape(lab)}: {v:.3g}</title></rect>')
+    return "".join(out)
+
+
+def _render_cost_chart(cf, labels: list[str], places: list[str]) -> str | None:
+    """Grouped bars, time and memory side by side, one group per phantom, one bar per method, the legend
+    below: an SVG data URI (vector, a few kB, no plotting library)."""
+    import base64
 
     if cf.empty:
         return None
-    fig, axes = plt.subplots(1, 2, figsize=(max(6.0, 1.2 * len(places) * max(1, len(labels)) ** 0.5 + 3.5), 3.0),
-                             dpi=dpi)
-    width = 0.8 / max(1, len(labels))
-    x = np.arange(len(places))
-    for ax, (col, name) in zip(axes, COST_COLUMNS):
-        vals_all = []
-        for k, lab in enumerate(labels):
-            vals = [_value(cf, lab, p, col) for p in places]
-            vals = [v if np.isfinite(v) else np.nan for v in vals]
-            vals_all += [v for v in vals if np.isfinite(v) and v > 0]
-            ax.bar(x - 0.4 + (k + 0.5) * width, np.nan_to_num(vals, nan=0.0), width, label=lab, color=method_colour(lab))
-        if vals_all and max(vals_all) / min(vals_all) > 30:
-            ax.set_yscale("log")
-        ax.set_xticks(x, places, fontsize=7, rotation=20 if len(places) > 3 else 0)
-        ax.set_title(name, fontsize=8)
-        ax.tick_params(labelsize=7)
-        ax.grid(axis="y", alpha=0.3)
-    axes[1].legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
-    fig.tight_layout()
-    return png_uri(fig)
+    w, h = max(320, 60 * len(places) * max(1, len(labels)) ** 0.5 + 80), 230
+    legend_rows = (len(labels) + 2) // 3
+    total_h = h + 14 * legend_rows + 6
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{2 * w:.0f}" height="{total_h}" '
+             f'font-family="sans-serif" font-size="9"><rect width="100%" height="100%" fill="white"/>']
+    for i, (col, name) in enumerate(COST_COLUMNS):
+        parts.append(_bars_svg(cf, labels, places, col, name, i * w, w, h))
+    for k, lab in enumerate(labels):
+        lx, ly = 40 + (k % 3) * (2 * w - 40) / 3, h + 4 + 14 * (k // 3)
+        parts.append(f'<rect x="{lx:.0f}" y="{ly}" width="9" height="9" fill="{method_colour(lab)}"/>'
+                     f'<text x="{lx + 13:.0f}" y="{ly + 8}">{html.escape(lab)}</text>')
+    svg = "".join(parts) + "</svg>"
+    return "data:image/svg+xml;base64," + base64.b64encode(svg.encode("utf-8")).decode("ascii")
 
 
 def _cost_table(cf, labels: list[str], places: list[str]) -> str:
@@ -106,7 +134,7 @@ def _cost_table(cf, labels: list[str], places: list[str]) -> str:
 
 
 def cost_section(df) -> dict:
-    """The report's cost section: ``{"html": table, "chart": PNG data URI or None, "n_cells": int}``.
+    """The report's cost section: ``{"html": table, "chart": SVG data URI or None, "n_cells": int}``.
 
     Rows are method labels, columns phantoms (× N), each with the mean time and peak memory of its ok cells
     (over noise settings and seeds); the lowest per phantom is marked."""

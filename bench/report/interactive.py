@@ -2,7 +2,7 @@
 
 * **Viewers** — each finished cell's mesh, decimated for viewing by a library decimator (trimesh's quadric
   decimation, ``fast_simplification``; the metrics always come from the full mesh) to at most
-  :data:`VIEW_FACES` faces, with two colourings: the mean curvature H the cell stored (the paper's colouring)
+  :data:`VIEW_FACES` faces — in the worker, :mod:`bench.run.view` — with two colourings: the mean curvature H the cell stored (the paper's colouring)
   and the signed distance to the true surface in grid steps h (positive outside).  One colour scale per summary
   table (phantom × noise): the 2nd–98th percentile of H over its cells, and ±the 98th percentile of |distance|.
   The page stores the data once as JSON and draws a viewer when a table row is clicked.
@@ -23,12 +23,11 @@ from typing import Any
 
 import numpy as np
 
+from ..run.view import VIEW_FACES, decimate
 from .colours import method_colour
 
 __all__ = ["VIEW_FACES", "plotly_js", "viewer_payload", "robustness_figures", "pareto_figure", "breakdown"]
 
-#: faces of a decimated viewer mesh
-VIEW_FACES = 2500
 
 
 def plotly_js() -> str:
@@ -40,19 +39,6 @@ def plotly_js() -> str:
 
 def _round(a: np.ndarray, digits: int = 4) -> list:
     return np.round(np.asarray(a, dtype=np.float64), digits).tolist()
-
-
-def _decimate(v: np.ndarray, f: np.ndarray, faces: int) -> tuple[np.ndarray, np.ndarray]:
-    import trimesh
-
-    if len(f) <= faces:
-        return v, f
-    m = trimesh.Trimesh(v, f, process=False)
-    try:
-        d = m.simplify_quadric_decimation(face_count=faces)
-    except Exception:  # noqa: BLE001 — a mesh the decimator cannot take is shown in full
-        return v, f
-    return np.asarray(d.vertices), np.asarray(d.faces)
 
 
 def _phantom_sdf(name: str):
@@ -105,12 +91,16 @@ def _cell_view(r: dict, a: dict, sdf, extent: float, faces: int) -> tuple[dict, 
     """(packed mesh, {"H": values, "d": values}) of one cell, or None without a usable mesh."""
     from scipy.spatial import cKDTree
 
+    if "view_vertices" in a and "view_faces" in a and len(a["view_faces"]):    # made by the worker
+        colours = {k: np.asarray(a[f"view_{k}"], float) for k in ("H", "d") if f"view_{k}" in a}
+        n_full = len(a["faces"]) if "faces" in a else len(a["view_faces"])
+        return _pack(np.asarray(a["view_vertices"], float), np.asarray(a["view_faces"], np.int64), n_full), colours
     if "vertices" not in a or "faces" not in a or len(a["faces"]) == 0:
         return None
     v0, f0 = np.asarray(a["vertices"], float), np.asarray(a["faces"], np.int64)
     if not np.isfinite(v0).all() or f0.min() < 0 or f0.max() >= len(v0):
         return None
-    v, f = _decimate(v0, f0, faces)
+    v, f = decimate(v0, f0, faces)
     full = {}
     H0 = a.get("H")
     if H0 is not None and len(H0) == len(v0):

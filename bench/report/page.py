@@ -12,6 +12,7 @@ from geometry.files import atomic_write
 
 from ..run.store import read_results, scan_cells
 from .artifacts import Artifacts
+from .claims import VARIANTS as CLAIM_VARIANTS
 from .claims import check_claims
 from .cost import cost_section
 from .interactive import VIEW_FACES, pareto_figure, plotly_js, robustness_figures, viewer_payload
@@ -173,7 +174,7 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
         "n_rows": len(df), "n_total": (meta.get("cells") or {}).get("total", len(df)),
         "counts": df["status"].value_counts().to_dict() if len(df) else {},
         **sections,
-        "claims": _claims(df, arts, config),
+        "claims": _claims(df, arts, config), "claim_variants": CLAIM_VARIANTS,
         **_interactive(df, arts, config, shown),
         "failed": _failed(df, records),
         "facts": _facts(df, records),

@@ -11,6 +11,7 @@ colour scale.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +20,7 @@ from .artifacts import Artifacts
 from .render import colour_range, render_energy, render_mesh, view_extent
 from .tables import is_nan, noise_title
 
-__all__ = ["Column", "PaperLayout", "paper_layout", "paper_tables", "gallery_tables"]
+__all__ = ["Column", "PaperLayout", "paper_layout", "paper_tables", "gallery_tables", "variant_of", "VARIANTS"]
 
 #: names of the galleries (the paper's "Marching Cube" and "DistMesh" tables), by label or method
 GALLERY_TITLES = {"marching_cubes": "Marching Cube", "distmesh": "DistMesh", "mc_taubin": "Marching cubes + Taubin",
@@ -39,7 +40,7 @@ class Column:
 @dataclass(frozen=True)
 class PaperLayout:
     columns: tuple[Column, ...]
-    uniform_label: str | None = None
+    uniform_labels: tuple[str, ...] = ()
 
     @property
     def labels(self) -> set[str]:
@@ -86,8 +87,9 @@ def paper_layout(config: dict | None, df, arts: Artifacts) -> PaperLayout:
     section = section if isinstance(section, dict) else {}
     columns = _configured_columns(section)
     uniform = section.get("uniform_label")
+    uniform = [uniform] if isinstance(uniform, str) else (uniform if isinstance(uniform, list) else [])
     return PaperLayout(columns if columns is not None else _snapshot_columns(df, arts),
-                       str(uniform) if uniform else None)
+                       tuple(str(u) for u in uniform if u))
 
 
 # ---------------------------------------------------------------------------------------------- picture rows
@@ -141,7 +143,7 @@ def picture_row(entries: list[tuple[dict | None, int | None]], arts: Artifacts) 
         if view_extent([v])[2] > 1.5 * typical:
             note = (note + "; " if note else "") + "extends far beyond the frame shared by this row"
         out.append({"img": render_mesh(v, f, H, vmin=vmin, vmax=vmax, extent=ext),
-                    "note": note, "caption": f"{len(v):,} vertices, {len(f):,} faces"})
+                    "note": note, "caption": f"{len(v):,} vertices, {len(f):,} faces; H {vmin:.3g} … {vmax:.3g}"})
     return out
 
 
@@ -203,6 +205,51 @@ def _final_row(cells: list[dict | None], arts: Artifacts) -> dict:
     return {"name": "Final surface", "cells": pics}
 
 
+#: what a shape-gradient row is, by its resolved ``preset`` (the report names it in the tables' captions)
+VARIANTS = {"paper": "the paper's algorithm as printed (preset=paper)",
+            "paper+fixes": "the paper's experiment with the suite's corrections (preset=paper+fixes: full "
+                           "gradient, H¹ preconditioning, capped backtracking; same Γ₀ and iterations)",
+            "none": "the suite's default (genus-0 start, remeshing, guards)"}
+#: why a run stopped, in words (``stop_reason`` → text)
+STOP_WORDS = {"line_search_floor": "the line search found no decrease of the energy down to a 10⁻⁴-voxel step",
+              "converged": "the energy or the surface stopped changing (tolerance)",
+              "diverged": "the step became non-finite or left the grid",
+              "sign_guard": "the sign guard rolled back a step that cut the object",
+              "max_iter": "the iteration limit"}
+
+
+def variant_of(r: dict | None) -> str | None:
+    """The ``preset`` a shape-gradient row ran with ("paper", "paper+fixes", "none"), None for other methods."""
+    if r is None or r.get("method") != "shape_gradient":
+        return None
+    try:
+        params = json.loads(r.get("parameters") or "{}")
+    except (TypeError, ValueError):
+        params = {}
+    return str(params.get("preset") or "none") if isinstance(params, dict) else "none"
+
+
+def _caption(layout: PaperLayout, cells: list[dict | None], iterations: list[int]) -> str:
+    """Which variant each column's label is, and where a column's run stopped before the last row."""
+    parts, seen = [], set()
+    for c, r in zip(layout.columns, cells):
+        v = variant_of(r)
+        if r is not None and c.label not in seen and v in VARIANTS:
+            seen.add(c.label)
+            parts.append(f"{c.label}: {VARIANTS[v]}")
+    text = "Columns drawn from " + "; ".join(parts) + "." if parts else ""
+    last = max(iterations) if iterations else 0
+    stops = []
+    for c, r in zip(layout.columns, cells):
+        it = _last_iteration(r) if r is not None else None
+        if it is not None and it < last:
+            why = r.get("stop_reason") or "stopped"
+            stops.append(f"{c.title or c.label} stopped at iteration {it} ({why}: {STOP_WORDS.get(why, why)})")
+    if stops:
+        text += (" " if text else "") + "Rows past the stop show the final mesh: " + "; ".join(stops) + "."
+    return text
+
+
 def paper_tables(df, arts: Artifacts, layout: PaperLayout | None = None) -> list[dict]:
     """Per phantom: the layout's columns; rows the initial surface, the kept iterations, the final surface
     when no iteration row shows it, and the energy curves."""
@@ -220,7 +267,7 @@ def paper_tables(df, arts: Artifacts, layout: PaperLayout | None = None) -> list
             rows.append(_final_row(cells, arts))
         rows.append({"name": "Energy", "cells": energy_row(cells, arts, [i for i in iterations if i > 0])})
         out.append({"phantom": phantom, "heads": [_head(c, r) for c, r in zip(layout.columns, cells)],
-                    "rows": rows})
+                    "rows": rows, "caption": _caption(layout, cells, iterations)})
     return out
 
 
@@ -230,27 +277,35 @@ def _gallery_title(label: str, method: str) -> str:
 
 
 def _uniform_table(d, arts: Artifacts, layout: PaperLayout) -> dict | None:
-    label = layout.uniform_label
+    """Per phantom, the final mesh and the energy curve of each of the layout's uniform labels."""
+    labels = [lab for lab in layout.uniform_labels if (d["label"] == lab).any()]
     rows = []
     for phantom in dict.fromkeys(d["phantom"]):
-        r = pick(d, label=label, noise="uniform", phantom=phantom)
+        cells = [pick(d, label=lab, noise="uniform", phantom=phantom) for lab in labels]
+        r = next((c for c in cells if c is not None), None)
         if r is None:
             continue
         name = phantom
         if r.get("snr_requested") is not None and not is_nan(r.get("snr_requested")):
             name += f" (SNR {float(r['snr_requested']):g} dB)"
-        rows.append({"name": name, "cells": picture_row([(r, None)], arts) + energy_row([r], arts, [])})
+        pics = picture_row([(c, None) for c in cells], arts)
+        curves = energy_row(cells, arts, [])
+        rows.append({"name": name, "cells": [x for pair in zip(pics, curves) for x in pair]})
     if not rows:
         return None
-    method = d[d["label"] == label]["method"].iloc[0]
-    clean = [c.title for c in layout.columns if c.label == label and c.noise == "none" and c.title]
-    title = _gallery_title(label, method) + (f" ({clean[0]})" if clean else "") + " on uniform noise"
-    return {"title": title, "heads": ["final mesh", "energy"], "rows": rows}
+    titles = []
+    for lab in labels:
+        clean = [c.title for c in layout.columns if c.label == lab and c.noise == "none" and c.title]
+        titles.append(_gallery_title(lab, d[d["label"] == lab]["method"].iloc[0])
+                      + (f" ({clean[0]})" if clean else ""))
+    heads = [h for lab in labels for h in ((f"final mesh [{lab}]", f"energy [{lab}]") if len(labels) > 1
+                                           else ("final mesh", "energy"))]
+    return {"title": " and ".join(titles) + " on uniform noise", "heads": heads, "rows": rows}
 
 
 def gallery_tables(df, arts: Artifacts, layout: PaperLayout | None = None) -> list[dict]:
     """Per label not in the paper tables: phantoms × noise settings of final meshes (the paper's MC /
-    DistMesh tables); plus the uniform-noise table of the layout's ``uniform_label``."""
+    DistMesh tables); plus the uniform-noise table of the layout's ``uniform_labels``."""
     layout = layout if layout is not None else paper_layout(None, df, arts)
     d = primary(df)
     noises = sorted(dict.fromkeys(d["noise"]), key=lambda n: NOISE_ORDER.get(n, 9))
@@ -267,7 +322,7 @@ def gallery_tables(df, arts: Artifacts, layout: PaperLayout | None = None) -> li
             rows.append({"name": phantom, "cells": picture_row(entries, arts)})
         out.append({"title": _gallery_title(label, method), "heads": [noise_title(nz, None) for nz in noises],
                     "rows": rows})
-    if layout.uniform_label and "uniform" in noises:
+    if layout.uniform_labels and "uniform" in noises:
         table = _uniform_table(d, arts, layout)
         if table is not None:
             out.append(table)

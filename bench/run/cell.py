@@ -32,9 +32,11 @@ from ..metrics.validity import check_mesh
 from .cost import measure
 from .grid import canonical_json, slug
 from .store import save_npz
+from .view import view_arrays
 from .values import error_text, plain
 
-__all__ = ["run_cell", "failed_result", "build_volume", "cell_source", "vertex_mean_curvature", "method_info"]
+__all__ = ["run_cell", "failed_result", "build_volume", "cell_source", "truth_samples", "vertex_mean_curvature",
+           "method_info"]
 
 
 def _volume_cache_path(cache_dir: str, cell: dict) -> Path:
@@ -71,6 +73,34 @@ def build_volume(cell: dict, cache_dir: str | None = None):
         except (OSError, WriteError):  # the cache is an optimisation; a full disk must not fail the cell
             pass
     return ph, vol
+
+
+def truth_samples(cell: dict, ph, cache_dir: str | None = None) -> np.ndarray | None:
+    """The phantom's area-uniform surface samples the metrics compare with (``ph.sample_surface(n_samples,
+    seed)``), optionally cached on disk beside the volume: the same for every method and noise setting."""
+    if ph is None:
+        return None
+    n, seed = int(cell["n_samples"]), int(cell["seed"])
+    path = (_volume_cache_path(cache_dir, cell).with_name(f"{slug(cell['phantom'])}_samples{n}_s{seed}.npz")
+            if cache_dir else None)
+    if path is not None and path.exists():
+        try:
+            with np.load(path) as z:
+                pts = z["points"]
+            if pts.shape == (n, 3):
+                return pts
+        except Exception:  # a broken cache file is rebuilt
+            pass
+    try:
+        pts = np.asarray(ph.sample_surface(n, seed)[0], float)
+    except NotImplementedError:  # a phantom without a truth: the metrics say so themselves
+        return None
+    if path is not None:
+        try:
+            save_npz(path, {"points": pts}, compressed=False)
+        except (OSError, WriteError):
+            pass
+    return pts
 
 
 def vertex_mean_curvature(vertices, faces, h: float) -> np.ndarray:
@@ -115,14 +145,27 @@ def _snapshots(info: dict, faces: np.ndarray) -> dict[int, tuple[np.ndarray, np.
     return out
 
 
-def _artifacts(rec, h: float) -> dict:
-    """Arrays the report draws: the final mesh with its per-vertex H, the energy history and snapshots."""
+def _artifacts(rec, h: float, curvature: dict | None = None, sdf=None) -> dict:
+    """Arrays the report draws: the final mesh with its per-vertex H (and K: ``curvature``, the metrics' own
+    when they computed them for these vertices), the viewer's decimated mesh (coloured by H and, with the
+    truth's signed distance function ``sdf``, the distance in h), the energy history and snapshots."""
     v = np.asarray(rec.mesh.vertices, float)
     f = np.asarray(rec.mesh.faces, np.int64)
+    curvature = {k: c for k, c in (curvature or {}).items() if len(c) == len(v)}
     art: dict[str, np.ndarray] = {
         "vertices": v.astype(np.float32), "faces": f.astype(np.int32),
-        "H": vertex_mean_curvature(v, f, h).astype(np.float32),
+        "H": np.asarray(curvature["H"] if "H" in curvature else vertex_mean_curvature(v, f, h)).astype(np.float32),
     }
+    if "K" in curvature:
+        art["K"] = np.asarray(curvature["K"]).astype(np.float32)
+    colours = {"H": art["H"]}
+    if sdf is not None and len(v):
+        try:
+            colours["d"] = np.asarray(sdf(v), float) / h
+        except Exception:  # noqa: BLE001 — the viewer's distance map is optional
+            pass
+    art.update(view_arrays(v, f, colours))
+    art["spacing"] = np.float64(h)   # the report fits the snapshots' H for the pictures it draws (not all)
     energy = rec.info.get("energy_history")
     if energy is not None and len(energy):
         art["energy_history"] = np.asarray(energy, float)
@@ -135,8 +178,19 @@ def _artifacts(rec, h: float) -> dict:
             art[f"snap{it}_vertices"] = sv.astype(np.float32)
             if sf is not f:
                 art[f"snap{it}_faces"] = sf.astype(np.int32)
-            art[f"snap{it}_H"] = vertex_mean_curvature(sv, sf, h).astype(np.float32)
     return art
+
+
+def _stopwatch(phases: dict):
+    """``lap(name)``: add the seconds since the previous lap to ``phases[name]``."""
+    last = [time.perf_counter()]
+
+    def lap(name: str) -> None:
+        now = time.perf_counter()
+        phases[name] = phases.get(name, 0.0) + now - last[0]
+        last[0] = now
+
+    return lap
 
 
 def _id_row(cell: dict) -> dict[str, Any]:
@@ -176,11 +230,13 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
     (:mod:`bench.run.limits`)."""
     from bench.metrics import evaluate
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     row = _id_row(cell)
     artifacts: dict = {}
     tb = None
     stage = "setup"
+    phases = row["phase_s"] = {}
+    lap = _stopwatch(phases)
     try:
         import_plugins(cell.get("imports") or ())
         stage = "volume"
@@ -190,38 +246,54 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
         truth = ph.ground_truth()
         row["h"], row["has_truth"] = float(vol.h), truth is not None
         clean = vol
+        lap("volume")
         if cell["noise"] != "none":
             vol, achieved = add_noise(vol, cell["noise"], cell["snr_requested"], seed=cell["seed"])
             row["snr_achieved"] = float(achieved)
+            lap("noise")
         stage = "method setup"
         method = get_method(cell["method"], **cell["params"])
         row["parameters"] = canonical_json(plain(getattr(method, "config", cell["params"])))
         stage = "reconstruction"
         if on_phase is not None:
             on_phase("method", {})
+        lap("setup")
         rec, cost = measure(method.reconstruct, vol)
         rec = as_reconstruction(rec, cell["method"])   # a bare trimesh etc.: named, not an AttributeError
         runner_values = _runner_values(rec, cost)
         row["method_info"] = method_info(rec.info)
         if on_phase is not None:
             on_phase("scoring", plain(runner_values))
-        stage = "pictures"
-        try:
-            artifacts = _artifacts(rec, vol.h)
-        except Exception as exc:  # pictures are optional; the metrics are not
-            artifacts = {}
-            runner_values["artifact_error"] = error_text(exc)
+        lap("method")
         stage = "validity"
         # against the clean level set the grid knows (and, with noise, the one the method was given)
         invalid = check_mesh(rec.mesh, clean, given=None if vol is clean else vol)
+        lap("validity")
         stage = "metrics"
+        final_H: dict = {}
+        metric_phases: dict = {}
         try:
-            metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell["n_samples"], seed=cell["seed"])
+            metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell["n_samples"], seed=cell["seed"],
+                               timings=metric_phases, vertex_H=final_H,
+                               truth_points=truth_samples(cell, truth, cache_dir))
         except Exception:
             if not invalid:
+                try:                                   # the row fails; its pictures are still worth keeping
+                    artifacts = _artifacts(rec, vol.h, None, getattr(truth, "sdf", None))
+                except Exception:  # noqa: BLE001
+                    pass
                 raise
             metrics = {}                               # an invalid mesh keeps what can be computed
         row.update(plain(dict(metrics)))
+        lap("metrics")
+        phases.update({f"metrics/{k}": v for k, v in metric_phases.items()})
+        stage = "pictures"
+        try:
+            artifacts = _artifacts(rec, vol.h, final_H, getattr(truth, "sdf", None))
+        except Exception as exc:  # pictures are optional; the metrics are not
+            artifacts = {}
+            runner_values["artifact_error"] = error_text(exc)
+        lap("artifacts")
         for k, v in runner_values.items():
             if v is not None or k not in row:
                 row[k] = plain(v)
@@ -233,6 +305,7 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
         row["error"] = f"{stage}: {error_text(exc)}"
         tb = traceback.format_exc()
     row["cell_s"] = time.perf_counter() - t0
+    row["cpu_s"] = time.process_time() - c0        # all threads of the cell: its cost whatever the machine's load
     return {"row": row, "artifacts": artifacts, "traceback": tb}
 
 

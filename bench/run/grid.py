@@ -100,6 +100,8 @@ def expand_grid(cfg) -> list[dict]:
                     seeds = cfg.seeds[:1] if noise.kind == "none" else cfg.seeds
                     for seed in seeds:
                         for spec in cfg.methods:
+                            if not spec.runs_on(noise.kind):
+                                continue
                             for label, params in spec.instances():
                                 cell = {
                                     "phantom": phantom, **({"source": source} if source != phantom else {}),

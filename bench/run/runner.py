@@ -194,6 +194,19 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
                            score_timeout=score_timeout)
 
 
+def _expected_cost(cell: dict) -> float:
+    """A rough relative cost of a cell (the method's ``relative_cost`` × N³, noisy cells more): the runner starts
+    the dearest cells first, so that the workers finish together instead of one running the longest cell alone
+    at the end.  Results are written in grid order whatever the order of running."""
+    from methods import get_method
+
+    try:
+        rel = float(getattr(get_method(cell["method"], **cell["params"]), "relative_cost", 1.0))
+    except Exception:  # a cell that cannot even build its method fails fast anyway
+        rel = 1.0
+    return rel * (cell["n"] / 96.0) ** 3 * (1.5 if cell["noise"] != "none" else 1.0)
+
+
 def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_meshes, progress, argv, executor,
                 allow_mixed_code, method_timeout=None, score_timeout=None) -> RunSummary:
     cells = expand_grid(cfg)
@@ -202,7 +215,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     records, mixed = _load_done(out, cells, cfg, resume, retry_failed, allow_mixed_code)
     write_json(out / "config.json", cfg.to_dict())
     code = code_identity()
-    todo = [c for c in cells if c["cell_id"] not in records]
+    todo = sorted((c for c in cells if c["cell_id"] not in records), key=_expected_cost, reverse=True)
     summary = RunSummary(out=out, total=len(cells), skipped=len(cells) - len(todo))
     session = {"start": _now(), "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
                **limits.to_dict(), "cells_to_run": len(todo), "resumed_from": len(cells) - len(todo),

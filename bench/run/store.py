@@ -59,7 +59,7 @@ ID_COLUMNS = ["cell_id", "phantom", "variant", "N", "noise", "snr_requested", "s
 RUNNER_COLUMNS = ["iterations", "energy_final", "stop_reason", "wall_s", "peak_mem_mb"]
 TAIL_COLUMNS = ["flags", "status", "error"]
 #: row keys kept in the cell's json but not in results.csv
-_NOT_IN_CSV = ("cell_s", "artifact_error", "method_info")
+_NOT_IN_CSV = ("cell_s", "cpu_s", "artifact_error", "method_info", "phase_s")
 
 
 # ---------------------------------------------------------------------------------------------- atomic writes

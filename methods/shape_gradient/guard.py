@@ -12,6 +12,7 @@ checked intersection-free mesh and halves its step cap.
 
 from __future__ import annotations
 
+import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -25,6 +26,16 @@ __all__ = ["count_intersections", "repair_intersections"]
 
 _REPAIR_ROUNDS = 4
 _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="meshlab-intersections")
+
+
+def _new_pool() -> None:
+    """A fresh pool in a forked child: the parent's worker thread does not exist there, and a job submitted to
+    the inherited pool would wait for it forever (the local executor forks every cell from a warmed server)."""
+    global _POOL
+    _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="meshlab-intersections")
+
+
+os.register_at_fork(after_in_child=_new_pool)
 
 
 def _meshlab_faces(x: np.ndarray, faces: np.ndarray) -> np.ndarray:

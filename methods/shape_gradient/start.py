@@ -155,6 +155,20 @@ def initial_surface(cfg: dict, volume: Volume, edge_length_voxels: float | None 
 _TOPOLOGY_LEVELS = (0.0, -0.25, 0.25, -0.5, 0.5)
 
 
+def _inside_box(values: np.ndarray, level: float) -> np.ndarray:
+    """``values`` cut to the box of the samples below ``level`` plus one sample on every side (where there is
+    one): every region below a lower level lies inside it, surrounded by samples above, so its components and
+    Euler numbers are those of the whole grid — at a fraction of the cost (the sphere at N = 96: 1/10)."""
+    below = values < level
+    if not below.any():
+        return values
+    box = []
+    for ax in range(values.ndim):
+        hit = np.flatnonzero(below.any(axis=tuple(k for k in range(values.ndim) if k != ax)))
+        box.append(slice(max(int(hit[0]) - 1, 0), min(int(hit[-1]) + 2, values.shape[ax])))
+    return values[tuple(box)]
+
+
 def target_topology(volume: Volume) -> dict:
     """What the region φ < 0 looks like at grid resolution, against one genus-0 surface.
 
@@ -172,8 +186,9 @@ def target_topology(volume: Volume) -> dict:
     from skimage.measure import euler_number, label
 
     readings = []
+    values = _inside_box(volume.values, max(_TOPOLOGY_LEVELS) * volume.h)
     for t in _TOPOLOGY_LEVELS:
-        inside = volume.values < t * volume.h
+        inside = values < t * volume.h
         for conn in (3, 1):
             n = int(label(inside, connectivity=conn, return_num=True)[1])
             chi = int(euler_number(inside, connectivity=conn))

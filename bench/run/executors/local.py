@@ -91,7 +91,8 @@ class LocalExecutor:
         mods = ["bench.run.cell", "bench.metrics", "methods", "geometry", "trimesh",
                 "scipy.spatial", "skimage.measure"] + [f"methods.{m}" for m in
                                                        ("marching_cubes", "mc_taubin", "distmesh", "poisson",
-                                                        "shape_gradient")] + list(self.preload)
+                                                        "shape_gradient")] + list(self.preload) \
+            + ["bench.run.warmup"]       # last: the first calls of a cell's steps, paid once here, not per cell
         ctx.set_forkserver_preload(mods)
         # one BLAS/OpenMP thread per worker when several run at once (the fork server inherits this env)
         if self.jobs > 1:

@@ -162,8 +162,9 @@ def _drop_replaced_report_labels(cfg: RunConfig) -> None:
     cfg.report = {k: v for k, v in cfg.report.items() if k not in ("paper_columns", "uniform_label")}
     if cols:
         cfg.report["paper_columns"] = cols
-    if uniform in labels:
-        cfg.report["uniform_label"] = uniform
+    kept = [u for u in ([uniform] if isinstance(uniform, str) else (uniform or [])) if u in labels]
+    if kept:
+        cfg.report["uniform_label"] = kept[0] if isinstance(uniform, str) else kept
 
 
 def _check_executor_args(args) -> None:

@@ -8,6 +8,7 @@ method honours the contract, 2 on bad input (unknown method or parameter, a modu
 from __future__ import annotations
 
 from ..check import CASES, check_method, hint
+from ..terminal import printable
 from .methods import add_import_option, import_modules, parse_assignments
 
 HELP = """\
@@ -33,17 +34,17 @@ def _print_case(r, verbose: bool) -> None:
         what += f", {r.facts.get('faces', '?')} faces, euler {r.facts.get('euler', '?')}"
     print(f"  {r.case:<12} {verdict}  {r.seconds:7.3f} s  {what}")
     for note in r.notes:
-        print(f"  {'':<12}       note: {note}")
+        print(printable(f"  {'':<12}       note: {note}"))
     if r.info:
         items = ", ".join(f"{k}={_short(v)}" for k, v in r.info.items())
-        print(f"  {'':<12}       info: {items}")
+        print(printable(f"  {'':<12}       info: {items}"))
     for v in r.violations:
-        print(f"  {'':<12}       violation: {v}")
+        print(printable(f"  {'':<12}       violation: {v}"))
         fix = hint(v)
         if fix:
             print(f"  {'':<12}         fix: {fix}")
     if verbose and r.traceback:
-        print(r.traceback)
+        print(printable(r.traceback))
 
 
 def _cmd_check(args) -> int:

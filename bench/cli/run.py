@@ -14,6 +14,7 @@ from phantoms import InputError
 
 from ..config import (RunConfig, builtin_config, config_from_dict, load_config, parse_method_spec,
                      parse_noise_spec)
+from ..terminal import printable
 
 RUN_HELP = """\
 Run a phantom x noise x method grid and write results.csv, run.json and index.html into --out.
@@ -196,12 +197,16 @@ def _cmd_run(args) -> int:
         raise InputError("--allow-mixed-code needs --resume")
     if args.resume and not args.out:
         raise InputError("--resume needs --out DIR (the folder of the run to complete)")
+    from ..run.limits import check_seconds
+
+    for opt in ("timeout", "method_timeout", "score_timeout"):   # before any work: no OverflowError mid-run
+        check_seconds(getattr(args, opt), "--" + opt.replace("_", "-"))
     cfg = _resolve_config(args)
     cells = expand_grid(cfg)
     if args.dry_run:
         for c in cells:
             print(c["cell_id"])
-        print(f"{len(cells)} cells ({cfg.name})")
+        print(f"{len(cells)} cells ({printable(cfg.name)})")
         return 0
     out = Path(args.out) if args.out else Path("reports") / _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     check_output_dir(out, args.resume)
@@ -214,7 +219,7 @@ def _cmd_run(args) -> int:
         limits = time_limits(cfg, args.timeout, args.method_timeout, args.score_timeout)  # as run_grid does
         executor = DaskExecutor(scheduler=args.scheduler, workers=args.workers, timeout=limits,
                                 cache_dir=str(out / CACHE_DIR), imports=list(cfg.imports))
-    print(f"{cfg.name}: {len(cells)} cells → {out}", file=sys.stderr)
+    print(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
     try:
         if executor is not None:
             executor.connect()
@@ -234,7 +239,7 @@ def _cmd_run(args) -> int:
     except Exception as exc:
         if type(exc).__name__ != "DaskRunIncomplete":
             raise
-        print(f"error: {exc}; the finished cells are in {out}; complete the run with "
+        print(f"error: {printable(exc)}; the finished cells are in {out}; complete the run with "
               f"`python -m bench run --resume --out {out} --executor dask ...`", file=sys.stderr)
         return 1
     finally:
@@ -242,7 +247,7 @@ def _cmd_run(args) -> int:
             executor.close()
     if not args.no_report:
         _report_after_run(out, summary)
-    print(summary.line())
+    print(printable(summary.line()))
     if summary.report_error:
         print(f"warning: the report could not be written ({summary.report_error}); results are in "
               f"{out / 'results.csv'}; details in {out / 'report_error.txt'}", file=sys.stderr)

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from methods import Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction
+from methods import Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction, run_reconstruct
 from phantoms import InputError, Volume, add_noise
 
 from .metrics.validity import check_mesh
@@ -180,7 +180,7 @@ def run_case(method, case: str, volume: Volume, clean: Volume) -> CaseResult:
     res = CaseResult(case)
     t0 = time.perf_counter()
     try:
-        out = method.reconstruct(volume)
+        out = run_reconstruct(method, volume)
         res.seconds = time.perf_counter() - t0
         rec = as_reconstruction(out, method.name)
     except (InputError, ReconstructionFailed) as exc:

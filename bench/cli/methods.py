@@ -109,7 +109,7 @@ def _fmt(value) -> str:
 
 
 def _cmd_reconstruct(args) -> int:
-    from methods import as_reconstruction, get_method
+    from methods import as_reconstruction, get_method, run_reconstruct
     from methods.marching_cubes import mesh_facts
 
     out = Path(args.output)
@@ -122,7 +122,7 @@ def _cmd_reconstruct(args) -> int:
     volume = load_volume(args.input, mask=True if args.mask else None)
     check_outputs(out, args.info_json)  # a bad output path fails before the method runs
     t0 = time.perf_counter()
-    rec = as_reconstruction(method.reconstruct(volume), args.method)  # wrong type: one line, exit 1
+    rec = as_reconstruction(run_reconstruct(method, volume), args.method)  # wrong type, sys.exit: one line, exit 1
     wall = time.perf_counter() - t0
     mesh = getattr(rec, "mesh", None)
     if mesh is None:

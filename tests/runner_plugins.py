@@ -123,3 +123,13 @@ class BadInfoMethod(Method):
         rec = get_method("marching_cubes").reconstruct(volume)
         key = self.config["key"]
         return Reconstruction(rec.mesh, {key: wrong[key]})
+
+
+@register_method
+class HugeMessageMethod(Method):
+    name = "huge_message"
+    description = "raises an exception whose message has 5 million characters (message capping tests)"
+    params: dict = {}
+
+    def reconstruct(self, volume):
+        raise RuntimeError("x" * 5_000_000)

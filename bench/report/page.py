@@ -11,6 +11,7 @@ from pathlib import Path
 from geometry.files import atomic_write
 
 from ..run.store import read_results, scan_cells
+from ..run.values import cap_tail, cap_text
 from .artifacts import Artifacts
 from .claims import check_claims
 from .cost import cost_section
@@ -60,8 +61,11 @@ def _failed(df, records: dict) -> list[dict]:
     failed = []
     for _, r in df[df["status"] != "ok"].iterrows():
         rec = records.get(r["cell_id"], {})
-        failed.append({"cell_id": r["cell_id"], "label": r["label"], "status": r["status"], "error": r["error"],
-                       "traceback": rec.get("traceback")})
+        where = f"cells/{r['cell_id']}.json"          # the full texts; the page shows the capped ones
+        tb = rec.get("traceback")
+        failed.append({"cell_id": r["cell_id"], "label": r["label"], "status": r["status"],
+                       "error": cap_text(r["error"], where=where),
+                       "traceback": cap_tail(tb, where=where) if isinstance(tb, str) else tb})
     return failed
 
 

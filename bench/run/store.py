@@ -352,9 +352,46 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else "empty"
 
 
+def _check_csv_rows(path: Path) -> None:
+    """Every record of ``path`` has the header's number of fields and the file ends with a newline (as
+    :func:`write_results_csv` writes it), else an :class:`InputError` with the line number — a file cut in half
+    mid-row must not be rendered as a half row (pandas pads a short row with NaN)."""
+    import csv
+    import io
+
+    hint = (f"; rerun the grid with `python -m bench run --resume --out {str(path.parent)}` to rewrite it "
+            "from the cell records")
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            text = fh.read()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{str(path)!r} is not a readable results table ({type(exc).__name__}: "
+                         f"{_first_line(exc)}){hint}") from None
+    if not text.strip():
+        return                                                    # an empty file: pandas' own message
+    limit = csv.field_size_limit()
+    csv.field_size_limit(max(limit, len(text)))
+    try:
+        reader = csv.reader(io.StringIO(text, newline=""), strict=True)
+        header = next(reader)
+        for record in reader:
+            if len(record) != len(header):
+                raise InputError(f"{str(path)!r} line {reader.line_num}: {len(record)} fields where the header "
+                                 f"has {len(header)} (a truncated or malformed results table){hint}")
+    except csv.Error as exc:
+        raise InputError(f"{str(path)!r} line {reader.line_num}: {exc} (a truncated or malformed results "
+                         f"table){hint}") from None
+    finally:
+        csv.field_size_limit(limit)
+    if not text.endswith("\n"):
+        raise InputError(f"{str(path)!r} line {reader.line_num}: the last row does not end with a newline (a "
+                         f"truncated results table){hint}")
+
+
 def _read_csv_table(path: Path):
     import pandas as pd
 
+    _check_csv_rows(path)
     try:
         df = pd.read_csv(path, keep_default_na=True)
     except (OSError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:

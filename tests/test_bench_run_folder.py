@@ -63,3 +63,84 @@ def test_report_on_an_intact_folder_still_renders(run_folder, tmp_path, capsys):
     (out / RESULTS_PARQUET).unlink(missing_ok=True)   # through the CSV path
     assert main(["report", str(out)]) == 0
     assert (out / "index.html").is_file()
+
+
+# ---------------------------------------------------------------------------------------------- cell checksums
+import csv  # noqa: E402
+import json  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+
+def _first_cell(out):
+    with open(out / "results.csv", newline="") as fh:
+        return next(csv.DictReader(fh))["cell_id"]
+
+
+def _edit_hausdorff(out, cid):
+    path = out / "cells" / f"{cid}.json"
+    rec = json.loads(path.read_text())
+    rec["row"]["hausdorff"] = 123
+    path.write_text(json.dumps(rec, indent=1))
+
+
+def test_every_cell_record_is_written_with_its_checksums(run_folder):
+    from bench.run.integrity import record_problem
+
+    for path in sorted((run_folder / "cells").glob("*.json")):
+        rec = json.loads(path.read_text())
+        assert set(rec["checksum"]) == {"record", "npz"} and len(rec["checksum"]["record"]) == 64
+        assert record_problem(rec, path.with_suffix(".npz")) is None
+
+
+@pytest.mark.parametrize("damage, named", [
+    ("edit_json", ".json was altered after it was written"),
+    ("delete_json", ".json is missing"),
+    ("delete_npz", ".npz is missing"),
+    ("alter_npz", "does not match its checksum"),
+])
+def test_report_lists_missing_or_altered_cell_files_and_renders_them_only_with_force(
+        damage, named, run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    cid = _first_cell(out)
+    npz = out / "cells" / f"{cid}.npz"
+    if damage == "edit_json":
+        _edit_hausdorff(out, cid)
+    elif damage == "delete_json":
+        (out / "cells" / f"{cid}.json").unlink()
+    elif damage == "delete_npz":
+        npz.unlink()
+    else:
+        with np.load(npz) as z:
+            arrays = {k: z[k] for k in z.files}
+        arrays["vertices"] = arrays["vertices"] * 1.01
+        np.savez(npz, **arrays)
+    assert main(["report", str(out)]) == 2
+    _one_error(capsys, f"cells/{cid}", named, "--force", "--resume")
+    assert not (out / "index.html").exists()
+    assert main(["report", str(out), "--force"]) == 0
+    page = (out / "index.html").read_text()
+    assert "Damaged run folder" in page and f"cells/{cid}" in page
+
+
+def test_resume_recomputes_an_edited_cell_and_says_so(run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    cid = _first_cell(out)
+    _edit_hausdorff(out, cid)
+    assert main(["run", "--resume", "--out", str(out), "--jobs", "1", "--no-report"]) == 0
+    err = capsys.readouterr().err
+    assert f"{cid}.json was altered after it was written (checksum mismatch); the cell will be rerun" in err
+    with open(out / "results.csv", newline="") as fh:
+        row = {r["cell_id"]: r for r in csv.DictReader(fh)}[cid]
+    assert float(row["hausdorff"]) != 123
+    assert main(["report", str(out)]) == 0
+
+
+def test_records_without_a_checksum_are_accepted_as_unchecked(run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    for path in (out / "cells").glob("*.json"):
+        rec = json.loads(path.read_text())
+        del rec["checksum"]
+        path.write_text(json.dumps(rec, indent=1))
+    assert main(["report", str(out)]) == 0
+    assert "3 cell record(s) predate checksums and are unchecked" in capsys.readouterr().err

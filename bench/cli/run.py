@@ -105,6 +105,8 @@ def register(subparsers) -> None:
                               description="Re-render DIR/index.html from DIR/results.csv, DIR/cells and "
                                           "DIR/run.json (e.g. after an interrupted run).")
     r.add_argument("dir", metavar="DIR")
+    r.add_argument("--force", action="store_true",
+                   help="render even when cell files are missing or altered (the page lists them at the top)")
     r.set_defaults(func=_cmd_report)
 
 
@@ -280,6 +282,18 @@ def _cmd_report(args) -> int:
         raise InputError(f"{str(out)!r} holds no results.csv (not a run folder)")
     if not os.access(out, os.W_OK):
         raise InputError(f"{str(out)!r} is not writable")
-    path = write_report(out)
+    from ..run.store import check_run_folder
+
+    problems, unchecked = check_run_folder(out)      # also reads results.csv strictly: exit 2 on a damaged one
+    if problems and not args.force:
+        shown = "; ".join(problems[:10]) + (f"; ... {len(problems) - 10} more" if len(problems) > 10 else "")
+        raise InputError(f"{str(out)!r}: {len(problems)} cell file(s) missing or altered: {shown}; recompute "
+                         f"them with `python -m bench run --resume --out {out}`, or render anyway with --force")
+    path = write_report(out, problems=problems)
+    if unchecked:
+        print(f"note: {unchecked} cell record(s) predate checksums and are unchecked", file=sys.stderr)
+    if problems:
+        print(printable(f"warning: {len(problems)} cell file(s) missing or altered, listed at the top of the page"),
+              file=sys.stderr)
     print(f"wrote {path}")
     return 0

@@ -191,8 +191,9 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
     }
 
 
-def write_report(out: str | Path) -> Path:
-    """Render ``out/index.html`` from the results table, ``out/cells`` and ``out/run.json``."""
+def write_report(out: str | Path, problems: list[str] | None = None) -> Path:
+    """Render ``out/index.html`` from the results table, ``out/cells`` and ``out/run.json``; ``problems``
+    (the damaged cell files of :func:`bench.run.store.check_run_folder`, rendered anyway) head the page."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -200,10 +201,11 @@ def write_report(out: str | Path) -> Path:
 
     out = Path(out)
     df = _load_results(out)
-    records, problems = scan_cells(out)
-    for msg in problems:
+    records, unreadable = scan_cells(out)
+    for msg in unreadable:
         warn(f"{msg}; the report leaves the cell's details out")
     context = _context(df, _load_meta(out), records, Artifacts(out, warn=warn))
+    context["integrity_problems"] = list(problems or [])
     env = Environment(loader=FileSystemLoader(str(TEMPLATE_DIR)), autoescape=select_autoescape(["html"]))
     page = env.get_template("report.html").render(**context)
     return atomic_write(out / "index.html", page)

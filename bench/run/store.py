@@ -37,6 +37,7 @@ import numpy as np
 from geometry.files import TMP_GLOB, WriteError, atomic_path, atomic_write, remove_temp_files
 from phantoms import InputError
 
+from .integrity import UNCHECKED, record_problem, seal
 from .values import plain
 
 __all__ = [
@@ -131,7 +132,7 @@ def save_cell(out: Path, cell: dict, result: dict, save_meshes: bool = False, co
     record = {"row": result["row"], "cell": cell, "traceback": result.get("traceback"),
               "artifacts": sorted(art), "code": code,
               "finished": _dt.datetime.now().astimezone().isoformat(timespec="seconds")}
-    write_json(cells_dir / f"{cid}.json", record)
+    write_json(cells_dir / f"{cid}.json", seal(record, cells_dir / f"{cid}.npz" if art else None))
 
 
 def scan_cells(out: Path, verify_artifacts: bool = False) -> tuple[dict[str, dict], list[str]]:
@@ -161,6 +162,10 @@ def scan_cells(out: Path, verify_artifacts: bool = False) -> tuple[dict[str, dic
             if err:
                 problems.append(f"{cells_dir / (cid + '.npz')} {err}")
                 continue
+            err = record_problem(rec, cells_dir / f"{cid}.npz")
+            if err not in (None, UNCHECKED):
+                problems.append(f"{p} {err}")
+                continue
         records[cid] = rec
     return records, problems
 
@@ -178,6 +183,21 @@ def _artifact_problem(path: Path, expected: list | None) -> str | None:
     except Exception as exc:  # BadZipFile, zlib.error, EOFError, OSError, ValueError ...
         return f"does not load ({type(exc).__name__}: {exc})"
     return f"lacks arrays {missing}" if missing else None
+
+
+def check_run_folder(out: Path) -> tuple[list[str], int]:
+    """``(problems, unchecked)`` of a run folder's cell files: each row of the results table whose record is
+    missing, unreadable, altered (checksum), or whose ``.npz`` is missing, damaged or altered, as
+    ``"cells/<file> <why>"``; and the number of records written before checksums (accepted unchecked)."""
+    out = Path(out)
+    records, problems = scan_cells(out, verify_artifacts=True)
+    problems = [p.replace(str(out / CELLS_DIR), CELLS_DIR, 1) for p in problems]
+    seen = {Path(p.split(" ", 1)[0]).stem for p in problems}
+    for cid in read_results(out)["cell_id"].astype(str):
+        if cid not in records and cid not in seen:
+            problems.append(f"{CELLS_DIR}/{cid}.json is missing")
+    unchecked = sum(record_problem(r, out / CELLS_DIR / f"{cid}.npz") == UNCHECKED for cid, r in records.items())
+    return problems, unchecked
 
 
 def load_cells(out: Path) -> dict[str, dict]:

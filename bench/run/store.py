@@ -394,6 +394,8 @@ def _check_csv_rows(path: Path) -> None:
     try:
         reader = csv.reader(io.StringIO(text, newline=""), strict=True)
         header = next(reader)
+        if not {"cell_id", "status", "label"} <= set(header):
+            return                                                # not a results table: read_results says so
         for record in reader:
             if len(record) != len(header):
                 raise InputError(f"{str(path)!r} line {reader.line_num}: {len(record)} fields where the header "

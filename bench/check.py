@@ -31,13 +31,15 @@ them and exits 1 on any violation.
 
 from __future__ import annotations
 
+import multiprocessing as mp
+import signal
 import time
 import traceback
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from methods import Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction
+from methods import Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction, run_reconstruct
 from phantoms import InputError, Volume, add_noise
 
 from .metrics.validity import check_mesh
@@ -68,6 +70,10 @@ HINTS = {
     "wrong type": "return methods.Reconstruction(mesh, info) with a trimesh.Trimesh and a dict",
     "raised": "raise phantoms.InputError for a volume the method cannot take and methods.ReconstructionFailed "
               "for a run that failed (both with a message); anything else is a bug",
+    "timeout": "the method did not return within the case's time limit (--timeout): look for a loop without a "
+               "stopping rule, or raise ReconstructionFailed when it does not converge",
+    "crashed": "the method ended its process (a segfault or abort() in compiled code, os._exit, a signal): a "
+               "method must return or raise",
     "surface": "φ > 0 everywhere: there is no surface; call methods.check_volume(volume, self.name) first "
                "(it raises InputError) or return an empty mesh",
 }
@@ -180,7 +186,7 @@ def run_case(method, case: str, volume: Volume, clean: Volume) -> CaseResult:
     res = CaseResult(case)
     t0 = time.perf_counter()
     try:
-        out = method.reconstruct(volume)
+        out = run_reconstruct(method, volume)
         res.seconds = time.perf_counter() - t0
         rec = as_reconstruction(out, method.name)
     except (InputError, ReconstructionFailed) as exc:
@@ -205,10 +211,57 @@ def run_case(method, case: str, volume: Volume, clean: Volume) -> CaseResult:
     return res
 
 
-def check_method(method, n: int = 24, cases=CASES, seed: int = 0) -> list[CaseResult]:
-    """Run ``method`` (an instance) on each of ``cases`` at about ``n`` points per axis."""
+def check_method(method, n: int = 24, cases=CASES, seed: int = 0, timeout: float | None = None) -> list[CaseResult]:
+    """Run ``method`` (an instance) on each of ``cases`` at about ``n`` points per axis.
+
+    With ``timeout`` (seconds), each case runs in a child process (forked, so registered plug-ins come along)
+    that is stopped after ``timeout``: a method that hangs is a ``timeout`` violation and one that ends its
+    process (``os.abort()``, a segfault, ``os._exit``) a ``crashed`` one, and the remaining cases still run.
+    Without it the cases run in this process (the Python API's default)."""
     volumes = case_volumes(n, seed)
-    return [run_case(method, c, *volumes[c]) for c in cases]
+    if timeout is None or "fork" not in mp.get_all_start_methods():
+        return [run_case(method, c, *volumes[c]) for c in cases]
+    return [_run_case_isolated(method, c, volumes[c], timeout) for c in cases]
+
+
+def _case_child(conn, method, case: str, volume: Volume, clean: Volume) -> None:
+    try:
+        conn.send(run_case(method, case, volume, clean))
+    finally:
+        conn.close()
+
+
+def _run_case_isolated(method, case: str, volumes, timeout: float) -> CaseResult:
+    """:func:`run_case` in a forked child, stopped after ``timeout`` seconds; its death is the finding."""
+    ctx = mp.get_context("fork")
+    recv, send = ctx.Pipe(duplex=False)
+    t0 = time.perf_counter()
+    proc = ctx.Process(target=_case_child, args=(send, method, case, *volumes), daemon=True)
+    proc.start()
+    send.close()
+    result = None
+    try:
+        if recv.poll(timeout):
+            result = recv.recv()
+    except (EOFError, OSError):            # the child died before sending: judged below
+        pass
+    finally:
+        if proc.is_alive() and result is None:
+            proc.kill()
+        proc.join(5)
+        recv.close()
+    if result is not None:
+        return result
+    res = CaseResult(case, seconds=time.perf_counter() - t0)
+    if proc.exitcode is None or proc.exitcode == -signal.SIGKILL and res.seconds >= timeout:
+        res.outcome = "timeout"
+        res.violations.append(f"timeout: no result after {timeout:g} s (the case was stopped)")
+    else:
+        code = proc.exitcode
+        how = f"signal {signal.Signals(-code).name}" if code < 0 else f"exit code {code}"
+        res.outcome = "crashed"
+        res.violations.append(f"crashed: the method ended its process ({how}) instead of returning or raising")
+    return res
 
 
 def hint(violation: str) -> str:

@@ -4,7 +4,6 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
 
     name = "paper"
     description = "..."
-
     [grid]
     phantoms = ["sphere", "ellipsoid"]      # `python -m bench phantoms`, "mesh:PATH", "volume:PATH?threshold=3"
                                             # or { volume = "PATH", threshold = 3 }; a glob: one per file
@@ -54,6 +53,7 @@ from phantoms import (NOISE_KINDS, VARIANTS, InputError, expand_phantoms, get_ph
                       is_phantom_name, phantom_names, phantom_path)
 from phantoms.user import spec_from_table
 
+from .run.limits import check_seconds
 from .textspec import parse_value as _parse_value
 from .textspec import split_top as _split_top
 
@@ -349,7 +349,7 @@ def config_from_dict(data: dict, source: str = "") -> RunConfig:
             t = _float(run[key], f"run.{key}")
             if t < 0:
                 raise InputError(f"run.{key}: must be >= 0 (0 = no timeout)")
-            setattr(cfg, key, t or None)
+            setattr(cfg, key, check_seconds(t, f"run.{key}") or None)
     if "imports" in run:
         imports = run["imports"]
         if not isinstance(imports, list) or not all(isinstance(s, str) for s in imports):

@@ -11,15 +11,17 @@ from .base import (
     WrongReturnType,
     as_reconstruction,
     available_methods,
+    check_info,
     check_volume,
     get_method,
     import_plugins,
     method_names,
     register_method,
+    run_reconstruct,
 )
 
 __all__ = [
     "Method", "Param", "Reconstruction", "ReconstructionFailed", "available_methods", "get_method", "method_names",
-    "register_method", "import_plugins", "as_reconstruction", "WrongReturnType", "check_volume",
+    "register_method", "import_plugins", "as_reconstruction", "WrongReturnType", "check_volume", "check_info", "run_reconstruct",
     "ENTRY_POINT_GROUP", "BUILTIN_METHODS", "INFO_KEYS",
 ]

@@ -25,7 +25,7 @@ import trimesh
 from phantoms import InputError, Volume
 
 __all__ = [
-    "Param", "Method", "Reconstruction", "ReconstructionFailed", "WrongReturnType", "as_reconstruction", "INFO_KEYS", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
+    "Param", "Method", "Reconstruction", "ReconstructionFailed", "WrongReturnType", "as_reconstruction", "check_info", "run_reconstruct", "INFO_KEYS", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
     "available_methods", "get_method", "register_method", "method_names", "check_volume",
 ]
 
@@ -143,7 +143,8 @@ class Reconstruction:
 
 
 class WrongReturnType(ReconstructionFailed, TypeError):
-    """A method returned something other than a :class:`Reconstruction` of a ``trimesh.Trimesh`` and a dict."""
+    """A method returned something other than a :class:`Reconstruction` of a ``trimesh.Trimesh`` and a dict (an
+    ``info`` value of :data:`INFO_KEYS` of the wrong type, or a ``sys.exit()`` instead of a return, included)."""
 
 
 def as_reconstruction(result: Any, name: str) -> Reconstruction:
@@ -158,7 +159,49 @@ def as_reconstruction(result: Any, name: str) -> Reconstruction:
     if not isinstance(result.info, dict):
         raise WrongReturnType(f"method {name!r} returned a Reconstruction whose info is "
                               f"{type(result.info).__name__}, expected dict")
+    check_info(result.info, name)
     return result
+
+
+def _is_int(v: Any) -> bool:
+    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+
+
+def _is_real(v: Any) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+# the INFO_KEYS the suite reads as scalars: (test, what the key must be); None is "not given"
+_INFO_TYPES = {
+    "iterations": (_is_int, "an int"),
+    "stop_reason": (lambda v: isinstance(v, str), "a str"),
+    "stop_message": (lambda v: isinstance(v, str), "a str"),
+    "energy_final": (_is_real, "a real number"),
+    "warnings": (lambda v: isinstance(v, (list, tuple)) and all(isinstance(w, str) for w in v), "a list of str"),
+}
+
+
+def check_info(info: dict, name: str) -> None:
+    """:class:`WrongReturnType` naming the key when a value of :data:`INFO_KEYS` the suite reads has the wrong
+    type (``warnings = "text"`` would be one warning per character, ``iterations = "many"`` a text in an integer
+    column).  Keys of the method's own are not checked."""
+    for key, (ok, what) in _INFO_TYPES.items():
+        value = info.get(key)
+        if value is not None and not ok(value):
+            shown = repr(value) if len(repr(value)) <= 60 else repr(value)[:57] + "..."
+            raise WrongReturnType(f"method {name!r} returned info[{key!r}] = {shown} "
+                                  f"({type(value).__name__}), expected {what}")
+
+
+def run_reconstruct(method: "Method", volume: Volume) -> Any:
+    """``method.reconstruct(volume)``, with a ``sys.exit()`` inside the method turned into a
+    :class:`WrongReturnType` naming it: a plug-in must not end the suite's process (``reconstruct`` exiting
+    0 with no output, a grid worker gone without a row)."""
+    try:
+        return method.reconstruct(volume)
+    except SystemExit as exc:
+        raise WrongReturnType(f"method {method.name!r} called sys.exit({exc.code!r}) instead of returning "
+                                   "a Reconstruction or raising an exception") from None
 
 
 class Method:

@@ -37,6 +37,12 @@ def add_noise(volume: Volume, kind: str = "gaussian", snr: float | None = None,
     """
     if kind not in NOISE_KINDS:
         raise InputError(f"unknown noise kind {kind!r}; valid kinds: {', '.join(NOISE_KINDS)}")
+    try:
+        seed = int(seed)
+    except (TypeError, ValueError):
+        raise InputError(f"seed must be an integer; got {seed!r}") from None
+    if seed < 0:
+        raise InputError(f"seed must be >= 0 (NumPy's generators take no negative seed); got {seed}")
     if kind == "none":
         return volume.with_values(volume.values.copy()), math.inf
     try:
@@ -45,10 +51,6 @@ def add_noise(volume: Volume, kind: str = "gaussian", snr: float | None = None,
         raise InputError(f"SNR must be a number in dB; got {snr!r}") from None
     if not math.isfinite(snr):
         raise InputError(f"SNR must be finite; got {snr}")
-    try:
-        seed = int(seed)
-    except (TypeError, ValueError):
-        raise InputError(f"seed must be an integer; got {seed!r}") from None
     phi = volume.values
     power = float(np.mean(np.square(phi)))
     if power == 0.0:

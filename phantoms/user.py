@@ -36,7 +36,7 @@ from geometry.errors import InputError
 
 from .base import Phantom
 from .images import IMAGE_SUFFIXES, image_suffix, read_image
-from .volume import Volume, check_memory
+from .volume import Volume, check_grid, check_memory
 
 __all__ = ["VOLUME_PREFIX", "VolumePhantom", "parse_spec", "format_spec", "spec_from_table", "level_set_from_image"]
 
@@ -204,7 +204,7 @@ def level_set_from_image(image, opts: dict, where: str, require_surface: bool = 
 
     values = image.values
     try:
-        Volume(np.zeros((2, 2, 2)), image.origin, image.spacing)   # origin / spacing checked before any work
+        check_grid(image.origin, image.spacing, values.shape)       # origin / spacing checked before any work
         if values.dtype.kind == "f" and not np.isfinite(values).all():
             Volume(values, image.origin, image.spacing)             # names the NaN / inf
     except InputError as exc:

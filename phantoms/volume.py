@@ -21,7 +21,7 @@ import numpy as np
 from geometry import kernels
 from geometry.errors import InputError
 
-__all__ = ["Volume", "Sample", "VolumeSampler", "trilinear_channels", "check_memory", "available_memory"]
+__all__ = ["Volume", "Sample", "VolumeSampler", "trilinear_channels", "check_grid", "check_memory", "available_memory"]
 
 
 def available_memory() -> int | None:
@@ -54,6 +54,37 @@ def check_memory(shape, channels: int, itemsize: int = 8, what: str = "the volum
     raise InputError(f"{what} on a {dims} grid needs about {need / 2**30:.1f} GiB ({channels} arrays of "
                      f"{itemsize}-byte values per grid point) but {avail / 2**30:.1f} GiB of memory are "
                      f"available; the largest N³ grid that fits is N = {n_max}")
+
+
+def check_grid(origin, spacing, shape) -> tuple[np.ndarray, np.ndarray]:
+    """``(origin, spacing)`` of a grid of ``shape`` points as (3,) float arrays, or an :class:`InputError`:
+    origin 3 finite numbers, spacing 1 or 3 positive finite numbers, and the scale representable (below)."""
+    given_origin, given_spacing = origin, spacing
+    origin = _real_vector(origin, "origin", allow_scalar=False)
+    if not np.isfinite(origin).all():
+        raise InputError(f"volume origin must be 3 finite numbers; got {given_origin!r}")
+    spacing = _real_vector(spacing, "spacing", allow_scalar=True)
+    if not (np.isfinite(spacing).all() and (spacing > 0).all()):
+        raise InputError(f"volume spacing must be positive and finite; got {given_spacing!r}")
+    _check_scale(spacing, shape, origin)
+    return origin, spacing
+
+
+def _check_scale(spacing: np.ndarray, shape, origin: np.ndarray) -> None:
+    """Refuse a grid whose cell or box is not representable: the cell volume (∏ spacing) and the box volume
+    (∏ spacing·(N − 1)) must be normal floats, and the far corner finite — else every length, area and volume
+    computed downstream underflows to 0 or overflows to inf, and the failure would be blamed on the method.
+    Physical units of any kind (0.5 mm, 1e-3 m, 1e-9 m) are far inside these bounds."""
+    tiny, huge = np.finfo(np.float64).tiny, np.finfo(np.float64).max
+    with np.errstate(over="ignore", under="ignore"):
+        extent = spacing * (np.asarray(shape, dtype=np.float64) - 1)
+        cell, box = float(np.prod(spacing)), float(np.prod(extent))
+        corner = origin + extent
+    if not (tiny <= cell and box <= huge and np.isfinite(corner).all()):
+        what = "cell volume (product of the spacings)" if not tiny <= cell else "grid's extent"
+        raise InputError(f"volume spacing {[float(f'{v:.6g}') for v in spacing]} is out of range for a "
+                         f"{'×'.join(map(str, shape))} grid: the {what} is not a normal float "
+                         f"(cell volume {cell:.3g}, box volume {box:.3g}); rescale the units of the spacing")
 
 
 @dataclass(frozen=True)
@@ -176,12 +207,7 @@ class Volume:
                 f"volume contains non-finite values ({n_nan} NaN, {int(bad.sum()) - n_nan} inf) "
                 f"out of {values.size}; first at index {tuple(int(i) for i in np.argwhere(bad)[0])}"
             )
-        origin = _real_vector(self.origin, "origin", allow_scalar=False)
-        if not np.isfinite(origin).all():
-            raise InputError(f"volume origin must be 3 finite numbers; got {self.origin!r}")
-        spacing = _real_vector(self.spacing, "spacing", allow_scalar=True)
-        if not (np.isfinite(spacing).all() and (spacing > 0).all()):
-            raise InputError(f"volume spacing must be positive and finite; got {self.spacing!r}")
+        origin, spacing = check_grid(self.origin, self.spacing, values.shape)
         self.values, self.origin, self.spacing = values, origin, spacing
         self._channels: dict[int, np.ndarray] = {}
 

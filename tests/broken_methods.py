@@ -119,3 +119,24 @@ class SlowToScore(Method):
         mesh = _SlowFaces(mc.vertices, mc.faces, process=False)
         mesh.slow_s = self.config["seconds"]
         return Reconstruction(mesh, {"iterations": 0})
+
+
+
+@register_method
+class BrokenHangs(Method):
+    name = "broken_hangs"
+    description = "never returns (a loop without a stopping rule)"
+
+    def reconstruct(self, volume):
+        time.sleep(3600)
+
+
+@register_method
+class BrokenAborts(Method):
+    name = "broken_aborts"
+    description = "calls os.abort() (compiled code that crashes)"
+
+    def reconstruct(self, volume):
+        import os
+
+        os.abort()

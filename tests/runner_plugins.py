@@ -95,3 +95,41 @@ class BrokenMethod(Method):
             v = np.vstack([v, v[f[0, 0]] + 3 * volume.h])
             f = np.vstack([f, [[f[0, 0], f[0, 1], len(v) - 1]]])
         return Reconstruction(trimesh.Trimesh(v, f, process=False), {})
+
+
+@register_method
+class ExitingMethod(Method):
+    name = "exiting"
+    description = "calls sys.exit(0) instead of returning (plug-in contract tests)"
+    params: dict = {}
+
+    def reconstruct(self, volume):
+        import sys
+
+        sys.exit(0)
+
+
+@register_method
+class BadInfoMethod(Method):
+    name = "bad_info"
+    description = "marching cubes whose info has one value of the wrong type (plug-in contract tests)"
+    params = {"key": Param("warnings", "which info key is wrong", str,
+                           choices=("warnings", "iterations", "stop_reason", "energy_final"))}
+
+    def reconstruct(self, volume):
+        from methods import Reconstruction, get_method
+
+        wrong = {"warnings": "a string", "iterations": "many", "stop_reason": 3, "energy_final": "low"}
+        rec = get_method("marching_cubes").reconstruct(volume)
+        key = self.config["key"]
+        return Reconstruction(rec.mesh, {key: wrong[key]})
+
+
+@register_method
+class HugeMessageMethod(Method):
+    name = "huge_message"
+    description = "raises an exception whose message has 5 million characters (message capping tests)"
+    params: dict = {}
+
+    def reconstruct(self, volume):
+        raise RuntimeError("x" * 5_000_000)

@@ -143,3 +143,21 @@ def test_reconstruct_names_a_wrong_return_type(broken, tmp_path, capsys):
     assert code == 1
     assert err.strip() == ("error: method 'broken_type' returned Trimesh, expected methods.Reconstruction "
                            "(return Reconstruction(mesh, info))")
+
+
+@pytest.mark.parametrize("name, violation", [
+    ("broken_hangs", "violation: timeout: no result after 2 s (the case was stopped)"),
+    ("broken_aborts", "violation: crashed: the method ended its process (signal SIGABRT)"),
+])
+def test_a_hanging_or_aborting_method_is_a_reported_violation(name, violation, broken, capsys):
+    """Each case runs in its own process under --timeout: the check reports and goes on to the next case."""
+    import time
+
+    t0 = time.perf_counter()
+    code = main(["check-method", name, "--import", "broken_methods", "--timeout", "2",
+                 "--case", "sphere", "--case", "no_surface"])
+    out = capsys.readouterr().out
+    assert code == 1, out
+    assert out.count(violation) == 2 and out.count("fix: ") == 2, out
+    assert "FAIL: 2 of 2 cases violate the method contract" in out
+    assert time.perf_counter() - t0 < 60          # bounded by the limit, not by the hour the method sleeps

@@ -28,12 +28,15 @@ def damaged(run_dir, tmp_path):
     return copy
 
 
-def test_report_skips_unreadable_cells_with_a_warning_and_renders_the_rest(damaged, capsys):
+def test_report_lists_unreadable_cells_and_with_force_renders_the_rest(damaged, capsys):
     cells = sorted((damaged / "cells").glob("*.npz"))
     cells[0].write_bytes(cells[0].read_bytes()[:200])                       # truncated archive
     bad_json = cells[1].with_suffix(".json")
     bad_json.write_text("{")                                                # half a record
-    assert main(["report", str(damaged)]) == 0
+    assert main(["report", str(damaged)]) == 2                              # listed, not rendered ...
+    err = capsys.readouterr().err
+    assert f"cells/{cells[0].name} does not load (BadZipFile" in err and f"cells/{bad_json.name} is unreadable" in err
+    assert main(["report", str(damaged), "--force"]) == 0                   # ... unless forced
     err = capsys.readouterr().err
     assert f"warning: {cells[0]} does not load (BadZipFile)" in err
     assert f"warning: {bad_json} is unreadable" in err and "Traceback" not in err

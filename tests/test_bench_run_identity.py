@@ -9,6 +9,7 @@ import pytest
 from bench.cli import main
 from bench.config import builtin_config
 from bench.run.identity import code_identity, code_label, config_differences, config_fingerprint, mixed_code
+from bench.run.integrity import seal
 
 GRID = ["--quick", "--phantoms", "sphere", "--noise", "none", "--n", "16", "--n-samples", "2000",
         "--method", "marching_cubes", "--add-method", "mc_taubin", "--jobs", "2"]
@@ -67,7 +68,7 @@ def test_resume_with_other_code_is_refused_unless_allowed_and_then_stated(finish
     cells = sorted((finished / "cells").glob("*.json"))
     rec = json.loads(cells[0].read_text())
     rec["code"] = {"version": "0.0.1", "commit": "f" * 40, "dirty": False, "diff": None}
-    cells[0].write_text(json.dumps(rec))
+    cells[0].write_text(json.dumps(seal(rec, cells[0].with_suffix(".npz"))))   # as that code wrote it
     cells[1].unlink()                                          # a cell left to compute with today's code
     assert main(["run", *GRID, "--resume", "--out", str(finished), "--no-report"]) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]

@@ -14,6 +14,8 @@ import sys
 from methods import ReconstructionFailed
 from phantoms import InputError
 
+from ..terminal import printable
+
 from . import check as _check
 from . import compare as _compare
 from . import methods as _methods
@@ -46,10 +48,10 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         return quiet_broken_pipe()
     except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {printable(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except ReconstructionFailed as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {printable(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -57,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:  # a write error a command did not name itself: still one line with path and cause
         if exc.filename is None:
             raise
-        print(f"error: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        print(printable(f"error: {exc.filename}: {exc.strerror or exc}"), file=sys.stderr)
         return EXIT_USAGE
 
 

@@ -8,6 +8,7 @@ method honours the contract, 2 on bad input (unknown method or parameter, a modu
 from __future__ import annotations
 
 from ..check import CASES, check_method, hint
+from ..terminal import printable
 from .methods import add_import_option, import_modules, parse_assignments
 
 HELP = """\
@@ -33,17 +34,17 @@ def _print_case(r, verbose: bool) -> None:
         what += f", {r.facts.get('faces', '?')} faces, euler {r.facts.get('euler', '?')}"
     print(f"  {r.case:<12} {verdict}  {r.seconds:7.3f} s  {what}")
     for note in r.notes:
-        print(f"  {'':<12}       note: {note}")
+        print(printable(f"  {'':<12}       note: {note}"))
     if r.info:
         items = ", ".join(f"{k}={_short(v)}" for k, v in r.info.items())
-        print(f"  {'':<12}       info: {items}")
+        print(printable(f"  {'':<12}       info: {items}"))
     for v in r.violations:
-        print(f"  {'':<12}       violation: {v}")
+        print(printable(f"  {'':<12}       violation: {v}"))
         fix = hint(v)
         if fix:
             print(f"  {'':<12}         fix: {fix}")
     if verbose and r.traceback:
-        print(r.traceback)
+        print(printable(r.traceback))
 
 
 def _cmd_check(args) -> int:
@@ -54,7 +55,7 @@ def _cmd_check(args) -> int:
     cases = args.case or list(CASES)
     settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())
     print(f"check-method {method.name} ({settings or 'no parameters'}), N = {args.n}")
-    results = check_method(method, n=args.n, cases=cases)
+    results = check_method(method, n=args.n, cases=cases, timeout=args.timeout or None)
     for r in results:
         _print_case(r, args.verbose)
     bad = [r.case for r in results if not r.passed]
@@ -79,6 +80,20 @@ def _grid_points(text: str) -> int:
     return n
 
 
+def _case_timeout(text: str) -> float:
+    import argparse
+
+    from ..run.limits import MAX_SECONDS
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0 <= v <= MAX_SECONDS:
+        raise argparse.ArgumentTypeError(f"must be between 0 (no limit) and {MAX_SECONDS:.0f}: {text!r}")
+    return v
+
+
 def register(subparsers) -> None:
     import argparse
 
@@ -90,5 +105,9 @@ def register(subparsers) -> None:
     p.add_argument("--n", type=_grid_points, default=24, help="grid points per axis of the test volumes "
                                                               "(default 24)")
     p.add_argument("--case", action="append", choices=CASES, help="run only this case (repeatable)")
+    p.add_argument("--timeout", type=_case_timeout, default=120.0, metavar="S",
+                   help="seconds per case before the method is stopped and the case is a violation; each case "
+                        "runs in its own process, so a crash is reported too (0 = no limit, in this process; "
+                        "default 120)")
     p.add_argument("--verbose", "-v", action="store_true", help="print the traceback of a method that raised")
     p.set_defaults(func=_cmd_check)

@@ -22,6 +22,7 @@ from phantoms import InputError, load_volume
 from geometry.files import atomic_write
 
 from ..metrics.validity import check_mesh
+from ..terminal import printable
 from .outputs import check_outputs, refuse_non_finite, write_mesh
 
 MESH_SUFFIXES = {".ply": "ply", ".obj": "obj", ".stl": "stl"}
@@ -108,7 +109,7 @@ def _fmt(value) -> str:
 
 
 def _cmd_reconstruct(args) -> int:
-    from methods import as_reconstruction, get_method
+    from methods import as_reconstruction, get_method, run_reconstruct
     from methods.marching_cubes import mesh_facts
 
     out = Path(args.output)
@@ -121,7 +122,7 @@ def _cmd_reconstruct(args) -> int:
     volume = load_volume(args.input, mask=True if args.mask else None)
     check_outputs(out, args.info_json)  # a bad output path fails before the method runs
     t0 = time.perf_counter()
-    rec = as_reconstruction(method.reconstruct(volume), args.method)  # wrong type: one line, exit 1
+    rec = as_reconstruction(run_reconstruct(method, volume), args.method)  # wrong type, sys.exit: one line, exit 1
     wall = time.perf_counter() - t0
     mesh = getattr(rec, "mesh", None)
     if mesh is None:
@@ -137,7 +138,7 @@ def _cmd_reconstruct(args) -> int:
     facts = mesh_facts(mesh)
     settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())
     print(f"method:       {method.name} ({settings})")
-    print(f"input:        {args.input} (shape {volume.shape}, spacing {volume.h:.6g})")
+    print(f"input:        {printable(args.input)} (shape {volume.shape}, spacing {volume.h:.6g})")
     print(f"wrote:        {out}")
     print(f"vertices:     {facts['vertices']}")
     print(f"faces:        {facts['faces']}")
@@ -148,11 +149,11 @@ def _cmd_reconstruct(args) -> int:
     print(f"time:         {wall:.3f} s")
     print(f"valid:        {'no — ' + '; '.join(invalid) if invalid else 'yes'}")
     for warning in rec.info.get("warnings") or []:
-        print(f"warning: {warning}", file=sys.stderr)
+        print(printable(f"warning: {warning}"), file=sys.stderr)
     scalars = {k: v for k, v in rec.info.items()
                if not k.startswith("mesh_") and isinstance(v, (bool, int, float, str, np.generic))}
     for key, value in scalars.items():
-        print(f"  {key + ':':<22}{_fmt(value)}")
+        print(printable(f"  {key + ':':<22}{_fmt(value)}"))
     if args.info_json:
         atomic_write(args.info_json, json.dumps(
             {"method": args.method, "params": method.config, "wall_s": wall, "mesh": facts,

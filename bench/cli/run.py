@@ -14,6 +14,7 @@ from phantoms import InputError
 
 from ..config import (RunConfig, builtin_config, config_from_dict, load_config, parse_method_spec,
                      parse_noise_spec)
+from ..terminal import printable
 
 RUN_HELP = """\
 Run a phantom x noise x method grid and write results.csv, run.json and index.html into --out.
@@ -104,6 +105,8 @@ def register(subparsers) -> None:
                               description="Re-render DIR/index.html from DIR/results.csv, DIR/cells and "
                                           "DIR/run.json (e.g. after an interrupted run).")
     r.add_argument("dir", metavar="DIR")
+    r.add_argument("--force", action="store_true",
+                   help="render even when cell files are missing or altered (the page lists them at the top)")
     r.set_defaults(func=_cmd_report)
 
 
@@ -197,12 +200,16 @@ def _cmd_run(args) -> int:
         raise InputError("--allow-mixed-code needs --resume")
     if args.resume and not args.out:
         raise InputError("--resume needs --out DIR (the folder of the run to complete)")
+    from ..run.limits import check_seconds
+
+    for opt in ("timeout", "method_timeout", "score_timeout"):   # before any work: no OverflowError mid-run
+        check_seconds(getattr(args, opt), "--" + opt.replace("_", "-"))
     cfg = _resolve_config(args)
     cells = expand_grid(cfg)
     if args.dry_run:
         for c in cells:
             print(c["cell_id"])
-        print(f"{len(cells)} cells ({cfg.name})")
+        print(f"{len(cells)} cells ({printable(cfg.name)})")
         return 0
     out = Path(args.out) if args.out else Path("reports") / _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     check_output_dir(out, args.resume)
@@ -215,7 +222,7 @@ def _cmd_run(args) -> int:
         limits = time_limits(cfg, args.timeout, args.method_timeout, args.score_timeout)  # as run_grid does
         executor = DaskExecutor(scheduler=args.scheduler, workers=args.workers, timeout=limits,
                                 cache_dir=str(out / CACHE_DIR), imports=list(cfg.imports))
-    print(f"{cfg.name}: {len(cells)} cells → {out}", file=sys.stderr)
+    print(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
     try:
         if executor is not None:
             executor.connect()
@@ -235,7 +242,7 @@ def _cmd_run(args) -> int:
     except Exception as exc:
         if type(exc).__name__ != "DaskRunIncomplete":
             raise
-        print(f"error: {exc}; the finished cells are in {out}; complete the run with "
+        print(f"error: {printable(exc)}; the finished cells are in {out}; complete the run with "
               f"`python -m bench run --resume --out {out} --executor dask ...`", file=sys.stderr)
         return 1
     finally:
@@ -243,7 +250,7 @@ def _cmd_run(args) -> int:
             executor.close()
     if not args.no_report:
         _report_after_run(out, summary)
-    print(summary.line())
+    print(printable(summary.line()))
     if summary.report_error:
         print(f"warning: the report could not be written ({summary.report_error}); results are in "
               f"{out / 'results.csv'}; details in {out / 'report_error.txt'}", file=sys.stderr)
@@ -276,6 +283,18 @@ def _cmd_report(args) -> int:
         raise InputError(f"{str(out)!r} holds no results.csv (not a run folder)")
     if not os.access(out, os.W_OK):
         raise InputError(f"{str(out)!r} is not writable")
-    path = write_report(out)
+    from ..run.store import check_run_folder
+
+    problems, unchecked = check_run_folder(out)      # also reads results.csv strictly: exit 2 on a damaged one
+    if problems and not args.force:
+        shown = "; ".join(problems[:10]) + (f"; ... {len(problems) - 10} more" if len(problems) > 10 else "")
+        raise InputError(f"{str(out)!r}: {len(problems)} cell file(s) missing or altered: {shown}; recompute "
+                         f"them with `python -m bench run --resume --out {out}`, or render anyway with --force")
+    path = write_report(out, problems=problems)
+    if unchecked:
+        print(f"note: {unchecked} cell record(s) predate checksums and are unchecked", file=sys.stderr)
+    if problems:
+        print(printable(f"warning: {len(problems)} cell file(s) missing or altered, listed at the top of the page"),
+              file=sys.stderr)
     print(f"wrote {path}")
     return 0

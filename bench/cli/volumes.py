@@ -54,8 +54,8 @@ def _cmd_info(args) -> int:
     s = vol.summary()
     print(f"file:         {args.file}")
     print(f"shape:        {s['shape']}")
-    print(f"origin:       {[round(v, 6) for v in s['origin']]}")
-    print(f"spacing:      {[round(v, 6) for v in s['spacing']]}")
+    print(f"origin:       {[float(f'{v:.6g}') for v in s['origin']]}")   # 6 digits, not 6 decimals: 1e-9 m
+    print(f"spacing:      {[float(f'{v:.6g}') for v in s['spacing']]}")
     print(f"value range:  [{s['min']:.6g}, {s['max']:.6g}]")
     print(f"zero crossing: {'yes' if s['zero_crossing'] else 'no'}")
     if not s["zero_crossing"]:

@@ -11,6 +11,7 @@ from pathlib import Path
 from geometry.files import atomic_write
 
 from ..run.store import read_results, scan_cells
+from ..run.values import cap_tail, cap_text
 from .artifacts import Artifacts
 from .claims import VARIANTS as CLAIM_VARIANTS
 from .claims import check_claims
@@ -61,8 +62,11 @@ def _failed(df, records: dict) -> list[dict]:
     failed = []
     for _, r in df[df["status"] != "ok"].iterrows():
         rec = records.get(r["cell_id"], {})
-        failed.append({"cell_id": r["cell_id"], "label": r["label"], "status": r["status"], "error": r["error"],
-                       "traceback": rec.get("traceback")})
+        where = f"cells/{r['cell_id']}.json"          # the full texts; the page shows the capped ones
+        tb = rec.get("traceback")
+        failed.append({"cell_id": r["cell_id"], "label": r["label"], "status": r["status"],
+                       "error": cap_text(r["error"], where=where),
+                       "traceback": cap_tail(tb, where=where) if isinstance(tb, str) else tb})
     return failed
 
 
@@ -188,8 +192,9 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
     }
 
 
-def write_report(out: str | Path) -> Path:
-    """Render ``out/index.html`` from the results table, ``out/cells`` and ``out/run.json``."""
+def write_report(out: str | Path, problems: list[str] | None = None) -> Path:
+    """Render ``out/index.html`` from the results table, ``out/cells`` and ``out/run.json``; ``problems``
+    (the damaged cell files of :func:`bench.run.store.check_run_folder`, rendered anyway) head the page."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -197,10 +202,11 @@ def write_report(out: str | Path) -> Path:
 
     out = Path(out)
     df = _load_results(out)
-    records, problems = scan_cells(out)
-    for msg in problems:
+    records, unreadable = scan_cells(out)
+    for msg in unreadable:
         warn(f"{msg}; the report leaves the cell's details out")
     context = _context(df, _load_meta(out), records, Artifacts(out, warn=warn))
+    context["integrity_problems"] = list(problems or [])
     env = Environment(loader=FileSystemLoader(str(TEMPLATE_DIR)), autoescape=select_autoescape(["html"]))
     page = env.get_template("report.html").render(**context)
     return atomic_write(out / "index.html", page)

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from geometry.files import WriteError
-from methods import as_reconstruction, get_method, import_plugins
+from methods import as_reconstruction, get_method, import_plugins, run_reconstruct
 from phantoms import Volume, add_noise, get_phantom
 
 from ..metrics.flags import result_flags
@@ -258,7 +258,7 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
         if on_phase is not None:
             on_phase("method", {})
         lap("setup")
-        rec, cost = measure(method.reconstruct, vol)
+        rec, cost = measure(run_reconstruct, method, vol)   # sys.exit() in the method: a failed row
         rec = as_reconstruction(rec, cell["method"])   # a bare trimesh etc.: named, not an AttributeError
         runner_values = _runner_values(rec, cost)
         row["method_info"] = method_info(rec.info)

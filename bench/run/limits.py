@@ -14,18 +14,39 @@ whose mesh took 30 s to score is not mistaken for a slow method.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
-__all__ = ["TimeLimits", "PHASES"]
+from phantoms import InputError
+
+__all__ = ["TimeLimits", "PHASES", "MAX_SECONDS", "check_seconds"]
 
 PHASES = ("setup", "method", "scoring")
 
+# The longest limit the platform can wait for: the executors wait with poll()/select(), whose timeout is a C int
+# of milliseconds (2**31 - 1 ms, about 24.8 days); threading's own ceiling is far larger on 64-bit machines.
+MAX_SECONDS = float(min(threading.TIMEOUT_MAX, (2 ** 31 - 1) // 1000))
 
-def _positive(value) -> float | None:
+
+def check_seconds(value, what: str) -> float | None:
+    """``value`` (seconds, None or 0 = no limit) range-checked: an :class:`InputError` naming ``what`` when it
+    is not a finite number in [0, :data:`MAX_SECONDS`], instead of an ``OverflowError`` once the run started."""
     if value is None:
         return None
-    value = float(value)
-    return value if value > 0 else None
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{what}: not a number: {value!r}") from None
+    if not 0 <= v <= MAX_SECONDS:
+        raise InputError(f"{what}: must be between 0 (no limit) and {MAX_SECONDS:.0f} s (about "
+                         f"{MAX_SECONDS / 86400:.1f} days, the longest wait this platform can represent); "
+                         f"got {value!r}")
+    return v
+
+
+def _positive(value, what: str) -> float | None:
+    value = check_seconds(value, what)
+    return value if value else None
 
 
 @dataclass(frozen=True)
@@ -37,8 +58,8 @@ class TimeLimits:
     score: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("cell", "method", "score"):
-            object.__setattr__(self, name, _positive(getattr(self, name)))
+        for name, what in (("cell", "timeout"), ("method", "method timeout"), ("score", "score timeout")):
+            object.__setattr__(self, name, _positive(getattr(self, name), what))
 
     @classmethod
     def of(cls, value) -> "TimeLimits":

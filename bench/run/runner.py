@@ -21,6 +21,7 @@ import numpy as np
 from geometry.files import WriteError
 from phantoms import InputError
 
+from ..terminal import printable
 from .executors.local import LocalExecutor
 from .grid import expand_grid
 from .limits import TimeLimits
@@ -126,7 +127,7 @@ class _Progress:
 
     def finish(self, cell: dict, row: dict) -> None:
         if row.get("status") != "ok" and self.show:
-            self.bar.write(f"{row.get('status')}: {cell['cell_id']}: {row.get('error', '')}")
+            self.bar.write(printable(f"{row.get('status')}: {cell['cell_id']}: {row.get('error', '')}"))
         self.bar.update(1)
 
     def close(self) -> None:
@@ -157,7 +158,7 @@ def _load_done(out: Path, cells: list[dict], cfg, resume: bool, retry_failed: bo
     ids = {c["cell_id"] for c in cells}
     found, problems = scan_cells(out, verify_artifacts=True)
     for msg in problems:
-        print(f"warning: {msg}; the cell will be rerun", file=sys.stderr)
+        print(printable(f"warning: {msg}; the cell will be rerun"), file=sys.stderr)
     records = {k: v for k, v in found.items() if k in ids}
     if retry_failed:
         records = {k: v for k, v in records.items() if v["row"].get("status") == "ok"}

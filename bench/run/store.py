@@ -37,6 +37,7 @@ import numpy as np
 from geometry.files import TMP_GLOB, WriteError, atomic_path, atomic_write, remove_temp_files
 from phantoms import InputError
 
+from .integrity import UNCHECKED, record_problem, seal
 from .values import plain
 
 __all__ = [
@@ -131,7 +132,7 @@ def save_cell(out: Path, cell: dict, result: dict, save_meshes: bool = False, co
     record = {"row": result["row"], "cell": cell, "traceback": result.get("traceback"),
               "artifacts": sorted(art), "code": code,
               "finished": _dt.datetime.now().astimezone().isoformat(timespec="seconds")}
-    write_json(cells_dir / f"{cid}.json", record)
+    write_json(cells_dir / f"{cid}.json", seal(record, cells_dir / f"{cid}.npz" if art else None))
 
 
 def scan_cells(out: Path, verify_artifacts: bool = False) -> tuple[dict[str, dict], list[str]]:
@@ -161,6 +162,10 @@ def scan_cells(out: Path, verify_artifacts: bool = False) -> tuple[dict[str, dic
             if err:
                 problems.append(f"{cells_dir / (cid + '.npz')} {err}")
                 continue
+            err = record_problem(rec, cells_dir / f"{cid}.npz")
+            if err not in (None, UNCHECKED):
+                problems.append(f"{p} {err}")
+                continue
         records[cid] = rec
     return records, problems
 
@@ -178,6 +183,21 @@ def _artifact_problem(path: Path, expected: list | None) -> str | None:
     except Exception as exc:  # BadZipFile, zlib.error, EOFError, OSError, ValueError ...
         return f"does not load ({type(exc).__name__}: {exc})"
     return f"lacks arrays {missing}" if missing else None
+
+
+def check_run_folder(out: Path) -> tuple[list[str], int]:
+    """``(problems, unchecked)`` of a run folder's cell files: each row of the results table whose record is
+    missing, unreadable, altered (checksum), or whose ``.npz`` is missing, damaged or altered, as
+    ``"cells/<file> <why>"``; and the number of records written before checksums (accepted unchecked)."""
+    out = Path(out)
+    records, problems = scan_cells(out, verify_artifacts=True)
+    problems = [p.replace(str(out / CELLS_DIR), CELLS_DIR, 1) for p in problems]
+    seen = {Path(p.split(" ", 1)[0]).stem for p in problems}
+    for cid in read_results(out)["cell_id"].astype(str):
+        if cid not in records and cid not in seen:
+            problems.append(f"{CELLS_DIR}/{cid}.json is missing")
+    unchecked = sum(record_problem(r, out / CELLS_DIR / f"{cid}.npz") == UNCHECKED for cid, r in records.items())
+    return problems, unchecked
 
 
 def load_cells(out: Path) -> dict[str, dict]:
@@ -352,9 +372,48 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else "empty"
 
 
+def _check_csv_rows(path: Path) -> None:
+    """Every record of ``path`` has the header's number of fields and the file ends with a newline (as
+    :func:`write_results_csv` writes it), else an :class:`InputError` with the line number — a file cut in half
+    mid-row must not be rendered as a half row (pandas pads a short row with NaN)."""
+    import csv
+    import io
+
+    hint = (f"; rerun the grid with `python -m bench run --resume --out {str(path.parent)}` to rewrite it "
+            "from the cell records")
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            text = fh.read()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{str(path)!r} is not a readable results table ({type(exc).__name__}: "
+                         f"{_first_line(exc)}){hint}") from None
+    if not text.strip():
+        return                                                    # an empty file: pandas' own message
+    limit = csv.field_size_limit()
+    csv.field_size_limit(max(limit, len(text)))
+    try:
+        reader = csv.reader(io.StringIO(text, newline=""), strict=True)
+        header = next(reader)
+        if not {"cell_id", "status", "label"} <= set(header):
+            return                                                # not a results table: read_results says so
+        for record in reader:
+            if len(record) != len(header):
+                raise InputError(f"{str(path)!r} line {reader.line_num}: {len(record)} fields where the header "
+                                 f"has {len(header)} (a truncated or malformed results table){hint}")
+    except csv.Error as exc:
+        raise InputError(f"{str(path)!r} line {reader.line_num}: {exc} (a truncated or malformed results "
+                         f"table){hint}") from None
+    finally:
+        csv.field_size_limit(limit)
+    if not text.endswith("\n"):
+        raise InputError(f"{str(path)!r} line {reader.line_num}: the last row does not end with a newline (a "
+                         f"truncated results table){hint}")
+
+
 def _read_csv_table(path: Path):
     import pandas as pd
 
+    _check_csv_rows(path)
     try:
         df = pd.read_csv(path, keep_default_na=True)
     except (OSError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:

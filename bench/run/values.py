@@ -6,7 +6,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["plain", "error_text"]
+__all__ = ["plain", "error_text", "cap_text", "cap_tail", "MAX_MESSAGE"]
+
+#: characters of a message kept in results.csv, the cell's row and the page; the full text is in the traceback
+MAX_MESSAGE = 2000
 
 
 def plain(value: Any) -> Any:
@@ -31,7 +34,30 @@ def plain(value: Any) -> Any:
     return repr(value)
 
 
-def error_text(exc: BaseException) -> str:
-    """``Type: first line of the message`` (the full traceback goes to the cell's JSON)."""
+def cap_text(text: str, limit: int = MAX_MESSAGE, where: str = "the cell's traceback") -> str:
+    """``text`` when it has at most ``limit`` characters; else its first ``limit`` ones and a note giving the
+    length and where the whole text is — a 5-million-character exception message must not be copied into
+    every file and page that shows the error (the csv module refuses fields over 131,072 characters)."""
+    text = str(text)
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}… ({len(text):,} characters; full text in {where})"
+
+
+def cap_tail(text: str, limit: int = MAX_MESSAGE, where: str = "the cell's record") -> str:
+    """A traceback of at most about ``limit`` characters: its first and last halves (the frames where it began
+    and the exception line, whose message is cut by :func:`cap_text` when it alone is too long) around a note."""
+    text = str(text)
+    if len(text) <= limit:
+        return text
+    last = text.rstrip("\n").rsplit("\n", 1)[-1]
+    head = text[: limit // 2]
+    tail = cap_text(last, limit // 2, where) if len(last) > limit // 2 else text[-(limit // 2):]
+    return f"{head}\n… ({len(text):,} characters; full text in {where}) …\n{tail}"
+
+
+def error_text(exc: BaseException, limit: int = MAX_MESSAGE) -> str:
+    """``Type: first line of the message``, capped at ``limit`` characters (:func:`cap_text`; the full message
+    is in the traceback the cell's JSON keeps)."""
     lines = str(exc).strip().splitlines()
-    return f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__
+    return cap_text(f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__, limit)

@@ -1,0 +1,146 @@
+"""``bench report DIR`` validates the run folder first (issue 30): a results.csv cut in half or malformed is
+one line, exit 2, with the line number and a ``--resume`` hint — never a report of a half row."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from bench.cli import main
+from bench.run.store import RESULTS_PARQUET
+
+GRID = ('[grid]\nphantoms = ["sphere"]\nn = [24]\nseeds = [0, 1]\nnoise = ["none", "gaussian"]\n'
+        '[[methods]]\nname = "marching_cubes"\n')
+
+
+@pytest.fixture(scope="module")
+def run_folder(tmp_path_factory):
+    base = tmp_path_factory.mktemp("run")
+    cfg = base / "g.toml"
+    cfg.write_text(GRID)
+    out = base / "run"
+    assert main(["run", "--config", str(cfg), "--out", str(out), "--jobs", "1", "--no-report"]) == 0
+    return out
+
+
+def _copy(run_folder, tmp_path):
+    out = tmp_path / "run"
+    shutil.copytree(run_folder, out)
+    return out
+
+
+def _one_error(capsys, *needles):
+    err = capsys.readouterr().err
+    lines = [x for x in err.splitlines() if x.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err, err
+    assert all(n in err for n in needles), err
+
+
+@pytest.mark.parametrize("cut", ["half", "mid_last_row", "extra_field"])
+def test_report_on_a_truncated_or_malformed_results_csv_exits_2_with_the_line(cut, run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    csv_path = out / "results.csv"
+    text = csv_path.read_text()
+    lines = text.splitlines(keepends=True)
+    assert len(lines) == 4          # header + 3 cells (the clean volume has one seed)
+    if cut == "half":
+        text = text[: len(text) // 2]
+    elif cut == "mid_last_row":
+        text = text[: len(text) - len(lines[-1]) // 2]
+    else:
+        text = "".join(lines[:2]) + lines[2].rstrip("\r\n") + ",surplus\n" + "".join(lines[3:])
+    csv_path.write_text(text, newline="")
+    assert main(["report", str(out)]) == 2
+    _one_error(capsys, "results.csv", "line ", "--resume")
+    assert not (out / "index.html").exists()
+    (out / RESULTS_PARQUET).unlink(missing_ok=True)   # with or without the parquet copy
+    assert main(["report", str(out)]) == 2
+
+
+def test_report_on_an_intact_folder_still_renders(run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    (out / RESULTS_PARQUET).unlink(missing_ok=True)   # through the CSV path
+    assert main(["report", str(out)]) == 0
+    assert (out / "index.html").is_file()
+
+
+# ---------------------------------------------------------------------------------------------- cell checksums
+import csv  # noqa: E402
+import json  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+
+def _first_cell(out):
+    with open(out / "results.csv", newline="") as fh:
+        return next(csv.DictReader(fh))["cell_id"]
+
+
+def _edit_hausdorff(out, cid):
+    path = out / "cells" / f"{cid}.json"
+    rec = json.loads(path.read_text())
+    rec["row"]["hausdorff"] = 123
+    path.write_text(json.dumps(rec, indent=1))
+
+
+def test_every_cell_record_is_written_with_its_checksums(run_folder):
+    from bench.run.integrity import record_problem
+
+    for path in sorted((run_folder / "cells").glob("*.json")):
+        rec = json.loads(path.read_text())
+        assert set(rec["checksum"]) == {"record", "npz"} and len(rec["checksum"]["record"]) == 64
+        assert record_problem(rec, path.with_suffix(".npz")) is None
+
+
+@pytest.mark.parametrize("damage, named", [
+    ("edit_json", ".json was altered after it was written"),
+    ("delete_json", ".json is missing"),
+    ("delete_npz", ".npz is missing"),
+    ("alter_npz", "does not match its checksum"),
+])
+def test_report_lists_missing_or_altered_cell_files_and_renders_them_only_with_force(
+        damage, named, run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    cid = _first_cell(out)
+    npz = out / "cells" / f"{cid}.npz"
+    if damage == "edit_json":
+        _edit_hausdorff(out, cid)
+    elif damage == "delete_json":
+        (out / "cells" / f"{cid}.json").unlink()
+    elif damage == "delete_npz":
+        npz.unlink()
+    else:
+        with np.load(npz) as z:
+            arrays = {k: z[k] for k in z.files}
+        arrays["vertices"] = arrays["vertices"] * 1.01
+        np.savez(npz, **arrays)
+    assert main(["report", str(out)]) == 2
+    _one_error(capsys, f"cells/{cid}", named, "--force", "--resume")
+    assert not (out / "index.html").exists()
+    assert main(["report", str(out), "--force"]) == 0
+    page = (out / "index.html").read_text()
+    assert "Damaged run folder" in page and f"cells/{cid}" in page
+
+
+def test_resume_recomputes_an_edited_cell_and_says_so(run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    cid = _first_cell(out)
+    _edit_hausdorff(out, cid)
+    assert main(["run", "--resume", "--out", str(out), "--jobs", "1", "--no-report"]) == 0
+    err = capsys.readouterr().err
+    assert f"{cid}.json was altered after it was written (checksum mismatch); the cell will be rerun" in err
+    with open(out / "results.csv", newline="") as fh:
+        row = {r["cell_id"]: r for r in csv.DictReader(fh)}[cid]
+    assert float(row["hausdorff"]) != 123
+    assert main(["report", str(out)]) == 0
+
+
+def test_records_without_a_checksum_are_accepted_as_unchecked(run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    for path in (out / "cells").glob("*.json"):
+        rec = json.loads(path.read_text())
+        del rec["checksum"]
+        path.write_text(json.dumps(rec, indent=1))
+    assert main(["report", str(out)]) == 0
+    assert "3 cell record(s) predate checksums and are unchecked" in capsys.readouterr().err

@@ -70,3 +70,15 @@ def test_mesh_phantom_against_its_own_mesh_is_exactly_one():
 def test_evaluate_reports_iou_for_the_analytic_truth():
     out = evaluate(_sphere_mesh(4), get_phantom("sphere"), H, n_samples=5000)
     assert 0.99 < out["iou"] <= 1.0
+
+
+def test_an_open_mesh_is_judged_by_the_generalised_winding_number():
+    """A sphere with one face removed is not closed: the column count would leak along the hole's columns;
+    the generalised winding number still calls its inside inside (IoU as for the closed sphere, ± the hole's
+    cells), and the closed-mesh path and the winding-number path agree on the closed sphere."""
+    mesh = _sphere_mesh(4)
+    pts, _ = Sphere(1.0).sample_surface(20_000, 0)
+    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    closed = iou(v, f, Sphere(1.0), H, pts)
+    assert iou(v, f, Sphere(1.0), H, pts, closed=False) == pytest.approx(closed, abs=2e-4)
+    assert iou(v, f[1:], Sphere(1.0), H, pts) == pytest.approx(closed, abs=2e-3)

@@ -55,3 +55,45 @@ def test_two_nested_spheres_count_twice_and_an_empty_mesh_nothing():
     w = grid_winding(v, f, vol.origin, vol.spacing, vol.shape)
     assert w[10, 10, 10] == 2 and w[10, 10, 15] == 1 and w[0, 0, 0] == 0
     assert not grid_winding(v, np.zeros((0, 3), int), vol.origin, vol.spacing, vol.shape).any()
+
+
+def _random_columns(lo, hi, m, k, seed):
+    rng = np.random.default_rng(seed)
+    step = (hi - lo) / m
+    ij = np.stack(np.meshgrid(np.arange(m), np.arange(m), indexing="ij"), axis=-1)
+    cols = lo[:2] + (ij + rng.random((m, m, 2))) * step[:2]
+    z = rng.uniform(lo[2], hi[2], (m, m, k))
+    return cols, z, step
+
+
+@pytest.mark.parametrize("name, n", [("ellipsoid", 40), ("torus", 44), ("fused_spheres", 36)])
+def test_column_winding_matches_the_fast_winding_number(name, n):
+    """Columns at random positions inside their cells, queries at random heights: the same inside as FWN."""
+    from skimage.measure import marching_cubes
+
+    vol = get_phantom(name).volume(n=n)
+    v, f, _, _ = marching_cubes(vol.values, 0.0, spacing=tuple(vol.spacing))
+    v += vol.origin
+    lo, hi = v.min(0) - 0.3, v.max(0) + 0.3
+    cols, z, step = _random_columns(lo, hi, 17, 23, seed=1)
+    w = raster.column_winding(v, f, lo, step, cols, z)
+    pts = np.concatenate([np.broadcast_to(cols[:, :, None, :], z.shape + (2,)), z[..., None]], -1).reshape(-1, 3)
+    ref = fast_winding_number(pts, v, f.astype(np.int32)).reshape(z.shape)
+    assert set(np.unique(w)) <= {0, 1}
+    assert 0.05 < (w == 1).mean() < 0.95
+    assert np.array_equal(w == 1, ref > 0.5)
+    assert np.array_equal(raster.column_winding(v, f[:, ::-1], lo, step, cols, z), -w)
+
+
+def test_column_winding_of_nested_spheres_and_coarse_triangles():
+    """Two nested outward icospheres: 2 inside the inner, 1 between, 0 outside — by the analytic radius."""
+    a = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
+    b = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    v = np.vstack([a.vertices, b.vertices])
+    f = np.vstack([a.faces, b.faces + len(a.vertices)])
+    lo, hi = np.full(3, -1.2), np.full(3, 1.2)
+    cols, z, step = _random_columns(lo, hi, 5, 40, seed=2)
+    w = raster.column_winding(v, f, lo, step, cols, z)
+    r = np.sqrt((cols[:, :, None, :] ** 2).sum(-1) + z ** 2)
+    assert np.all(w[r < 0.35] == 2) and np.all(w[(r > 0.55) & (r < 0.9)] == 1) and np.all(w[r > 1.01] == 0)
+    assert not raster.column_winding(v, f[:0], lo, step, cols, z).any()

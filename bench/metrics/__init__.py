@@ -291,6 +291,7 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     out.update(edge_metrics(pts, fn[fi], area, truth, h))
     out["edge_chamfer_h"] = out["edge_chamfer"] / h
     lap("edges")
-    out["iou"] = iou(V, F, truth, h, true_pts, seed=seed)
+    out["iou"] = iou(V, F, truth, h, true_pts, seed=seed,
+                     closed=out["watertight"])
     lap("iou")
     return {k: out[k] for k in METRIC_NAMES if k in out}

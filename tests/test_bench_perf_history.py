@@ -88,5 +88,6 @@ def test_an_injected_slowdown_is_real_cpu_inside_the_timed_interval():
 
     plain = min(cpu_of_round(1.0) for _ in range(3))
     slowed = min(cpu_of_round(3.0) for _ in range(3))
-    # a busy loop of (3 − 1) × the round's wall time: CPU time about three times the plain round's
-    assert slowed > 2.2 * plain
+    # a busy loop of (3 − 1) × the round's wall time: CPU time about three times the plain round's (less when
+    # another process takes turns on the core during the busy loop); outside the interval it would add nothing
+    assert slowed > 1.6 * plain

@@ -43,6 +43,13 @@ def pinned_cpus(cpus: int) -> list[int] | None:
     return allowed[-cpus:] if cpus < len(allowed) else allowed
 
 
+def _serial() -> list[str]:
+    """pytest options that run the benchmarks in one process: pytest-benchmark times nothing under xdist."""
+    import importlib.util
+
+    return ["-n", "0"] if importlib.util.find_spec("xdist") is not None else []
+
+
 def run_suite(*, quick: bool = False, select: list[str] | None = None, keyword: str | None = None,
               n_rounds: int | None = None, cpus: int = 1, stream=None) -> tuple[int, dict | None]:
     """Run the benchmark suites once in a fresh ``python -m pytest``; return (exit code, summary or None).
@@ -61,11 +68,13 @@ def run_suite(*, quick: bool = False, select: list[str] | None = None, keyword: 
         env[ENV_ROUNDS] = str(int(n_rounds))
     for k in THREAD_ENV:
         env.setdefault(k, "1")
+    for k in [k for k in env if k.startswith("PYTEST_XDIST")]:   # started from an xdist worker: time anyway
+        del env[k]
     with tempfile.TemporaryDirectory(prefix="lsb-perf-") as tmp:
         out = Path(tmp) / "benchmark.json"
         cmd = [sys.executable, "-m", "pytest", *(select or [str(bdir.relative_to(root))]), "-m", "benchmark",
                "-p", "no:cacheprovider", "-q", "--benchmark-json", str(out), "--benchmark-sort=name",
-               "--benchmark-columns=median,min,max,rounds"]
+               "--benchmark-columns=median,min,max,rounds", *_serial()]
         if keyword:
             cmd += ["-k", keyword]
         pin = pinned_cpus(cpus)

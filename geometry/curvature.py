@@ -1,4 +1,4 @@
-"""Mean and Gaussian curvature by a local paraboloid fit (MATH.md, "Mean Curvature Estimation").
+"""Mean and Gaussian curvature by a local paraboloid fit (docs/METHOD.md, "Mean Curvature Estimation").
 
 For every vertex at once: translate the vertex to the origin, express its neighbours in an orthonormal
 frame whose third axis is the vertex normal, least-squares fit z = A/2 x² + B xy + C/2 y², and read off

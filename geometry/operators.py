@@ -1,4 +1,4 @@
-"""Linear finite-element (P1) operators on a triangle mesh (MATH.md, "Discretisation").
+"""Linear finite-element (P1) operators on a triangle mesh (docs/METHOD.md, "Discretisation").
 
 Conventions (λ_i is the hat function of vertex i, a_f the area of face f):
 

@@ -1,4 +1,4 @@
-"""The initial surface: a triangulated sphere from a Fibonacci lattice (MATH.md, "Initial surface").
+"""The initial surface: a triangulated sphere from a Fibonacci lattice (docs/METHOD.md, "Initial surface").
 
 ``fibonacci_sphere()`` with its defaults gives the paper's Γ0: radius 2, 1,896 vertices and 3,788
 triangles (a closed convex triangulation of V points on a sphere has exactly 2V − 4 faces).

@@ -4,12 +4,14 @@
   a higher package;
 * no import cycle between modules (imports inside functions count: a lazy import hides a cycle, it does not
   remove it);
-* no source file over 500 lines and no function over 100 lines.
+* no source file over 500 lines and no function over 100 lines;
+* the README at most 250 lines, and every relative link in README.md and docs/*.md names an existing file.
 """
 
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -147,3 +149,41 @@ def test_no_function_over_100_lines(layer):
                 if n > MAX_FUNCTION_LINES:
                     long[f"{p.relative_to(REPO)}:{node.lineno} {node.name}"] = n
     assert long == {}
+
+
+# ------------------------------------------------------------------------------------------------ the documentation
+README_MAX_LINES = 250
+LINK = re.compile(r"\]\(([^)\s]+)\)")
+
+
+def broken_links(docs: list[Path]) -> list[str]:
+    """``"file: target"`` for every relative markdown link whose file does not exist (anchors and URLs skipped)."""
+    broken = []
+    for doc in docs:
+        for target in LINK.findall(doc.read_text(encoding="utf-8")):
+            path = target.split("#", 1)[0]
+            if not path or re.match(r"[a-z][a-z0-9+.-]*:", path):  # an anchor in the same page, or a URL
+                continue
+            if not (doc.parent / path).exists():
+                broken.append(f"{doc.name}: {target}")
+    return broken
+
+
+def test_readme_is_at_most_250_lines():
+    """The README is for users; the reference and the measurements live in docs/."""
+    n = len((REPO / "README.md").read_text(encoding="utf-8").splitlines())
+    assert n <= README_MAX_LINES, f"README.md has {n} lines (at most {README_MAX_LINES}; move detail to docs/)"
+
+
+def test_relative_markdown_links_point_to_existing_files():
+    """Every relative link (``](docs/...)``, ``](....md)``) in README.md and docs/*.md names an existing file."""
+    assert broken_links([REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]) == []
+
+
+def test_the_link_check_finds_a_broken_link(tmp_path):
+    """The check above on a made-up page: a missing file is reported; anchors, URLs and existing files are not."""
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "docs" / "GUIDE.md").write_text("# Guide\n")
+    page = tmp_path / "README.md"
+    page.write_text("[a](docs/NOPE.md) [b](#x) [c](https://example.org/a.md) [d](docs/GUIDE.md#guide)\n")
+    assert broken_links([page]) == ["README.md: docs/NOPE.md"]

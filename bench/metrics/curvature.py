@@ -2,7 +2,7 @@
 ``roughness_deg``.
 
 Per-vertex H and K come from the one shared estimator, :func:`geometry.paraboloid_curvature` (the
-paraboloid fit of MATH.md, with the linear terms), over a neighbourhood of fixed physical size:
+paraboloid fit of docs/METHOD.md, with the linear terms), over a neighbourhood of fixed physical size:
 :func:`geometry.radius_neighbors` with radius 2h (every vertex within 2h, at least the 1-ring), and
 area-weighted vertex normals (:func:`geometry.vertex_normals`).  The mesh is made outward-facing first
 (normals flipped when its enclosed signed volume is negative), so H > 0 on a convex surface whatever the

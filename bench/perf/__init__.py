@@ -1,7 +1,7 @@
 """Performance tracking: run the pytest-benchmark suites, compare their ratios with a baseline, gate regressions.
 
 ``python -m bench perf [--compare BASELINE.json] [--save OUT.json] [--tolerance 0.5] [--quick]`` (see
-:mod:`bench.cli_perf`) runs ``tests/benchmarks`` (:mod:`.suite`: pytest with ``--benchmark-json`` into a
+:mod:`bench.cli.perf`) runs ``tests/benchmarks`` (:mod:`.suite`: pytest with ``--benchmark-json`` into a
 temporary file), prints a table and, with ``--compare``, exits 1 when a benchmark got slower than the baseline
 by more than the tolerance (:mod:`.gate`).  Summaries and the committed baseline: :mod:`.baseline`.
 
@@ -17,7 +17,7 @@ it (before, between its rounds, after): the speed of a shared virtual machine dr
 
 Wall-clock ratios are not enough on a shared machine: other processes slow a long benchmark and a short
 reference round by different amounts depending on when they run.  CPU time is charged only while the process
-runs, so the CPU-time ratio moves much less under such load (README: measured spreads); the gate compares
+runs, so the CPU-time ratio moves much less under such load (docs/NOTES.md: measured spreads); the gate compares
 ``cpu_ratio`` (``--metric cpu``, the default) and falls back to ``ratio`` for a benchmark without CPU times on
 both sides.  What CPU time cannot see — time spent waiting — is in the wall-clock column, for information
 (``--metric wall`` gates on it).  The suite runs pinned to one CPU (:func:`run_suite` ``cpus``), with the native

@@ -1,6 +1,6 @@
 """The paper's claims, checked against this run's own cells.
 
-Each claim of the paper (``docs``: README "The paper's claims") gets a verdict computed here from the results
+Each claim of the paper (``docs``: docs/GUIDE.md "The report") gets a verdict computed here from the results
 table and, where needed, the cells' arrays — ``holds``, ``partly``, ``does not hold`` or ``not measured`` (the
 run has no cells that can test it) — with the numbers behind it and the cells used.  Nothing is decided in
 advance: a run without noisy cells cannot say anything about noise, and says so.

@@ -1,4 +1,4 @@
-"""The paper's method: shape-gradient descent of E(Γ) = ∫_Γ α φ² + β |∇_Γ φ|² dΓ (MATH.md).
+"""The paper's method: shape-gradient descent of E(Γ) = ∫_Γ α φ² + β |∇_Γ φ|² dΓ (docs/METHOD.md).
 
 Before the loop: the initial surface (Fibonacci sphere, radius 2, 1,896 vertices / 3,788 triangles, or a
 user's closed genus-0 mesh, checked to lie in the grid), the noise estimate of the volume and — on noisy

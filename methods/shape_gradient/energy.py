@@ -1,4 +1,4 @@
-"""The discrete energy E = Σ_f a_f [αφ² + β|∇_Γφ|²] at the face centroids and its shape gradient (MATH.md)."""
+"""The discrete energy E = Σ_f a_f [αφ² + β|∇_Γφ|²] at the face centroids and its shape gradient (docs/METHOD.md)."""
 
 from __future__ import annotations
 

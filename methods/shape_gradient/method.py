@@ -67,7 +67,7 @@ class ShapeGradient(Method):
                       "'auto' = 1 on clean volumes, 0.01 on noisy ones (estimated noise ≥ 0.05 voxel), where ∇φ is "
                       "read from the pre-smoothed volume: in it voxel-thin parts (the bunny's ears) have merged, and "
                       "β = 1 pulls them off (40 dB bunny: Hausdorff 3.6 h at β = 1, 0.86 h at 0.01)", object),
-        "gradient": Param("full", "'full': the true shape gradient of E (MATH.md, with the divergence term); "
+        "gradient": Param("full", "'full': the true shape gradient of E (docs/METHOD.md, with the divergence term); "
                           "'paper': the paper's eq. (dJ_finel) without it", str, choices=("full", "paper")),
         "step": Param("capped", "'capped': largest move capped at max_move voxels, then halved until E "
                       "decreases (Armijo); 'fixed': x ← x − τVn with τ = tau, unguarded (the paper's loop)",

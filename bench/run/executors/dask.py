@@ -311,7 +311,7 @@ class DaskExecutor:
             self.client.register_plugin(_plugin_class()(self.imports))
         try:
             checks = self.client.run(_worker_check, self.imports)
-        except Exception as exc:  # noqa: BLE001 - e.g. the workers cannot even unpickle bench.dask_executor
+        except Exception as exc:  # noqa: BLE001 - e.g. the workers cannot even unpickle bench.run.executors.dask
             raise InputError(f"the Dask workers cannot run the suite ({type(exc).__name__}: {exc}); install it "
                              f"on every worker machine: {INSTALL_HINT}") from None
         bad = {w: c["errors"] for w, c in checks.items() if c["errors"]}

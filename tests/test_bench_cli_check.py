@@ -36,13 +36,13 @@ def broken(monkeypatch):
 KNOWN_FAILURES: dict[str, str] = {}      # none at the moment (dual contouring and Reach for the Spheres were)
 
 
-#: built-ins whose five cases take over 10 s (iterative peers): their check runs with the slow tests
+#: built-ins whose five cases take over 10 s (iterative peers): their check runs with the heavy tests
 SLOW_CHECKS = {"dual_contouring", "reach_for_the_spheres"}
 
 
 def _check_param(n):
     marks = [pytest.mark.xfail(reason=KNOWN_FAILURES[n], strict=True)] if n in KNOWN_FAILURES else []
-    return pytest.param(n, marks=marks + ([pytest.mark.slow] if n in SLOW_CHECKS else []))
+    return pytest.param(n, marks=marks + ([pytest.mark.heavy] if n in SLOW_CHECKS else []))
 
 
 @pytest.mark.parametrize("name", [_check_param(n) for n in BUILTIN_METHODS])

@@ -116,7 +116,7 @@ def test_method_status_and_flags_stay_in_view_at_1400_px(report, tmp_path, capsy
               f"{tmp_path / 'summary_1400px.png'}")
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_a_5000_cell_report_stays_small_and_opens_a_viewer(tmp_path, capsys):
     """A synthetic dataset run of 5,010 cells (167 shapes × clean + 5 noisy seeds × 5 methods): the report is at
     most 50 MB (its time is a benchmark: tests/benchmarks/test_bench_report.py) and a table row opens its viewer."""

@@ -55,7 +55,7 @@ def local_and_dask(tmp_path_factory):
     return base / "local", base / "dask", dask
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_quick_grid_on_a_local_dask_cluster_equals_the_local_executor(local_and_dask):
     local, dask, proc = local_and_dask
     ref, got = _rows(local / "results.csv"), _rows(dask / "results.csv")
@@ -126,7 +126,7 @@ def plugins_on_path():
     sys.path.remove(str(TESTS))
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_a_worker_killed_mid_cell_still_gives_every_cell_exactly_once(tmp_path, plugins_on_path):
     """Also: a per-cell timeout on the Dask path, and --resume after cells were lost from the store."""
     from bench.run.executors.dask import DaskExecutor
@@ -159,7 +159,7 @@ def test_a_worker_killed_mid_cell_still_gives_every_cell_exactly_once(tmp_path, 
     assert sorted(r["status"] for r in _rows(out / "results.csv")) == ["ok"] * 6 + ["timeout"]
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_a_cell_that_keeps_killing_its_workers_becomes_a_failed_row(tmp_path, plugins_on_path):
     """Dask retries a cell whose worker died (allowed-failures, here 1); then KilledWorker -> a failed row."""
     import dask
@@ -243,7 +243,7 @@ def test_compare_fingerprints():
     assert error is None and len(warnings) >= 2
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_a_worker_on_another_commit_stops_the_run_before_any_cell(tmp_path):
     from bench.run.executors.dask import suite_fingerprint
 
@@ -257,7 +257,7 @@ def test_a_worker_on_another_commit_stops_the_run_before_any_cell(tmp_path):
     assert not list(out.glob("cells/*.json"))
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_the_dask_run_records_no_version_differences_on_one_machine(local_and_dask):
     _, dask, proc = local_and_dask
     executor = json.loads((dask / "run.json").read_text())["sessions"][-1]["executor"]

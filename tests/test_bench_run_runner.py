@@ -104,7 +104,7 @@ def _fault_injection(tmp_path: Path, grid_args: list[str], seed: int) -> dict:
     return {"t_ref": t_ref, "live_kills": live_kills}
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_sigkill_at_10_random_moments_then_resume_gives_identical_results(tmp_path):
     cfg = tmp_path / "faults.toml"
     cfg.write_text(SMALL_GRID)

@@ -124,7 +124,7 @@ _SCRIPT = textwrap.dedent("""
 """)
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_scoring_a_genus_144_plate_with_8k_creases_stays_under_2_gb():
     from pathlib import Path
 

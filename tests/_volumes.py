@@ -90,7 +90,21 @@ def itk_image(values: np.ndarray, origin, spacing, direction=None):
 
 
 def write_dicom_series(img, folder: Path, series_uid: str = "1.2.826.0.1.3680043.2.1125.1") -> Path:
-    """``img`` (3-D, integer) as a DICOM series of axial slices in ``folder`` (SimpleITK's writer)."""
+    """``img`` (3-D, integer) as a DICOM series of axial slices in ``folder`` (SimpleITK's writer).
+
+    GDCM's writer sets the C library's locale to "C" (measured: afterwards ``locale.getencoding()`` is ASCII,
+    and ``subprocess.run(..., text=True)`` in the same test process fails on any non-ASCII output), so the
+    process's locale is restored after it."""
+    import locale
+
+    saved = locale.setlocale(locale.LC_ALL)
+    try:
+        return _write_dicom_series(img, folder, series_uid)
+    finally:
+        locale.setlocale(locale.LC_ALL, saved)
+
+
+def _write_dicom_series(img, folder: Path, series_uid: str) -> Path:
     import SimpleITK as sitk
 
     folder = Path(folder)

@@ -170,6 +170,7 @@ def _finished(out: Path) -> list[Path]:
     return [p for p in (out / "cells").glob("*.json") if not p.name.startswith(".")]
 
 
+@pytest.mark.heavy
 def test_interrupted_run_resumes_to_the_same_results(quick_run, tmp_path):
     """Kill the run after its first finished cell, rerun with --resume: the same rows as the uninterrupted run."""
     reference, _ = quick_run

@@ -129,6 +129,7 @@ _BROKEN_REASONS = {"nonfinite": "non-finite", "empty": "empty", "open": "open", 
                    "nonmanifold": "non-manifold"}
 
 
+@pytest.mark.heavy
 def test_every_invalid_class_is_invalid_in_the_grid_never_best_and_in_reconstruct(tmp_path, monkeypatch, capsys):
     """One grid run with a correct method and one broken plug-in per invalid class: each broken one is an
     `invalid` row with its reason and is never marked best (its distances are often the best of the table);

@@ -125,6 +125,7 @@ def test_the_methods_own_info_is_in_the_cell_record_and_the_report(phase_run):
     assert "Method facts per cell" in html and f"mesh_faces={row['n_faces']}" in html
 
 
+@pytest.mark.heavy
 def test_the_whole_cell_limit_still_works_and_says_where_it_ran_out(tmp_path):
     out = tmp_path / "run"
     res = _run(out, "--method", "slow_to_score:seconds=60", "--timeout", "3", "--no-report")

@@ -78,6 +78,7 @@ def _env() -> dict:
     return env
 
 
+@pytest.mark.heavy
 def test_two_runs_into_one_folder_the_second_exits_2_naming_the_owner(tmp_path):
     """A slow grid (a method that sleeps) holds the folder; a second run into it, with or without --resume and
     even with another config, exits 2 naming the first run's PID; the first run finishes normally."""

@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from bench.run.values import MAX_MESSAGE, cap_tail, cap_text, error_text
 
 REPO = Path(__file__).resolve().parent.parent
@@ -29,6 +31,7 @@ def test_cap_text_keeps_short_text_and_cuts_long_text_with_a_note():
     assert len(shown) < 2 * MAX_MESSAGE and shown.startswith("Traceback") and "RuntimeError: www" in shown
 
 
+@pytest.mark.heavy
 def test_a_huge_message_is_stored_once_and_capped_in_csv_and_page(tmp_path):
     cfg = tmp_path / "g.toml"
     cfg.write_text('[grid]\nphantoms = ["sphere"]\nn = [24]\n[run]\nimports = ["runner_plugins"]\n'

@@ -96,6 +96,7 @@ def test_with_the_exact_surface_as_truth_marching_cubes_is_within_a_voxel(boxes_
         assert np.isfinite(float(r["mean_dist"])) and np.isfinite(float(r["fscore@h"]))
 
 
+@pytest.mark.heavy
 def test_brain_mri_through_a_file_scores_like_the_builtin(tmp_path):
     """The built-in brain_mri volume written as NIfTI-2 (double-precision affine) and its truth mesh as PLY: the
     same cells give the same metrics."""
@@ -122,6 +123,7 @@ def test_brain_mri_through_a_file_scores_like_the_builtin(tmp_path):
     assert "hausdorff" not in c and c["has_truth"] is False
 
 
+@pytest.mark.heavy
 def test_a_mesh_glob_is_a_dataset_and_a_corrupt_file_fails_only_its_cells(tmp_path):
     data = tmp_path / "shapes"
     data.mkdir()

@@ -157,6 +157,7 @@ def test_genus_0_targets_are_compatible(name):
     assert target_topology(get_phantom(name).volume(n=40))["compatible"]
 
 
+@pytest.mark.heavy
 def test_the_command_line_prints_the_topology_warning(tmp_path):
     path = save_volume(tmp_path / "torus.npz", get_phantom("torus").volume(n=32))
     proc = subprocess.run([sys.executable, "-m", "bench", "reconstruct", str(path), "--method", "shape_gradient",

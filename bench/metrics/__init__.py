@@ -9,7 +9,7 @@
 phantom's exact ground truth:
 
 * distances (``distance.py``): recon → truth exact via the phantom, truth → recon exact point-to-triangle
-  via pymeshlab; maxima over all points, percentiles / means / F-score over seeded area-uniform samples;
+  (geometry/closest.py); maxima over all points, percentiles / means / F-score over seeded area-uniform samples;
 * curvature and smoothness (``curvature.py``): the shared paraboloid-fit estimator over a 2h neighbourhood;
 * topology, quality, self-intersections and SIF % (``topology.py``);
 * sharp-feature accuracy ``edge_chamfer`` / ``edge_fscore`` (``features.py``) and the volumetric ``iou``
@@ -23,7 +23,7 @@ and unreferenced vertices are dropped first (``n_vertices`` / ``n_faces`` report
 runner's columns but are filled by the cell runner (:mod:`bench.run.cell`, :func:`bench.run.cost.measure`),
 not here.
 
-The pymeshlab distance query runs in one worker thread while numpy computes the rest
+The compiled distance query (which releases the GIL) runs in one worker thread while numpy computes the rest
 (:data:`PARALLEL_DISTANCE`): the two phases cost about the same, so this nearly halves the wall time
 (``tests/benchmarks/test_bench_metrics.py`` times it).
 """
@@ -159,7 +159,7 @@ def _check_inputs(mesh, spacing, n_samples, crease_band):
     return vertices, faces, h
 
 
-#: run the pymeshlab distance query in a worker thread, overlapping the numpy phases (same results)
+#: run the distance query in a worker thread, overlapping the numpy phases (same results)
 PARALLEL_DISTANCE = True
 
 
@@ -240,7 +240,7 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     if volume is not None:
         band, band_pts = band_query(volume, seed)
         lap("fidelity_band")
-    # truth -> recon and band -> recon distances (pymeshlab, C++) run in a worker thread while numpy does the rest
+    # truth -> recon and band -> recon distances (compiled, GIL released) run in a worker thread while numpy does the rest
     pending = _start(_distances, true_pts, band_pts, V, F)
 
     out.update(topology_metrics(V, F))

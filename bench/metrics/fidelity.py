@@ -3,7 +3,7 @@
 Computed for every cell — phantoms with a truth and user scans without — so they compare across both:
 
 * ``sdf_rms_h`` / ``sdf_p95_h`` — SDF agreement: at the grid samples near the surface (|φ| < 3h) the mesh's
-  own signed distance (exact unsigned point-to-triangle distance, pymeshlab; its sign from the mesh's winding
+  own signed distance (exact unsigned point-to-triangle distance; its sign from the mesh's winding
   number on the grid) minus φ, RMS and 95th percentile of the absolute difference, in h.  At most
   :data:`BAND_SAMPLES` band samples are used (seeded, uniformly chosen): the statistics' sampling error is then
   below a per cent while the cost stays bounded at any N.

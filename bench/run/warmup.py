@@ -24,12 +24,12 @@ WARM_SECONDS: float | None = None
 
 
 def _metrics_without_threads(mesh, ph, h: float) -> None:
-    """The metric steps of :func:`bench.metrics.evaluate` except the pymeshlab distance query and the winding
-    number (they start threads)."""
+    """The metric steps of :func:`bench.metrics.evaluate` (the distance query here in this thread; evaluate runs
+    it in a worker thread)."""
     import numpy as np
 
     from bench.metrics.curvature import curvature_metrics, roughness_deg, vertex_curvature
-    from bench.metrics.distance import distance_metrics, sample_mesh_surface
+    from bench.metrics.distance import distance_metrics, point_mesh_distance, sample_mesh_surface
     from bench.metrics.features import edge_metrics
     from bench.metrics.topology import quality_metrics, self_intersection_pairs, sif_pct, topology_metrics
     from geometry import face_normals
@@ -44,6 +44,7 @@ def _metrics_without_threads(mesh, ph, h: float) -> None:
     curvature_metrics(H, K, tv, ph, 0.1)
     roughness_deg(V, F, fn, vertex_ok=tv.crease_distance >= 0.1)
     pts, fi = sample_mesh_surface(V, F, 2000, 0)
+    point_mesh_distance(pts, V, F)
     ts = ph.truth(pts)
     distance_metrics(ts.distance, float(ts.distance.max()), ts.distance, h, fn[fi], ts.normal)
     edge_metrics(pts, fn[fi], 1.0, ph, h)

@@ -17,10 +17,10 @@ def test_counts_on_a_sphere_with_known_answers():
     exact = trimesh.creation.icosphere(5, radius=1.0)                      # the sphere phantom has radius 1
     ops = type("Ops", (), {"faces": exact.faces})()
     g = SignGuard(vol, h, exact.vertices, exact.faces, ops)
-    assert g.log == [(0, 0)] and g.allowed == 2 + int(1e-3 * len(g.points))
+    assert g.log == [(0, 0)] and g.allowed == 2 + int(1e-3 * g.n_points)
     # shrunk by 0.6 h: every checked inside sample between radius 1 − 0.6 h and 1 − 0.25 h is now outside it
     small = exact.vertices * (1 - 0.6 * h)
-    r = np.linalg.norm(g.points, axis=1)
+    r = np.linalg.norm(vol.index_to_world(np.argwhere(g.sel)), axis=1)
     expected = int(np.count_nonzero((r > 1 - 0.6 * h) & (r < 1 - 0.25 * h)))
     assert abs(g.wrong_side(small, exact.faces) - expected) <= 0.02 * expected and expected > 100
     back = g.check(5, small, ops)

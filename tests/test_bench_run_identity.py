@@ -113,7 +113,7 @@ def _import_file(path, monkeypatch):
 def test_method_fingerprint_hashes_the_plugin_files_and_params_not_the_builtins(tmp_path, monkeypatch):
     from methods import BUILTIN_METHODS, Method, Param, available_methods
 
-    from bench.run.identity import method_fingerprint
+    from bench.run.method_code import method_fingerprint
 
     registry = available_methods()
     assert all(method_fingerprint(registry[name]) is None for name in BUILTIN_METHODS)   # the suite's identity

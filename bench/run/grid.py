@@ -5,7 +5,7 @@ requested SNR, seed, method, label, the method's parameters (phantom-specific on
 metric samples and the plug-in modules to import.  Executors ship cells to workers as they are.
 
 A plug-in method's cells also carry ``method_code``, the fingerprint of its code
-(:func:`bench.run.identity.method_fingerprint`).  It is not part of the ``cell_id``: the cell record keeps it, and
+(:func:`bench.run.method_code.method_fingerprint`).  It is not part of the ``cell_id``: the cell record keeps it, and
 ``--resume`` reruns (and overwrites) a finished cell whose plug-in changed since.  Built-in methods have none —
 the suite's code identity covers them — so their cells are as before.
 """
@@ -87,7 +87,7 @@ def method_codes(names) -> dict[str, dict | None]:
     """``{method name: fingerprint}`` of the methods named (None: a built-in, or a name no longer registered)."""
     from methods import available_methods
 
-    from .identity import method_fingerprint
+    from .method_code import method_fingerprint
 
     registry = available_methods()
     return {name: (method_fingerprint(registry[name]) if name in registry else None) for name in names}

@@ -7,34 +7,26 @@
 * :func:`code_identity` is the suite's version and git commit (plus a hash of uncommitted changes), stored in
   every cell record; :func:`mixed_code` lists the identities found in a folder, so a resume with other code is
   refused unless ``--allow-mixed-code`` (then run.json and the report say so).
-* :func:`method_fingerprint` covers what the suite's identity does not: a plug-in method's own code.  It hashes
-  the source files of the modules that define the method's class and its bases outside the suite's packages
-  (``geometry``, ``phantoms``, ``methods``, ``bench``), together with the class's parameters and their
-  defaults.  :func:`bench.run.grid.expand_grid` stores it in each cell of a plug-in (``method_code``), so its
-  record says which plug-in code computed it, and ``--resume`` reruns the cells whose plug-in changed since
-  (:func:`changed_methods`).  Only those module files count: helpers the plug-in imports from other modules
-  of its own are not hashed.
+* :func:`changed_methods` covers what the suite's identity does not: a plug-in method's own code.  Each cell of a
+  plug-in carries ``method_code`` (:func:`bench.run.method_code.method_fingerprint`: its module files and
+  parameters, hashed); ``--resume`` reruns, and overwrites, the finished cells whose plug-in changed since.
 """
 
 from __future__ import annotations
 
 import hashlib
-import inspect
 import subprocess
 from functools import lru_cache
 from importlib import metadata
-from pathlib import Path
 
 from phantoms import InputError
 
 from .grid import canonical_json
+from .method_code import SUITE_PACKAGES, method_fingerprint
 from .provenance import SUITE_ROOT, git_commit
 
 __all__ = ["config_fingerprint", "config_differences", "check_same_config", "code_identity", "code_label",
            "mixed_code", "MixedCodeError", "method_fingerprint", "changed_methods", "SUITE_PACKAGES"]
-
-#: the suite's own packages: their code is in :func:`code_identity` (git commit and uncommitted changes)
-SUITE_PACKAGES = ("geometry", "phantoms", "methods", "bench")
 
 #: top-level config keys that do not change any cell (labels and page layout)
 _COSMETIC = ("name", "description", "report")
@@ -119,54 +111,6 @@ def mixed_code(records: dict[str, dict], current: dict | None) -> dict[str, int]
     if current is not None:
         counts.setdefault(code_label(current), 0)
     return counts if len(counts) > 1 else {}
-
-
-def _in_suite(path: Path) -> bool:
-    """True for a file of the suite's own packages (under the suite's root)."""
-    root = Path(SUITE_ROOT).resolve()
-    return any(path.is_relative_to(root / pkg) for pkg in SUITE_PACKAGES)
-
-
-def _class_file(klass: type) -> Path | None:
-    try:
-        return Path(inspect.getsourcefile(klass) or inspect.getfile(klass)).resolve()
-    except (TypeError, OSError):  # a class of a module without a file (__main__ in an interpreter, ...)
-        return None
-
-
-def method_fingerprint(cls: type) -> dict | None:
-    """``{"hash": sha256 (16 hex), "files": [...]}`` of a plug-in method class, or None for a built-in one.
-
-    The hash covers the bytes of the source file of every class in ``cls``'s MRO defined outside the suite's
-    packages (:data:`SUITE_PACKAGES`; those are the suite's own code, in :func:`code_identity`), in MRO order, and
-    the class's parameters (``Param`` with default, type and bounds).  ``files`` names those files (for
-    messages; moving the plug-in does not change the hash).  A class whose module has no file (defined in an
-    interactive session) is hashed by its module and class name.
-    """
-    h = hashlib.sha256()
-    files: list[str] = []
-    seen: set[str] = set()
-    for klass in getattr(cls, "__mro__", (cls,)):
-        if klass is object:
-            continue
-        path = _class_file(klass)
-        if path is not None and _in_suite(path):
-            continue
-        key = str(path) if path is not None else f"<{klass.__module__}.{klass.__qualname__}>"
-        if key in seen:
-            continue
-        seen.add(key)
-        files.append(key)
-        try:
-            data = path.read_bytes() if path is not None else key.encode()
-        except OSError:
-            data = f"unreadable {key}".encode()
-        h.update(hashlib.sha256(data).digest())
-    if not files:
-        return None
-    params = getattr(cls, "params", {}) or {}
-    h.update(canonical_json({k: repr(v) for k, v in params.items()}).encode())
-    return {"hash": h.hexdigest()[:16], "files": files}
 
 
 def _code_hash(code) -> str | None:

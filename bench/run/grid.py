@@ -3,6 +3,11 @@
 A cell is everything needed to compute one result from nothing: phantom, variant, N, extent, noise kind,
 requested SNR, seed, method, label, the method's parameters (phantom-specific ones applied), the number of
 metric samples and the plug-in modules to import.  Executors ship cells to workers as they are.
+
+A plug-in method's cells also carry ``method_code``, the fingerprint of its code
+(:func:`bench.run.method_code.method_fingerprint`).  It is not part of the ``cell_id``: the cell record keeps it, and
+``--resume`` reruns (and overwrites) a finished cell whose plug-in changed since.  Built-in methods have none —
+the suite's code identity covers them — so their cells are as before.
 """
 
 from __future__ import annotations
@@ -78,6 +83,16 @@ def grid_sizes(source: str, sizes) -> list[int]:
     return list(sizes)
 
 
+def method_codes(names) -> dict[str, dict | None]:
+    """``{method name: fingerprint}`` of the methods named (None: a built-in, or a name no longer registered)."""
+    from methods import available_methods
+
+    from .method_code import method_fingerprint
+
+    registry = available_methods()
+    return {name: (method_fingerprint(registry[name]) if name in registry else None) for name in names}
+
+
 def expand_grid(cfg) -> list[dict]:
     """All cells of a validated :class:`bench.config.RunConfig`, in order phantom → variant → N → noise →
     seed → method.
@@ -89,6 +104,7 @@ def expand_grid(cfg) -> list[dict]:
     """
     cells = []
     one = getattr(cfg, "vary", "all") == "one_at_a_time"
+    codes = method_codes(dict.fromkeys(spec.name for spec in cfg.methods))
     for phantom, source in expand_phantoms(cfg.phantoms):
         fingerprint = input_fingerprint(source)
         for variant in cfg.variants:
@@ -111,6 +127,7 @@ def expand_grid(cfg) -> list[dict]:
                                     "snr_requested": snr, "seed": int(seed), "method": spec.name,
                                     "label": label, "params": spec.params_for(params, phantom),
                                     "n_samples": int(cfg.n_samples), "imports": list(cfg.imports),
+                                    **({"method_code": codes[spec.name]} if codes[spec.name] else {}),
                                 }
                                 cell["cell_id"] = cell_id(cell)
                                 cells.append(cell)

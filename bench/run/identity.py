@@ -7,6 +7,9 @@
 * :func:`code_identity` is the suite's version and git commit (plus a hash of uncommitted changes), stored in
   every cell record; :func:`mixed_code` lists the identities found in a folder, so a resume with other code is
   refused unless ``--allow-mixed-code`` (then run.json and the report say so).
+* :func:`changed_methods` covers what the suite's identity does not: a plug-in method's own code.  Each cell of a
+  plug-in carries ``method_code`` (:func:`bench.run.method_code.method_fingerprint`: its module files and
+  parameters, hashed); ``--resume`` reruns, and overwrites, the finished cells whose plug-in changed since.
 """
 
 from __future__ import annotations
@@ -19,10 +22,11 @@ from importlib import metadata
 from phantoms import InputError
 
 from .grid import canonical_json
+from .method_code import SUITE_PACKAGES, method_fingerprint
 from .provenance import SUITE_ROOT, git_commit
 
 __all__ = ["config_fingerprint", "config_differences", "check_same_config", "code_identity", "code_label",
-           "mixed_code", "MixedCodeError"]
+           "mixed_code", "MixedCodeError", "method_fingerprint", "changed_methods", "SUITE_PACKAGES"]
 
 #: top-level config keys that do not change any cell (labels and page layout)
 _COSMETIC = ("name", "description", "report")
@@ -107,3 +111,29 @@ def mixed_code(records: dict[str, dict], current: dict | None) -> dict[str, int]
     if current is not None:
         counts.setdefault(code_label(current), 0)
     return counts if len(counts) > 1 else {}
+
+
+def _code_hash(code) -> str | None:
+    return code.get("hash") if isinstance(code, dict) else None
+
+
+def changed_methods(records: dict[str, dict], cells: list[dict]) -> dict[str, dict]:
+    """The finished cells whose plug-in method code differs from the code that would compute them now:
+    ``{method: {"cells": [cell_id, ...], "files": [...], "unknown": bool}}`` (``unknown``: a record written
+    before plug-in code was recorded).  Built-in methods (no ``method_code`` on either side) never differ here:
+    the suite's own code is checked by :func:`mixed_code`."""
+    current = {c["cell_id"]: c for c in cells}
+    out: dict[str, dict] = {}
+    for cid, rec in records.items():
+        cell = current.get(cid)
+        if cell is None:
+            continue
+        old = (rec.get("cell") or {}).get("method_code")
+        new = cell.get("method_code")
+        if _code_hash(old) == _code_hash(new):
+            continue
+        entry = out.setdefault(cell["method"], {"cells": [], "files": (new or old or {}).get("files", []),
+                                                "unknown": False})
+        entry["cells"].append(cid)
+        entry["unknown"] = entry["unknown"] or old is None
+    return out

@@ -26,7 +26,8 @@ from .executors.local import LocalExecutor
 from .grid import expand_grid
 from .limits import TimeLimits
 from .provenance import environment
-from .identity import MixedCodeError, check_same_config, config_fingerprint, code_identity, mixed_code
+from .identity import (MixedCodeError, changed_methods, check_same_config, config_fingerprint, code_identity,
+                       mixed_code)
 from .lock import RunLock
 from .store import (CACHE_DIR, check_output_dir, clean_temp_files, read_json, save_cell, scan_cells, write_json,
                     write_results_csv)
@@ -144,12 +145,21 @@ def time_limits(cfg, timeout: float | None = None, method_timeout: float | None 
                       pick(score_timeout, getattr(cfg, "score_timeout", None)))
 
 
+def _changed_note(method: str, entry: dict) -> str:
+    n = len(entry["cells"])
+    where = f" (plug-in {', '.join(entry['files'])})" if entry["files"] else ""
+    why = ("its cells were computed before the suite recorded a plug-in's code" if entry["unknown"]
+           else "changed since its cells were computed")
+    return f"note: method {method!r} {why}{where}; rerunning its {n} cell{'s' if n != 1 else ''}"
+
+
 def _load_done(out: Path, cells: list[dict], cfg, resume: bool, retry_failed: bool,
-               allow_mixed_code: bool) -> tuple[dict, dict]:
-    """The finished cells to keep (verified: a cell whose json or npz does not load is rerun, with a warning)
-    and ``{code: cells}`` when several versions of the code are (or would be) mixed."""
+               allow_mixed_code: bool) -> tuple[dict, dict, dict]:
+    """The finished cells to keep (verified: a cell whose json or npz does not load is rerun, with a warning;
+    a cell whose plug-in method's code changed since is rerun, with a note per method), ``{code: cells}`` when
+    several versions of the code are (or would be) mixed, and ``{method: cells rerun}`` of the changed plug-ins."""
     if not resume:
-        return {}, {}
+        return {}, {}, {}
     stored = read_json(out / "config.json")
     if not isinstance(stored, dict):
         raise InputError(f"--resume: {str(out / 'config.json')!r} is missing or unreadable, so {str(out)!r} holds "
@@ -162,13 +172,19 @@ def _load_done(out: Path, cells: list[dict], cfg, resume: bool, retry_failed: bo
     records = {k: v for k, v in found.items() if k in ids}
     if retry_failed:
         records = {k: v for k, v in records.items() if v["row"].get("status") == "ok"}
+    changed = changed_methods(records, cells)       # rerun and overwritten: one row per cell, the new code's
+    for entry in changed.values():
+        for cid in entry["cells"]:
+            del records[cid]
     # the current code counts when it will compute cells (a complete run's report can be re-rendered)
     mixed = mixed_code(records, code_identity() if len(records) < len(cells) else None) if records else {}
     if mixed and not allow_mixed_code:
         raise MixedCodeError(f"--resume: the cells in {str(out)!r} were computed by other code than this "
                              f"({'; '.join(f'{k}: {n} cells' for k, n in mixed.items())}); rerun into a new "
                              "--out, or pass --allow-mixed-code to mix them (run.json and the report say so)")
-    return records, mixed
+    for method, entry in changed.items():
+        print(printable(_changed_note(method, entry)), file=sys.stderr)
+    return records, mixed, {m: len(e["cells"]) for m, e in changed.items()}
 
 
 def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = False, retry_failed: bool = False,
@@ -213,7 +229,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     cells = expand_grid(cfg)
     limits = time_limits(cfg, timeout, method_timeout, score_timeout)
     jobs = jobs or os.cpu_count() or 1
-    records, mixed = _load_done(out, cells, cfg, resume, retry_failed, allow_mixed_code)
+    records, mixed, changed = _load_done(out, cells, cfg, resume, retry_failed, allow_mixed_code)
     write_json(out / "config.json", cfg.to_dict())
     code = code_identity()
     todo = sorted((c for c in cells if c["cell_id"] not in records), key=_expected_cost, reverse=True)
@@ -221,6 +237,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     session = {"start": _now(), "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
                **limits.to_dict(), "cells_to_run": len(todo), "resumed_from": len(cells) - len(todo),
                "code": code, "allow_mixed_code": bool(allow_mixed_code),
+               **({"methods_changed": changed} if changed else {}),
                "executor": (executor.describe() if hasattr(executor, "describe") else {"executor": "local"})}
     log = RunLog(out, cfg, len(cells), session, resume)
     log.mixed_code = mixed

@@ -15,6 +15,7 @@ import time
 import numpy as np
 import trimesh
 
+from geometry.mesh import signed_volume
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, check_volume
@@ -56,14 +57,9 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray) -> trimesh.Trimesh:
 
 def orient_outward(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     """Flip all faces when the enclosed (signed) volume is negative. In place; returns the mesh."""
-    if len(mesh.faces) and _signed_volume(mesh.vertices, mesh.faces) < 0:
+    if len(mesh.faces) and signed_volume(mesh.vertices, mesh.faces) < 0:
         mesh.faces = mesh.faces[:, ::-1].copy()
     return mesh
-
-
-def _signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
-    v0, v1, v2 = (vertices[faces[:, k]] for k in range(3))
-    return float(np.einsum("ij,ij->i", v0, np.cross(v1, v2)).sum() / 6.0)
 
 
 def mesh_facts(mesh: trimesh.Trimesh) -> dict:
@@ -73,8 +69,7 @@ def mesh_facts(mesh: trimesh.Trimesh) -> dict:
         "faces": int(len(mesh.faces)),
         "watertight": bool(mesh.is_watertight) if len(mesh.faces) else False,
         "euler": int(mesh.euler_number) if len(mesh.faces) else 0,
-        "signed_volume": _signed_volume(np.asarray(mesh.vertices), np.asarray(mesh.faces)) if len(mesh.faces)
-        else 0.0,
+        "signed_volume": signed_volume(mesh.vertices, mesh.faces),
     }
     if len(mesh.faces):
         labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(mesh.faces))

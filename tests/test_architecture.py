@@ -187,3 +187,36 @@ def test_the_link_check_finds_a_broken_link(tmp_path):
     page = tmp_path / "README.md"
     page.write_text("[a](docs/NOPE.md) [b](#x) [c](https://example.org/a.md) [d](docs/GUIDE.md#guide)\n")
     assert broken_links([page]) == ["README.md: docs/NOPE.md"]
+
+
+# ---------------------------------------------------------------------------------------------- one home per primitive
+#: the signed-volume formula Σ v0 · (v1 × v2) / 6: a cross product and a division by 6 in one statement
+_SIGNED_VOLUME = re.compile(r"np\.cross\([^\n]*\)[^\n]*/\s*6(\.0)?\b|/\s*6(\.0)?\b[^\n]*np\.cross\(")
+
+
+def primitive_copies(sources: dict[str, Path], home: str) -> list[str]:
+    """Source lines outside ``home`` that compute a signed volume themselves."""
+    hits = []
+    for name, path in sources.items():
+        if name == home:
+            continue
+        for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if _SIGNED_VOLUME.search(line):
+                hits.append(f"{path.relative_to(REPO)}:{i}: {line.strip()}")
+    return hits
+
+
+def test_signed_volume_has_one_home():
+    """geometry.mesh.signed_volume is the one implementation; everyone else calls it."""
+    assert primitive_copies(_sources(), "geometry.mesh") == []
+
+
+def test_the_primitive_check_finds_a_copy(tmp_path):
+    p = tmp_path / "copy.py"
+    p.write_text("vol = float(np.einsum('ij,ij->i', a, np.cross(b, c)).sum()) / 6.0\n")
+    global REPO
+    saved, REPO = REPO, tmp_path
+    try:
+        assert len(primitive_copies({"copy": p}, "geometry.mesh")) == 1
+    finally:
+        REPO = saved

@@ -37,6 +37,7 @@ import time
 import numpy as np
 
 from geometry import face_normals
+from geometry.mesh import signed_volume
 from phantoms import InputError
 
 from .curvature import (
@@ -225,8 +226,7 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     fn = face_normals(V, F)
     tri = V[F]
     area = float(0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
-    signed_volume = float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()) / 6.0
-    outward = signed_volume >= 0
+    outward = signed_volume(V, F) >= 0
     if not outward:
         fn = -fn
     lap("prepare")

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from geometry.mesh import signed_volume
 from geometry.topology import edge_face_counts, is_oriented
 
 __all__ = ["check_mesh", "REASONS"]
@@ -85,8 +86,7 @@ def check_mesh(mesh, volume, *, box_margin: float = 3.0, phi_tolerance: float = 
         reasons.append(f"non-manifold: {int((counts > 2).sum())} edges in more than two faces")
     if not is_oriented(f, len(v)):
         reasons.append("inconsistently oriented: neighbouring faces disagree on the orientation")
-    t = v[f]
-    signed_volume = float(np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum()) / 6.0
-    if signed_volume < 0:
-        reasons.append(f"inward: the enclosed volume is negative ({signed_volume:.4g}); faces must face outward")
+    enclosed = signed_volume(v, f)
+    if enclosed < 0:
+        reasons.append(f"inward: the enclosed volume is negative ({enclosed:.4g}); faces must face outward")
     return reasons

@@ -10,6 +10,7 @@ import trimesh
 from scipy.sparse.linalg import cg, splu
 
 from geometry.arrays import unique_ints
+from geometry.mesh import signed_volume
 from geometry.operators import MeshOperators, dot, jacobi_cg
 from phantoms import InputError
 
@@ -423,8 +424,7 @@ class ShapeGradientFlow:
 
     def _check_result(self, geo) -> dict:
         """Volume and distance of the final mesh to φ = 0; a collapsed or off-surface result is a failure."""
-        t = geo.corners_t
-        vol = float((t[:, 0] * np.cross(t[:, 1], t[:, 2], axis=0)).sum() / 6.0)
+        vol = signed_volume(geo.vertices, self.ops.faces)
         phi = self.field.sample_t(geo.vertices_t, 0)[0]
         med = float(np.median(np.abs(phi)))
         noise = float(self.noise) if np.isfinite(self.noise) else 0.0

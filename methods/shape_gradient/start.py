@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from geometry.mesh import signed_volume
 from geometry.sphere import fibonacci_sphere
 from geometry.topology import connected_components, edge_face_counts, euler_characteristic, genus, is_oriented
 from phantoms import InputError, Volume
@@ -102,8 +103,7 @@ def prepare_init_mesh(mesh) -> tuple[np.ndarray, np.ndarray, bool]:
     dbl = np.linalg.norm(cross, axis=1)
     if np.any(dbl <= 1e-12 * max(1.0, float(np.ptp(v, axis=0).max())) ** 2):
         raise InputError(f"{where}: {int((dbl <= 0).sum()) or 'some'} faces are degenerate (zero area)")
-    signed_volume = float(np.einsum("ij,ij->i", v[f[:, 0]], cross).sum() / 6.0)
-    flipped = signed_volume < 0
+    flipped = signed_volume(v, f) < 0
     if flipped:
         f = f[:, ::-1].copy()
     return v.copy(), np.ascontiguousarray(f), flipped

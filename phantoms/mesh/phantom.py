@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry.errors import InputError
+from geometry.mesh import signed_volume
 from geometry.topology import (connected_components, directed_edge_repeats, edge_face_counts, euler_characteristic,
                                genus, sample_surface)
 
@@ -164,11 +165,10 @@ class MeshPhantom(Phantom):
         else:
             self.centre, self.scale = np.zeros(3), 1.0
         # orientation: outward normals give a positive enclosed volume
-        tri = v[f]
-        vol6 = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()
-        if vol6 < 0:
+        enclosed = signed_volume(v, f)
+        if enclosed < 0:
             f = f[:, ::-1].copy()
-        elif vol6 == 0:
+        elif enclosed == 0:
             raise InputError("mesh encloses zero volume")
         self.vertices = v
         self.faces = f

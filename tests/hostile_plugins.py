@@ -68,6 +68,7 @@ class KillsParent(Method):
     name = "kills_parent"
     description = "SIGKILLs its parent process (the local executor's fork server), then fails"
     params: dict = {}
+    relative_cost = 50.0             # started right after slow_ok, so that one runs while the server dies
 
     def reconstruct(self, volume):
         os.kill(os.getppid(), signal.SIGKILL)
@@ -93,5 +94,7 @@ class SlowOk(Method):
     relative_cost = 100.0            # started first: it runs while the others attack
 
     def reconstruct(self, volume):
+        parent = os.getppid()
         time.sleep(self.config["seconds"])
-        return Reconstruction(_mc(volume), {})
+        # reparented: its fork server died meanwhile (the test checks the orphan case really happened)
+        return Reconstruction(_mc(volume), {"reparented": os.getppid() != parent})

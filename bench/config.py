@@ -222,8 +222,7 @@ class RunConfig:
             "run": {"timeout": self.timeout or 0, "imports": list(self.imports)},
         }
         d["run"].update({k: getattr(self, k) for k in ("method_timeout", "score_timeout") if getattr(self, k)})
-        if self.memory_limit is not None:
-            d["run"]["memory_limit"] = self.memory_limit
+        d["run"].update({} if self.memory_limit is None else {"memory_limit": self.memory_limit})
         if self.report:
             d["report"] = copy.deepcopy(self.report)
         return d
@@ -354,8 +353,7 @@ def config_from_dict(data: dict, source: str = "") -> RunConfig:
             if t < 0:
                 raise InputError(f"run.{key}: must be >= 0 (0 = no timeout)")
             setattr(cfg, key, check_seconds(t, f"run.{key}") or None)
-    if "memory_limit" in run:
-        cfg.memory_limit = check_gb(_float(run["memory_limit"], "run.memory_limit"), "run.memory_limit")
+    cfg.memory_limit = check_gb(run.get("memory_limit"), "run.memory_limit")
     if "imports" in run:
         imports = run["imports"]
         if not isinstance(imports, list) or not all(isinstance(s, str) for s in imports):
@@ -396,13 +394,8 @@ def _noise_from(kind: Any, snr: Any, where: str) -> list[NoiseSpec]:
         raise InputError(f"{where}: unknown noise kind {kind!r}; valid kinds: {', '.join(NOISE_KINDS)}")
     if kind == "none":
         return [NoiseSpec("none")]
-    out = []
-    for s in _as_list(snr, f"{where}.snr"):
-        if s == "paper":
-            out.append(NoiseSpec(kind, "paper"))
-        else:
-            out.append(NoiseSpec(kind, _float(s, f"{where}.snr (a number in dB or 'paper')")))
-    return out
+    return [NoiseSpec(kind, "paper" if s == "paper" else _float(s, f"{where}.snr (a number in dB or 'paper')"))
+            for s in _as_list(snr, f"{where}.snr")]
 
 
 def _method_from(m: Any, where: str) -> MethodSpec:

@@ -34,10 +34,10 @@ TESTS = Path(__file__).resolve().parent
 
 # ---------------------------------------------------------------------------------------------- units
 def test_memory_values_are_range_checked():
-    assert check_gb(None, "x") is None and check_gb(0, "x") == 0.0 and check_gb("1.5", "x") == 1.5
+    assert check_gb(None, "x") is None and check_gb(0, "x") == 0.0 and check_gb(1.5, "x") == 1.5
     phys = physical_memory_gb()
     assert phys and phys > 0
-    for bad in (-1, float("inf"), float("nan"), "lots", MAX_MEMORY_FACTOR * phys * 1.01):
+    for bad in (-1, float("inf"), float("nan"), "1.5", True, MAX_MEMORY_FACTOR * phys * 1.01):
         with pytest.raises(InputError, match=r"^--memory-limit: "):
             check_gb(bad, "--memory-limit")
 

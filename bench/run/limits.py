@@ -147,13 +147,13 @@ def default_memory_gb(jobs: int) -> float | None:
 
 def check_gb(value, what: str) -> float | None:
     """``value`` (GB; None = unset, 0 = no limit) range-checked: an :class:`InputError` naming ``what`` unless it
-    is 0 or a finite positive number of at most :data:`MAX_MEMORY_FACTOR` × the physical memory."""
+    is 0 or a finite positive number (not a string, not a bool) of at most :data:`MAX_MEMORY_FACTOR` × the
+    physical memory."""
     if value is None:
         return None
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{what}: not a number: {value!r}") from None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{what}: expected a number of GB, got {value!r}")
+    v = float(value)
     phys = physical_memory_gb()
     top = MAX_MEMORY_FACTOR * phys if phys else math.inf
     if not (v == 0 or 0 < v <= top) or math.isinf(v):

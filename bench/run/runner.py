@@ -232,7 +232,8 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     todo = sorted((c for c in cells if c["cell_id"] not in records), key=_expected_cost, reverse=True)
     summary = RunSummary(out=out, total=len(cells), skipped=len(cells) - len(todo))
     session = {"start": _now(), "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
-               **limits.to_dict(), "memory_limit_gb": memory, "cells_to_run": len(todo), "resumed_from": len(cells) - len(todo),
+               **limits.to_dict(), "memory_limit_gb": memory, "cells_to_run": len(todo),
+               "resumed_from": len(cells) - len(todo),
                "code": code, "allow_mixed_code": bool(allow_mixed_code),
                "executor": (executor.describe() if hasattr(executor, "describe") else {"executor": "local"})}
     log = RunLog(out, cfg, len(cells), session, resume)

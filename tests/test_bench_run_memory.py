@@ -23,8 +23,8 @@ from pathlib import Path
 import pytest
 
 from bench.config import builtin_config, config_from_dict
-from bench.run.limits import (MAX_MEMORY_FACTOR, check_gb, current_memory_limit_gb, default_memory_gb, memory_error,
-                              memory_phase, physical_memory_gb)
+from bench.run.limits import (DEFAULT_MEMORY_FLOOR_GB, MAX_MEMORY_FACTOR, check_gb, current_memory_limit_gb,
+                              default_memory_gb, memory_error, memory_phase, physical_memory_gb)
 from bench.run.runner import memory_limit
 from phantoms import InputError
 
@@ -44,9 +44,11 @@ def test_memory_values_are_range_checked():
 
 def test_the_default_is_three_quarters_of_the_memory_per_job():
     phys = physical_memory_gb()
-    assert math.isclose(default_memory_gb(2), 0.75 * phys / 2) and math.isclose(default_memory_gb(1), 0.75 * phys)
+    floor = min(DEFAULT_MEMORY_FLOOR_GB, phys)                   # a normal cell maps about 1 GB (see limits.py)
+    assert math.isclose(default_memory_gb(2), max(0.75 * phys / 2, floor))
+    assert math.isclose(default_memory_gb(1), max(0.75 * phys, floor)) and default_memory_gb(10 ** 6) == floor
     cfg = builtin_config("quick")
-    assert cfg.memory_limit is None and math.isclose(memory_limit(cfg, None, 4), 0.75 * phys / 4)
+    assert cfg.memory_limit is None and math.isclose(memory_limit(cfg, None, 4), max(0.75 * phys / 4, floor))
     assert memory_limit(cfg, 3.0, 4) == 3.0 and memory_limit(cfg, 0, 4) is None      # 0 = no limit
     cfg.memory_limit = 0.0
     assert memory_limit(cfg, None, 4) is None and memory_limit(cfg, 2.5, 4) == 2.5    # the argument wins

@@ -23,9 +23,10 @@ What a normal cell needs: the address space counts every mapping, not just the m
 the fork server preloaded (numba's LLVM, scipy, pymeshlab, VTK ...), thread stacks (8 MiB each) and malloc's
 per-thread arenas (64 MiB of reserve each).  Measured on the 2-core, 23 GiB machine (Python 3.11), a marching
 cubes cell at N = 48, sphere and torus, with and without noise: VmPeak 0.99 GB with ``--jobs 2`` (one
-BLAS/OpenMP thread per worker), 1.05 GB with ``--jobs 1``; the resident peak (VmHWM) 0.18 GB.  So no limit
-under about 1.5 GB is usable, the test limit is 2 GB, and the default (8.6 GB per cell there with two jobs)
-leaves room for the iterative methods at N = 96.
+BLAS/OpenMP thread per worker), 1.05 GB with ``--jobs 1``; the resident peak (VmHWM) 0.18 GB.  At N = 96
+(sphere, two jobs): marching cubes 1.01 GB, DistMesh 1.03 GB, Poisson 1.13 GB, shape_gradient 1.82 GB (resident
+0.20 / 0.22 / 0.34 / 0.49 GB).  So no limit under about 1.5 GB is usable, the test limit is 2 GB, and the
+default (8.8 GB per cell there with two jobs) is never below :data:`DEFAULT_MEMORY_FLOOR_GB`.
 """
 
 from __future__ import annotations
@@ -129,6 +130,10 @@ GB = 2 ** 30
 MAX_MEMORY_FACTOR = 4.0
 #: the share of the physical memory the cells of a run may use together by default
 DEFAULT_MEMORY_SHARE = 0.75
+#: the smallest default limit, GB (never above the physical memory): the address space a normal cell maps is
+#: about 1 GB before it allocates anything, and shape_gradient at N = 96 peaks at 1.8 GB, so on a machine with
+#: many cores and little memory per core the share alone would fail normal cells
+DEFAULT_MEMORY_FLOOR_GB = 4.0
 
 
 def physical_memory_gb() -> float | None:
@@ -140,9 +145,12 @@ def physical_memory_gb() -> float | None:
 
 
 def default_memory_gb(jobs: int) -> float | None:
-    """The default per-cell limit: 75 % of the physical memory divided by ``jobs`` (None: unknown memory)."""
+    """The default per-cell limit: 75 % of the physical memory divided by ``jobs``, but at least
+    :data:`DEFAULT_MEMORY_FLOOR_GB` (or the physical memory, if less); None: unknown memory."""
     phys = physical_memory_gb()
-    return DEFAULT_MEMORY_SHARE * phys / max(1, int(jobs)) if phys else None
+    if not phys:
+        return None
+    return max(DEFAULT_MEMORY_SHARE * phys / max(1, int(jobs)), min(DEFAULT_MEMORY_FLOOR_GB, phys))
 
 
 def check_gb(value, what: str) -> float | None:

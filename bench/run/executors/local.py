@@ -53,7 +53,7 @@ def _cell_process(cell: dict, cache_dir: str | None, result_conn, lifeline_conn,
 
     try:
         result = run_cell(cell, cache_dir, on_phase)
-    except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the runner handles it, not a row
+    except KeyboardInterrupt:  # a SIGINT sent to the cell itself (Ctrl-C reaches the runner, which kills it)
         os._exit(130)
     except BaseException as exc:  # run_cell catches Exception; this is SystemExit etc.
         result = failed_result(cell, "failed", f"worker: {error_text(exc)}")

@@ -113,6 +113,7 @@ def test_a_cell_over_the_memory_limit_is_a_failed_row(phase_run):
     assert row["error"].startswith("memory limit (2 GB) exceeded in the method (MemoryError: Unable to allocate")
     session = json.loads((phase_run[0] / "run.json").read_text())["sessions"][-1]
     assert session["memory_limit_gb"] == 2.0
+    assert "<td>2 GB</td>" in (phase_run[0] / "index.html").read_text(encoding="utf-8")   # the sessions table
 
 
 def test_a_wrong_return_type_is_a_named_failure(phase_run):

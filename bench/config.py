@@ -30,6 +30,7 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
     [run]
     timeout = 3600                          # seconds per cell (0 or absent: none)
     method_timeout = 600                    # seconds for method.reconstruct alone; score_timeout: for scoring
+    memory_limit = 8                        # GB of address space per cell (0: none; absent: 75 % of RAM / jobs)
     imports = ["my_package.my_methods"]     # modules imported first (e.g. to register_method plug-ins)
     [report]                                # optional: paper_columns = [{ title, label, noise }, ...] (the
     uniform_label = "shape_gradient"        # paper-style tables: a column per entry), the uniform-noise label(s)
@@ -53,7 +54,7 @@ from phantoms import (NOISE_KINDS, VARIANTS, InputError, expand_phantoms, get_ph
                       is_phantom_name, phantom_names, phantom_path)
 from phantoms.user import spec_from_table
 
-from .run.limits import check_seconds
+from .run.limits import check_gb, check_seconds
 from .textspec import parse_value as _parse_value
 from .textspec import split_top as _split_top
 
@@ -73,7 +74,7 @@ VARY = ("all", "one_at_a_time")
 _NOISE_KEYS = {"kind", "snr"}
 _METHOD_KEYS = {"name", "label", "params", "sweep", "phantom_params", "noise"}
 _METRICS_KEYS = {"n_samples"}
-_RUN_KEYS = {"timeout", "method_timeout", "score_timeout", "imports"}
+_RUN_KEYS = {"timeout", "method_timeout", "score_timeout", "memory_limit", "imports"}
 _REPORT_KEYS = {"paper_columns", "uniform_label"}
 _COLUMN_KEYS = {"title", "label", "noise"}
 
@@ -200,6 +201,7 @@ class RunConfig:
     timeout: float | None = None
     method_timeout: float | None = None
     score_timeout: float | None = None
+    memory_limit: float | None = None      # GB per cell; None: the default (bench.run.limits), 0: no limit
     imports: list[str] = field(default_factory=list)
     report: dict = field(default_factory=dict)
     source: str = ""
@@ -220,6 +222,7 @@ class RunConfig:
             "run": {"timeout": self.timeout or 0, "imports": list(self.imports)},
         }
         d["run"].update({k: getattr(self, k) for k in ("method_timeout", "score_timeout") if getattr(self, k)})
+        d["run"].update({} if self.memory_limit is None else {"memory_limit": self.memory_limit})
         if self.report:
             d["report"] = copy.deepcopy(self.report)
         return d
@@ -350,6 +353,7 @@ def config_from_dict(data: dict, source: str = "") -> RunConfig:
             if t < 0:
                 raise InputError(f"run.{key}: must be >= 0 (0 = no timeout)")
             setattr(cfg, key, check_seconds(t, f"run.{key}") or None)
+    cfg.memory_limit = check_gb(run.get("memory_limit"), "run.memory_limit")
     if "imports" in run:
         imports = run["imports"]
         if not isinstance(imports, list) or not all(isinstance(s, str) for s in imports):
@@ -390,13 +394,8 @@ def _noise_from(kind: Any, snr: Any, where: str) -> list[NoiseSpec]:
         raise InputError(f"{where}: unknown noise kind {kind!r}; valid kinds: {', '.join(NOISE_KINDS)}")
     if kind == "none":
         return [NoiseSpec("none")]
-    out = []
-    for s in _as_list(snr, f"{where}.snr"):
-        if s == "paper":
-            out.append(NoiseSpec(kind, "paper"))
-        else:
-            out.append(NoiseSpec(kind, _float(s, f"{where}.snr (a number in dB or 'paper')")))
-    return out
+    return [NoiseSpec(kind, "paper" if s == "paper" else _float(s, f"{where}.snr (a number in dB or 'paper')"))
+            for s in _as_list(snr, f"{where}.snr")]
 
 
 def _method_from(m: Any, where: str) -> MethodSpec:

@@ -48,7 +48,8 @@ def _rows(path: Path) -> list[dict]:
 @pytest.fixture(scope="module")
 def local_and_dask(tmp_path_factory):
     base = tmp_path_factory.mktemp("dask")
-    local = _bench(*QUICK, "--jobs", "2", "--no-report", "--out", str(base / "local"))
+    # no memory limit, as on the Dask workers (a crash row names the local limit in force)
+    local = _bench(*QUICK, "--jobs", "2", "--memory-limit", "0", "--no-report", "--out", str(base / "local"))
     assert local.returncode == 0, local.stderr[-3000:]
     dask = _bench(*QUICK, "--executor", "dask", "--workers", "2", "--out", str(base / "dask"))
     assert dask.returncode == 0, dask.stderr[-3000:]

@@ -71,7 +71,7 @@ def _run(out: Path, *args) -> subprocess.CompletedProcess:
     env["PYTHONWARNINGS"] = "ignore"
     return subprocess.run([sys.executable, "-m", "bench", "run", "--quick", "--phantoms", "sphere", "--noise",
                            "none", "--n", "16", "--n-samples", "2000", "--import", "broken_methods", "--import",
-                           "runner_plugins", "--jobs", "2", "--out", str(out), *args],
+                           "runner_plugins", "--import", "hostile_plugins", "--jobs", "2", "--out", str(out), *args],
                           cwd=REPO, env=env, capture_output=True, text=True, timeout=300)
 
 
@@ -82,12 +82,13 @@ def _rows(out: Path) -> dict[str, dict]:
 
 @pytest.fixture(scope="module")
 def phase_run(tmp_path_factory):
-    """Method limit 2 s, score limit 2 s, no cell limit: a method that sleeps 60 s, one that returns at once
-    but whose mesh takes 60 s to score, one returning a bare trimesh, marching cubes."""
+    """Method limit 2 s, score limit 2 s, no cell limit, 2 GB of memory per cell: a method that sleeps 60 s, one
+    that returns at once but whose mesh takes 60 s to score, one returning a bare trimesh, one asking for 30 GB
+    (tests/test_bench_run_memory.py has the rest), marching cubes."""
     out = tmp_path_factory.mktemp("limits") / "run"
     res = _run(out, "--method", "sleepy:seconds=60", "--add-method", "slow_to_score:seconds=60",
-               "--add-method", "broken_type", "--add-method", "marching_cubes", "--timeout", "0",
-               "--method-timeout", "2", "--score-timeout", "2")
+               "--add-method", "broken_type", "--add-method", "memory_hog", "--add-method", "marching_cubes",
+               "--timeout", "0", "--method-timeout", "2", "--score-timeout", "2", "--memory-limit", "2")
     assert res.returncode == 0, res.stderr[-3000:]
     return out, res
 
@@ -104,6 +105,15 @@ def test_each_limit_runs_out_in_its_own_phase(phase_run):
     assert rows["marching_cubes"]["status"] == "ok"
     session = json.loads((out / "run.json").read_text())["sessions"][-1]
     assert (session["timeout_s"], session["method_timeout_s"], session["score_timeout_s"]) == (None, 2.0, 2.0)
+
+
+def test_a_cell_over_the_memory_limit_is_a_failed_row(phase_run):
+    row = _rows(phase_run[0])["memory_hog"]
+    assert row["status"] == "failed"
+    assert row["error"].startswith("memory limit (2 GB) exceeded in the method (MemoryError: Unable to allocate")
+    session = json.loads((phase_run[0] / "run.json").read_text())["sessions"][-1]
+    assert session["memory_limit_gb"] == 2.0
+    assert "<td>2 GB</td>" in (phase_run[0] / "index.html").read_text(encoding="utf-8")   # the sessions table
 
 
 def test_a_wrong_return_type_is_a_named_failure(phase_run):

@@ -74,6 +74,10 @@ def register(subparsers) -> None:
     p.add_argument("--score-timeout", type=_nonneg_float, default=None, metavar="S",
                    help="seconds for the scoring alone (validity check and metrics, after the method returned; "
                         "0 = none; default: run.score_timeout)")
+    p.add_argument("--memory-limit", type=_nonneg_float, default=None, metavar="GB",
+                   help="address space per cell process in GB (2**30 bytes); a cell over it is a failed row "
+                        "('memory limit ... exceeded in the method / in scoring') and the run goes on (0 = none; "
+                        "default: the config's run.memory_limit, else 75%% of the physical memory / --jobs)")
     p.add_argument("--save-meshes", action="store_true", help="write each cell's mesh to DIR/meshes/<cell_id>.ply")
     p.add_argument("--no-report", action="store_true", help="skip index.html")
     p.add_argument("--dry-run", action="store_true", help="validate, list the cells and exit")
@@ -200,10 +204,14 @@ def _cmd_run(args) -> int:
         raise InputError("--allow-mixed-code needs --resume")
     if args.resume and not args.out:
         raise InputError("--resume needs --out DIR (the folder of the run to complete)")
-    from ..run.limits import check_seconds
+    from ..run.limits import check_gb, check_seconds
 
     for opt in ("timeout", "method_timeout", "score_timeout"):   # before any work: no OverflowError mid-run
         check_seconds(getattr(args, opt), "--" + opt.replace("_", "-"))
+    check_gb(args.memory_limit, "--memory-limit")
+    if args.memory_limit is not None and args.executor == "dask":
+        raise InputError("--memory-limit applies to the local executor's cell processes; a Dask worker's memory "
+                         "is limited by the cluster (dask worker --memory-limit)")
     cfg = _resolve_config(args)
     cells = expand_grid(cfg)
     if args.dry_run:
@@ -230,7 +238,8 @@ def _cmd_run(args) -> int:
         summary = run_grid(cfg, out, jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
                            timeout=args.timeout, save_meshes=args.save_meshes, argv=sys.argv[1:],
                            executor=executor, method_timeout=args.method_timeout,
-                           score_timeout=args.score_timeout, allow_mixed_code=args.allow_mixed_code)
+                           score_timeout=args.score_timeout, allow_mixed_code=args.allow_mixed_code,
+                           memory_gb=args.memory_limit)
     except WriteError as exc:
         raise InputError(f"{exc}; the finished cells are saved in {str(out)!r}; free space (or fix the "
                          f"permissions) and complete the run with `python -m bench run --resume --out {out}`") \

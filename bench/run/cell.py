@@ -7,7 +7,9 @@ cache, when given), so any executor can run it anywhere.  It returns a plain dic
 
 ``row`` is the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop
 reason, cost, ``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`:
-``error`` says why; the metrics that can be computed are kept) / ``failed`` and ``error``); ``artifacts`` holds
+``error`` says why; the metrics that can be computed are kept) / ``failed`` and ``error`` (over the process's
+memory limit: ``memory limit (N GB) exceeded in the method`` / ``in scoring ...``, see
+:mod:`bench.run.limits`)); ``artifacts`` holds
 the arrays the report draws:
 the final mesh with its per-vertex mean curvature, the energy history and the snapshots.  Which
 ``Reconstruction.info`` keys are read is documented in :data:`methods.INFO_KEYS`.
@@ -31,6 +33,7 @@ from ..metrics.flags import result_flags
 from ..metrics.validity import check_mesh
 from .cost import measure
 from .grid import canonical_json, slug
+from .limits import memory_error
 from .store import save_npz
 from .view import view_arrays
 from .values import error_text, plain
@@ -276,8 +279,9 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
             metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell["n_samples"], seed=cell["seed"],
                                timings=metric_phases, vertex_H=final_H,
                                truth_points=truth_samples(cell, truth, cache_dir))
-        except Exception:
-            if not invalid:
+        except Exception as exc:
+            # an invalid mesh keeps what can be computed — unless the metrics ran out of memory: a failed row
+            if not invalid or memory_error(exc, stage):
                 try:                                   # the row fails; its pictures are still worth keeping
                     artifacts = _artifacts(rec, vol.h, None, getattr(truth, "sdf", None))
                 except Exception:  # noqa: BLE001
@@ -302,7 +306,8 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
         row["error"] = f"invalid: {'; '.join(invalid)}" if invalid else ""
     except Exception as exc:
         row["status"] = "failed"
-        row["error"] = f"{stage}: {error_text(exc)}"
+        # over the process's memory limit (bench.run.limits): say so, and in which phase
+        row["error"] = memory_error(exc, stage) or f"{stage}: {error_text(exc)}"
         tb = traceback.format_exc()
     row["cell_s"] = time.perf_counter() - t0
     row["cpu_s"] = time.process_time() - c0        # all threads of the cell: its cost whatever the machine's load

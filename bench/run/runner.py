@@ -24,7 +24,7 @@ from phantoms import InputError
 from ..terminal import printable
 from .executors.local import LocalExecutor
 from .grid import expand_grid
-from .limits import TimeLimits
+from .limits import TimeLimits, default_memory_gb
 from .provenance import environment
 from .identity import (MixedCodeError, changed_methods, check_same_config, config_fingerprint, code_identity,
                        mixed_code)
@@ -32,7 +32,7 @@ from .lock import RunLock
 from .store import (CACHE_DIR, check_output_dir, clean_temp_files, read_json, save_cell, scan_cells, write_json,
                     write_results_csv)
 
-__all__ = ["run_grid", "RunSummary", "time_limits"]
+__all__ = ["run_grid", "RunSummary", "time_limits", "memory_limit"]
 
 STATUSES = ("ok", "invalid", "failed", "timeout")
 
@@ -153,6 +153,15 @@ def _changed_note(method: str, entry: dict) -> str:
     return f"note: method {method!r} {why}{where}; rerunning its {n} cell{'s' if n != 1 else ''}"
 
 
+def memory_limit(cfg, memory_gb: float | None, jobs: int) -> float | None:
+    """GB of address space per cell process: ``memory_gb`` (None: the config's ``run.memory_limit``; absent
+    there too: :func:`bench.run.limits.default_memory_gb` of ``jobs``), None for no limit (0)."""
+    value = getattr(cfg, "memory_limit", None) if memory_gb is None else memory_gb
+    if value is None:
+        return default_memory_gb(jobs)
+    return float(value) or None
+
+
 def _load_done(out: Path, cells: list[dict], cfg, resume: bool, retry_failed: bool,
                allow_mixed_code: bool) -> tuple[dict, dict, dict]:
     """The finished cells to keep (verified: a cell whose json or npz does not load is rerun, with a warning;
@@ -190,13 +199,16 @@ def _load_done(out: Path, cells: list[dict], cfg, resume: bool, retry_failed: bo
 def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = False, retry_failed: bool = False,
              timeout: float | None = None, save_meshes: bool = False, progress: bool | None = None,
              argv: list[str] | None = None, executor=None, method_timeout: float | None = None,
-             score_timeout: float | None = None, allow_mixed_code: bool = False) -> RunSummary:
+             score_timeout: float | None = None, allow_mixed_code: bool = False,
+             memory_gb: float | None = None) -> RunSummary:
     """Run every cell of the validated config ``cfg`` into the folder ``out``.
 
     ``resume`` skips the cells already finished there (``retry_failed``: except failed / timed-out ones); the
     folder's config must give the same grid and its cells must come from the same code (unless
     ``allow_mixed_code``); ``timeout`` is per cell, ``method_timeout`` per method run and ``score_timeout`` per
-    scoring, in seconds (None: the config's, 0: none; see :mod:`bench.run.limits`); ``executor`` is any object
+    scoring, in seconds (None: the config's, 0: none; see :mod:`bench.run.limits`); ``memory_gb`` is the
+    address space of each cell's process with the local executor, in GB (None: the config's
+    ``run.memory_limit``, else 75 % of the physical memory divided by ``jobs``; 0: none); ``executor`` is any object
     with ``run(cells, on_start, on_result)`` (default: a :class:`LocalExecutor` of ``jobs`` processes).  The
     folder is locked for the run (:mod:`bench.run.lock`); a write error (disk full, ...) raises
     :class:`geometry.files.WriteError` after the finished cells are saved.
@@ -208,7 +220,7 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
         return _run_locked(cfg, out, jobs=jobs, resume=resume, retry_failed=retry_failed, timeout=timeout,
                            save_meshes=save_meshes, progress=progress, argv=argv, executor=executor,
                            allow_mixed_code=allow_mixed_code, method_timeout=method_timeout,
-                           score_timeout=score_timeout)
+                           score_timeout=score_timeout, memory_gb=memory_gb)
 
 
 def _expected_cost(cell: dict) -> float:
@@ -225,17 +237,19 @@ def _expected_cost(cell: dict) -> float:
 
 
 def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_meshes, progress, argv, executor,
-                allow_mixed_code, method_timeout=None, score_timeout=None) -> RunSummary:
+                allow_mixed_code, method_timeout=None, score_timeout=None, memory_gb=None) -> RunSummary:
     cells = expand_grid(cfg)
     limits = time_limits(cfg, timeout, method_timeout, score_timeout)
     jobs = jobs or os.cpu_count() or 1
+    memory = memory_limit(cfg, memory_gb, jobs) if executor is None else None   # local cells only
     records, mixed, changed = _load_done(out, cells, cfg, resume, retry_failed, allow_mixed_code)
     write_json(out / "config.json", cfg.to_dict())
     code = code_identity()
     todo = sorted((c for c in cells if c["cell_id"] not in records), key=_expected_cost, reverse=True)
     summary = RunSummary(out=out, total=len(cells), skipped=len(cells) - len(todo))
     session = {"start": _now(), "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
-               **limits.to_dict(), "cells_to_run": len(todo), "resumed_from": len(cells) - len(todo),
+               **limits.to_dict(), "memory_limit_gb": memory, "cells_to_run": len(todo),
+               "resumed_from": len(cells) - len(todo),
                "code": code, "allow_mixed_code": bool(allow_mixed_code),
                **({"methods_changed": changed} if changed else {}),
                "executor": (executor.describe() if hasattr(executor, "describe") else {"executor": "local"})}
@@ -252,7 +266,8 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
         bar.finish(cell, result["row"])
 
     if executor is None:
-        executor = LocalExecutor(jobs, limits, cache_dir=str(out / CACHE_DIR), preload=list(cfg.imports))
+        executor = LocalExecutor(jobs, limits, cache_dir=str(out / CACHE_DIR), preload=list(cfg.imports),
+                                 memory_gb=memory)
     error = None
     try:
         executor.run(todo, bar.start, on_result)

@@ -2,7 +2,11 @@
 
 Processes come from a fork server that preloaded the suite, so starting one costs milliseconds, and a cell
 that crashes, hangs (``timeout``) or leaks cannot take the others down: a crash or a timeout becomes a
-``failed`` / ``timeout`` row and the run goes on.  An executor is any object with
+``failed`` / ``timeout`` row and the run goes on.  Each cell process has an address-space limit
+(``memory_gb``, :func:`bench.run.limits.apply_memory_limit`) and its own session and process group, so a
+plug-in that kills its process group (``os.killpg(0, SIGKILL)``) kills only its own cell; one that kills its
+parent — the fork server — orphans the cells running beside it, which the runner keeps watching through their
+pipes (their rows arrive as usual) while the next cell starts a new fork server.  An executor is any object with
 ``run(cells, on_start, on_result)``; :class:`bench.run.executors.dask.DaskExecutor` is the other one.
 """
 
@@ -16,14 +20,23 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from ..cell import failed_result, run_cell
-from ..limits import TimeLimits
+from ..limits import TimeLimits, apply_memory_limit, memory_phase
 from ..values import error_text
 
 __all__ = ["LocalExecutor"]
 
 
-def _cell_process(cell: dict, cache_dir: str | None, result_conn, lifeline_conn) -> None:
-    """Body of a worker process: run one cell, send the result, exit.  Exits at once if the runner dies."""
+def _cell_process(cell: dict, cache_dir: str | None, result_conn, lifeline_conn,
+                  memory_gb: float | None = None) -> None:
+    """Body of a worker process: run one cell, send the result, exit.  Exits at once if the runner dies.
+
+    The process leaves the runner's process group first (a new session: a plug-in's ``os.killpg(0, ...)``
+    reaches only this cell; Ctrl-C reaches the runner, which kills its cells), then limits its own address
+    space to ``memory_gb`` (after its watch thread has its stack)."""
+    try:
+        os.setsid()
+    except OSError:  # already a group leader: nothing to leave
+        pass
 
     def watch() -> None:
         try:
@@ -33,13 +46,14 @@ def _cell_process(cell: dict, cache_dir: str | None, result_conn, lifeline_conn)
         os._exit(3)
 
     threading.Thread(target=watch, daemon=True).start()
+    apply_memory_limit(memory_gb)
 
     def on_phase(phase: str, facts: dict) -> None:  # the parent's per-phase deadlines (bench.run.limits)
         result_conn.send(("phase", phase, facts))
 
     try:
         result = run_cell(cell, cache_dir, on_phase)
-    except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the runner handles it, not a row
+    except KeyboardInterrupt:  # a SIGINT sent to the cell itself (Ctrl-C reaches the runner, which kills it)
         os._exit(130)
     except BaseException as exc:  # run_cell catches Exception; this is SystemExit etc.
         result = failed_result(cell, "failed", f"worker: {error_text(exc)}")
@@ -63,6 +77,7 @@ class _Running:
     phase: str = "setup"
     phase_started: float = 0.0
     facts: dict | None = None          # the method's wall time and info columns, once it returned
+    orphan: bool = False               # its fork server died: only the pipe and the pid tell if it still runs
 
 
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
@@ -77,8 +92,9 @@ class LocalExecutor:
     """
 
     def __init__(self, jobs: int, timeout: "float | TimeLimits | None", cache_dir: str | None = None,
-                 preload: list[str] | None = None) -> None:
+                 preload: list[str] | None = None, memory_gb: float | None = None) -> None:
         self.jobs = max(1, int(jobs))
+        self.memory_gb = memory_gb or None     # GB of address space per cell process (None: no limit)
         self.limits = TimeLimits.of(timeout)   # a number: the whole-cell limit
         self.timeout = self.limits.cell
         self.cache_dir = cache_dir
@@ -103,7 +119,7 @@ class LocalExecutor:
     def _start(self, ctx, cell: dict) -> _Running:
         recv_end, send_end = ctx.Pipe(duplex=False)
         life_recv, life_send = ctx.Pipe(duplex=False)
-        proc = ctx.Process(target=_cell_process, args=(cell, self.cache_dir, send_end, life_recv),
+        proc = ctx.Process(target=_cell_process, args=(cell, self.cache_dir, send_end, life_recv, self.memory_gb),
                            name=f"cell-{cell['cell_id']}", daemon=True)
         proc.start()
         send_end.close()
@@ -123,9 +139,35 @@ class LocalExecutor:
             r.deadline = self.limits.deadline(r.started, r.phase, now)
         return None
 
+    @staticmethod
+    def _kill(r: _Running) -> None:
+        """Kill the cell's process and its process group (whatever it started); an orphan by its pid (its
+        ``Process`` object believes it dead)."""
+        import signal
+
+        if r.orphan or r.proc.is_alive():
+            for kill in (os.killpg, os.kill):
+                try:
+                    kill(r.proc.pid, signal.SIGKILL)
+                except (ProcessLookupError, PermissionError, OSError):
+                    pass
+        r.proc.kill()
+
+    def _gone(self, r: _Running) -> bool:
+        """Whether the cell's process ended.  When its fork server dies (a plug-in killed its parent) the
+        ``Process`` object reports exit code 255 at once although the cell still runs: such a cell becomes an
+        orphan, watched through its pipe (EOF when it dies) and its pid."""
+        if not r.orphan:
+            if r.proc.is_alive():
+                return False
+            if r.proc.exitcode != 255 or not _pid_running(r.proc.pid):
+                return True
+            r.orphan = True
+        return not _pid_running(r.proc.pid)
+
     def _timed_out(self, r: _Running) -> dict:
         """The row of a cell killed at its deadline: which limit ran out, in which phase."""
-        r.proc.kill()
+        self._kill(r)
         limit = self.limits.which(r.started, r.phase, r.phase_started)
         facts = r.facts or {}
         result = failed_result(r.cell, "timeout", self.limits.message(limit, r.phase, facts.get("wall_s")))
@@ -143,6 +185,8 @@ class LocalExecutor:
         if r.proc.is_alive():  # pragma: no cover
             r.proc.kill()
             r.proc.join(timeout=5)
+        if r.orphan and _pid_running(r.proc.pid):   # its lifeline is closed: it exits by itself; make sure
+            LocalExecutor._kill(r)
 
     def run(self, cells: list[dict], on_start: Callable[[dict], None],
             on_result: Callable[[dict, dict], None]) -> None:
@@ -159,12 +203,15 @@ class LocalExecutor:
                     running.append(self._start(ctx, cell))
                 deadlines = [r.deadline for r in running if r.deadline is not None]
                 wait_s = max(0.0, min(deadlines) - time.monotonic()) if deadlines else None
-                wait([r.conn for r in running] + [r.proc.sentinel for r in running], timeout=wait_s)
+                if any(r.orphan for r in running):   # an orphan's end shows on its pipe; its pid: poll it
+                    wait_s = 1.0 if wait_s is None else min(wait_s, 1.0)
+                wait([r.conn for r in running] + [r.proc.sentinel for r in running if not r.orphan],
+                     timeout=wait_s)
                 still = []
                 for r in running:
                     try:
                         result = self._receive(r)
-                        if result is None and not r.proc.is_alive():
+                        if result is None and self._gone(r):
                             result = self._receive(r) or self._crash(r)
                     except (EOFError, OSError):
                         result = self._crash(r)
@@ -179,13 +226,21 @@ class LocalExecutor:
                 running = still
         finally:
             for r in running:  # interrupted: stop what is still running
-                r.proc.kill()
+                self._kill(r)
                 self._finish(r)
 
     def _crash(self, r: _Running) -> dict:
-        r.proc.join(timeout=5)
+        """The row of a cell whose process ended without a result: how it ended, in which phase, and the memory
+        limit when there was one (a library that cannot allocate may abort or crash instead of raising)."""
+        if not r.orphan:
+            r.proc.join(timeout=5)
         code = r.proc.exitcode
-        if code is not None and code < 0:
+        where = memory_phase(r.phase)
+        limit = (f"; memory limit ({self.memory_gb:.3g} GB) in force: an allocation over it ends some "
+                 "libraries this way" if self.memory_gb else "")
+        if r.orphan:
+            why = "worker process ended without a result (its fork server died, so how it ended is unknown)"
+        elif code is not None and code < 0:
             import signal
 
             try:
@@ -195,6 +250,19 @@ class LocalExecutor:
             why = f"worker process killed by {name}" + (" (out of memory?)" if name == "SIGKILL" else "")
         else:
             why = f"worker process exited with code {code} without a result"
-        return failed_result(r.cell, "failed", f"crash: {why}")
+        return failed_result(r.cell, "failed", f"crash: {why} {where}{limit}")
+
+
+def _pid_running(pid: int | None) -> bool:
+    """Whether a process ``pid`` exists (an orphaned cell is reaped by init, so a dead one soon does not)."""
+    if not pid:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # pragma: no cover - another user's process took the pid
+        return False
+    return True
 
 

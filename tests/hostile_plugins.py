@@ -1,0 +1,100 @@
+"""Methods that attack the runner's resources on purpose, for the memory-limit and isolation tests.
+
+Imported by name (``--import hostile_plugins`` with ``tests/`` on PYTHONPATH), as a user's plug-in module
+would be.  Each misbehaves in one way; the others of the grid must not notice.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+import trimesh
+
+from methods import Method, Param, Reconstruction, get_method, register_method
+
+#: what the hungry methods ask for: far more than any test limit (and than the test machines have)
+HUGE = 30 * 2 ** 30 // 8
+
+
+def _mc(volume) -> trimesh.Trimesh:
+    return get_method("marching_cubes").reconstruct(volume).mesh
+
+
+@register_method
+class MemoryHog(Method):
+    name = "memory_hog"
+    description = "allocates 30 GB (np.ones) before marching cubes: over any memory limit, in the method"
+    params: dict = {}
+
+    def reconstruct(self, volume):
+        big = np.ones((HUGE,))
+        return Reconstruction(_mc(volume), {"size": big.size})
+
+
+class _HungryFaces(trimesh.Trimesh):
+    """A mesh whose faces cost 30 GB to read once the method has returned it (scoring runs out of memory)."""
+
+    returned = False
+
+    @property
+    def faces(self):
+        if self.returned:
+            np.ones((HUGE,))
+        return trimesh.Trimesh.faces.fget(self)
+
+    @faces.setter
+    def faces(self, values):
+        trimesh.Trimesh.faces.fset(self, values)
+
+
+@register_method
+class HungryToScore(Method):
+    name = "hungry_to_score"
+    description = "marching cubes, but its mesh needs 30 GB to score: over any memory limit, in scoring"
+    params: dict = {}
+
+    def reconstruct(self, volume):
+        mc = _mc(volume)
+        mesh = _HungryFaces(mc.vertices, mc.faces, process=False)
+        mesh.returned = True
+        return Reconstruction(mesh, {})
+
+
+@register_method
+class KillsParent(Method):
+    name = "kills_parent"
+    description = "SIGKILLs its parent process (the local executor's fork server), then fails"
+    params: dict = {}
+    relative_cost = 50.0             # started right after slow_ok, so that one runs while the server dies
+
+    def reconstruct(self, volume):
+        os.kill(os.getppid(), signal.SIGKILL)
+        raise RuntimeError("killed my parent")
+
+
+@register_method
+class KillsGroup(Method):
+    name = "kills_group"
+    description = "SIGKILLs its whole process group (os.killpg(0, SIGKILL))"
+    params: dict = {}
+
+    def reconstruct(self, volume):
+        os.killpg(0, signal.SIGKILL)
+        raise RuntimeError("still alive after killing my process group")
+
+
+@register_method
+class SlowOk(Method):
+    name = "slow_ok"
+    description = "marching cubes after sleeping `seconds`: a well-behaved cell that runs beside the hostile ones"
+    params = {"seconds": Param(3.0, "seconds to sleep first", float, min=0.0)}
+    relative_cost = 100.0            # started first: it runs while the others attack
+
+    def reconstruct(self, volume):
+        parent = os.getppid()
+        time.sleep(self.config["seconds"])
+        # reparented: its fork server died meanwhile (the test checks the orphan case really happened)
+        return Reconstruction(_mc(volume), {"reparented": os.getppid() != parent})

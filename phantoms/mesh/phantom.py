@@ -140,7 +140,7 @@ class MeshPhantom(Phantom):
     #: the grid volume is certified exact at every grid point within band_cells · h of the surface
     band_cells = 3.0
     _descent_steps = 50
-    _jacobi_rounds = 200
+    _passes = 2
     truth_note = "ground truth = the (normalised) input mesh: exact point-to-triangle distances"
 
     def __init__(self, vertices, faces, *, name: str | None = None, description: str | None = None,
@@ -314,9 +314,9 @@ class MeshPhantom(Phantom):
         return Volume(vals.copy(), origin=[-extent] * 3, spacing=spacing)
 
     def signed_distance_grid(self, n: int, extent: float, stats: dict | None = None) -> np.ndarray:
-        """The (n, n, n) exact signed distance array (band + propagation; :mod:`phantoms.mesh.grid_sdf`)."""
+        """The (n, n, n) signed distance array: exact in the band, an upper bound beyond (:mod:`phantoms.mesh.grid_sdf`)."""
         return signed_distance_grid(self.index, n, extent, band_cells=self.band_cells,
-                                    descent_steps=self._descent_steps, jacobi_rounds=self._jacobi_rounds,
+                                    descent_steps=self._descent_steps, passes=self._passes,
                                     stats=stats)
 
     def __repr__(self) -> str:

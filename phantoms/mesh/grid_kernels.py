@@ -249,15 +249,14 @@ def _descend(px, py, pz, d, f, feat, pack, faces, face_adj, vfaces, steps):
 
 
 @_jit
-def _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, done):
+def _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, done, seen):
     """Best of the distinct closest faces of r's 26 neighbours whose state is ≥ ``done``, then descent.
-    Returns (distance, face, evaluations); face −1 when no neighbour is done."""
+    Returns (distance, face, evaluations); face −1 when no neighbour is done.  ``seen``: int32 (26,) work space."""
     nn = n * n
     i = r // nn
     j = (r // n) % n
     k = r % n
     px, py, pz = axis[i], axis[j], axis[k]
-    seen = np.empty(26, np.int32)
     ns = 0
     best = dist[i, j, k]
     bf = face[i, j, k]
@@ -316,6 +315,7 @@ def propagate(n, axis, dist, face, state, sign, queue, pack, faces, face_adj, vf
     nn = n * n
     tail = 0
     evals = 0
+    seen = np.empty(26, np.int32)
     # seed: the far neighbours of every band point
     for i in range(n):
         for j in range(n):
@@ -345,7 +345,7 @@ def propagate(n, axis, dist, face, state, sign, queue, pack, faces, face_adj, vf
         i = r // nn
         j = (r // n) % n
         k = r % n
-        d, f, e = _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2)
+        d, f, e = _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2, seen)
         evals += e
         dist[i, j, k] = d
         face[i, j, k] = f
@@ -411,7 +411,7 @@ def propagate(n, axis, dist, face, state, sign, queue, pack, faces, face_adj, vf
                                     near = True
                 if not near:
                     continue
-            d, f, e = _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2)
+            d, f, e = _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2, seen)
             evals += e
             if d < dist[i, j, k]:
                 dist[i, j, k] = d

@@ -110,3 +110,15 @@ def test_bunny_volume_memory_is_bounded_by_four_outputs():
     # the volume's own peak (VmHWM since the kernels were loaded): the cached array and the returned copy,
     # and the propagation's arrays (2.4 outputs) while it runs
     assert res["hwm"] - res["base"] <= 4 * res["out"]
+
+
+def test_a_mesh_volume_larger_than_the_memory_is_refused_before_it_is_computed(monkeypatch):
+    import phantoms.volume as pv
+    from phantoms import InputError
+
+    m = trimesh.creation.icosphere(subdivisions=2, radius=1.5)
+    ph = MeshPhantom(np.asarray(m.vertices), np.asarray(m.faces), name="ico")
+    monkeypatch.setattr(pv, "available_memory", lambda: 64 ** 3 * 24 - 1)
+    with pytest.raises(InputError, match="largest N³ grid that fits is N = 63"):
+        ph.volume(n=64)
+    assert ph.volume(n=63).shape == (63, 63, 63)

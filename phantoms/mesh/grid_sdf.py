@@ -73,6 +73,8 @@ def signed_distance_grid(index: TriangleIndex, n: int, extent: float, *, band_ce
 
     ``stats`` (a dict) receives counts: band and far points, Gauss–Seidel passes, propagation evaluations.
     """
+    if n ** 3 >= 2 ** 31:
+        raise ValueError(f"grid size N = {n}: the propagation indexes grid points with int32 (N ≤ 1290)")
     h = 2.0 * extent / (n - 1)
     axis = -extent + h * np.arange(n)
     width = band_cells * h + float(index.edge_lengths.max())

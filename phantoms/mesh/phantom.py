@@ -41,7 +41,7 @@ from geometry.topology import (connected_components, directed_edge_repeats, edge
                                genus, sample_surface)
 
 from ..base import DEFAULT_EXTENT, DEFAULT_N, Phantom, Truth, arc_positions, as_points, check_extent, check_n, check_sample_count
-from ..volume import Volume
+from ..volume import Volume, check_memory
 from .closest import FACE
 from .grid_sdf import signed_distance_grid
 from .index import TriangleIndex
@@ -308,6 +308,8 @@ class MeshPhantom(Phantom):
         key = (n, extent)
         if key not in self._volume_cache:
             self._volume_cache.clear()                           # keep one grid
+            # the computation holds 18 bytes a grid point (grid_sdf), then the cached array and its copy: 16
+            check_memory((n, n, n), 3, what=f"the N = {n} volume of mesh phantom {self.name!r}")
             self._volume_cache[key] = self.signed_distance_grid(n, extent)
         vals = self._volume_cache[key]
         spacing = 2.0 * extent / (n - 1)

@@ -316,7 +316,7 @@ class MeshPhantom(Phantom):
         return Volume(vals.copy(), origin=[-extent] * 3, spacing=spacing)
 
     def signed_distance_grid(self, n: int, extent: float, stats: dict | None = None) -> np.ndarray:
-        """The (n, n, n) signed distance array: exact in the band, an upper bound beyond (:mod:`phantoms.mesh.grid_sdf`)."""
+        """The (n, n, n) signed distance: exact in the band, an upper bound beyond (:mod:`phantoms.mesh.grid_sdf`)."""
         return signed_distance_grid(self.index, n, extent, band_cells=self.band_cells,
                                     descent_steps=self._descent_steps, passes=self._passes,
                                     stats=stats)

@@ -299,74 +299,32 @@ def _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, d
 
 
 @_jit
-def propagate(n, axis, dist, face, state, sign, queue, pack, faces, face_adj, vfaces, steps, passes):
-    """Closest-triangle propagation from the band (state 2) into the far region (state 0).
-
-    1. Breadth first over the 26 neighbours, starting from the band points in index order: a far point
-       takes the best of the closest faces of its finished neighbours (band or far, state ≥ 2 / 3), then
-       descends on the mesh; it inherits the sign of the neighbour that reached it.
-    2. Up to ``passes`` Gauss–Seidel passes over the far points (alternately in and against the breadth-first
-       order): each pulls again from all 26 neighbours (and descends when that found a better face); the
-       first pass visits only points with a neighbour of another face, later ones only points next to a
-       change.  Returns (far points, evaluations, passes done).
-
-    ``state``: 0 far, not reached; 1 queued; 2 band; 3 far, finished (uint8, (n, n, n)); ``queue`` int32 (n³,).
-    """
-    nn = n * n
-    tail = 0
-    evals = 0
-    seen = np.empty(26, np.int32)
-    # seed: the far neighbours of every band point
-    for i in range(n):
-        for j in range(n):
-            for k in range(n):
-                if state[i, j, k] != 2:
-                    continue
-                for di in range(-1, 2):
-                    ii = i + di
-                    if ii < 0 or ii >= n:
-                        continue
-                    for dj in range(-1, 2):
-                        jj = j + dj
-                        if jj < 0 or jj >= n:
-                            continue
-                        for dk in range(-1, 2):
-                            kk = k + dk
-                            if kk < 0 or kk >= n or state[ii, jj, kk] != 0:
-                                continue
-                            state[ii, jj, kk] = 1
-                            sign[ii, jj, kk] = sign[i, j, k]
-                            queue[tail] = (ii * n + jj) * n + kk
-                            tail += 1
-    head = 0
-    while head < tail:
-        r = queue[head]
-        head += 1
-        i = r // nn
-        j = (r // n) % n
-        k = r % n
-        d, f, e = _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2, seen)
-        evals += e
-        dist[i, j, k] = d
-        face[i, j, k] = f
-        state[i, j, k] = 3
-        for di in range(-1, 2):
-            ii = i + di
-            if ii < 0 or ii >= n:
+def _enqueue(i, j, k, n, state, sign, queue, tail):
+    """Queue the unreached (state 0) neighbours of (i, j, k) with its sign; returns the new queue length."""
+    for di in range(-1, 2):
+        ii = i + di
+        if ii < 0 or ii >= n:
+            continue
+        for dj in range(-1, 2):
+            jj = j + dj
+            if jj < 0 or jj >= n:
                 continue
-            for dj in range(-1, 2):
-                jj = j + dj
-                if jj < 0 or jj >= n:
+            for dk in range(-1, 2):
+                kk = k + dk
+                if kk < 0 or kk >= n or state[ii, jj, kk] != 0:
                     continue
-                for dk in range(-1, 2):
-                    kk = k + dk
-                    if kk < 0 or kk >= n or state[ii, jj, kk] != 0:
-                        continue
-                    state[ii, jj, kk] = 1
-                    sign[ii, jj, kk] = sign[i, j, k]
-                    queue[tail] = (ii * n + jj) * n + kk
-                    tail += 1
-    nfar = tail
+                state[ii, jj, kk] = 1
+                sign[ii, jj, kk] = sign[i, j, k]
+                queue[tail] = (ii * n + jj) * n + kk
+                tail += 1
+    return tail
+
+
+@_jit
+def _passes(nfar, n, axis, dist, face, state, queue, pack, faces, face_adj, vfaces, steps, passes, seen):
+    """The Gauss–Seidel passes of :func:`propagate`; returns (evaluations, passes done)."""
+    nn = n * n
+    evals = 0
     # Gauss–Seidel passes; state 4 = changed in the current pass, 5 = changed in the previous pass; a point
     # is visited when it or a neighbour changed in either
     done = 0
@@ -435,4 +393,46 @@ def propagate(n, axis, dist, face, state, sign, queue, pack, faces, face_adj, vf
     for t in range(nfar):
         r = queue[t]
         state[r // nn, (r // n) % n, r % n] = 3
-    return nfar, evals, done
+    return evals, done
+
+
+@_jit
+def propagate(n, axis, dist, face, state, sign, queue, pack, faces, face_adj, vfaces, steps, passes):
+    """Closest-triangle propagation from the band (state 2) into the far region (state 0).
+
+    1. Breadth first over the 26 neighbours, starting from the band points in index order: a far point
+       takes the best of the closest faces of its finished neighbours (band or far, state ≥ 2 / 3), then
+       descends on the mesh; it inherits the sign of the neighbour that reached it.
+    2. Up to ``passes`` Gauss–Seidel passes over the far points (alternately in and against the breadth-first
+       order): each pulls again from all 26 neighbours (and descends when that found a better face); the
+       first pass visits only points with a neighbour of another face, later ones only points next to a
+       change.  Returns (far points, evaluations, passes done).
+
+    ``state``: 0 far, not reached; 1 queued; 2 band; 3 far, finished (uint8, (n, n, n)); ``queue`` int32 (n³,).
+    """
+    nn = n * n
+    tail = 0
+    evals = 0
+    seen = np.empty(26, np.int32)
+    # seed: the far neighbours of every band point
+    for i in range(n):
+        for j in range(n):
+            for k in range(n):
+                if state[i, j, k] == 2:
+                    tail = _enqueue(i, j, k, n, state, sign, queue, tail)
+    head = 0
+    while head < tail:
+        r = queue[head]
+        head += 1
+        i = r // nn
+        j = (r // n) % n
+        k = r % n
+        d, f, e = _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2, seen)
+        evals += e
+        dist[i, j, k] = d
+        face[i, j, k] = f
+        state[i, j, k] = 3
+        tail = _enqueue(i, j, k, n, state, sign, queue, tail)
+    nfar = tail
+    e, done = _passes(nfar, n, axis, dist, face, state, queue, pack, faces, face_adj, vfaces, steps, passes, seen)
+    return nfar, evals + e, done

@@ -3,7 +3,8 @@
 * :mod:`.phantom` – :class:`MeshPhantom` (validation, normalisation, truth, curvature, creases) and
   :func:`load_mesh`;
 * :mod:`.index` – the search index: certified exact closest-point queries and the pseudonormal sign;
-* :mod:`.grid_sdf` – the exact signed distance on a grid (narrow band + closest-triangle propagation);
+* :mod:`.grid_sdf` – the signed distance on a grid (exact narrow band + closest-triangle propagation), with
+  its compiled kernels in :mod:`.grid_kernels`;
 * :mod:`.closest` – the point–triangle kernels and the generalised winding number.
 """
 

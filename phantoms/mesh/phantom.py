@@ -42,7 +42,7 @@ from geometry.topology import (connected_components, directed_edge_repeats, edge
                                genus, sample_surface)
 
 from ..base import DEFAULT_EXTENT, DEFAULT_N, Phantom, Truth, arc_positions, as_points, check_extent, check_n, check_sample_count
-from ..volume import Volume
+from ..volume import Volume, check_memory
 from .closest import FACE
 from .grid_sdf import signed_distance_grid
 from .index import TriangleIndex
@@ -141,7 +141,7 @@ class MeshPhantom(Phantom):
     #: the grid volume is certified exact at every grid point within band_cells · h of the surface
     band_cells = 3.0
     _descent_steps = 50
-    _jacobi_rounds = 200
+    _passes = 2
     truth_note = "ground truth = the (normalised) input mesh: exact point-to-triangle distances"
 
     def __init__(self, vertices, faces, *, name: str | None = None, description: str | None = None,
@@ -308,15 +308,17 @@ class MeshPhantom(Phantom):
         key = (n, extent)
         if key not in self._volume_cache:
             self._volume_cache.clear()                           # keep one grid
+            # the computation holds 18 bytes a grid point (grid_sdf), then the cached array and its copy: 16
+            check_memory((n, n, n), 3, what=f"the N = {n} volume of mesh phantom {self.name!r}")
             self._volume_cache[key] = self.signed_distance_grid(n, extent)
         vals = self._volume_cache[key]
         spacing = 2.0 * extent / (n - 1)
         return Volume(vals.copy(), origin=[-extent] * 3, spacing=spacing)
 
     def signed_distance_grid(self, n: int, extent: float, stats: dict | None = None) -> np.ndarray:
-        """The (n, n, n) exact signed distance array (band + propagation; :mod:`phantoms.mesh.grid_sdf`)."""
+        """The (n, n, n) signed distance: exact in the band, an upper bound beyond (:mod:`phantoms.mesh.grid_sdf`)."""
         return signed_distance_grid(self.index, n, extent, band_cells=self.band_cells,
-                                    descent_steps=self._descent_steps, jacobi_rounds=self._jacobi_rounds,
+                                    descent_steps=self._descent_steps, passes=self._passes,
                                     stats=stats)
 
     def __repr__(self) -> str:

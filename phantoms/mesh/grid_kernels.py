@@ -1,0 +1,438 @@
+"""Compiled (numba) kernels of the grid signed distance (:mod:`phantoms.mesh.grid_sdf`).
+
+* :func:`tri_eval` — the point–triangle distance and closest feature of :func:`phantoms.mesh.closest.closest_bary`
+  (Ericson's region tests in the same order, the same degenerate-triangle fallback), one pair at a time;
+* :func:`build_cells` — triangles binned by bounding box into a uniform grid of cubic cells (CSR layout);
+* :func:`closest_faces` — the certified exact closest triangle of each point: cells are visited in Chebyshev
+  rings around the point's cell, skipping cells farther than the best distance so far; after ring ``k``
+  every triangle with a point within ``k · c − (offset of the point in its cell)`` has been evaluated, so
+  the search stops once the best distance is below that (``c`` the cell size).  Exact (to rounding) for
+  every point, cost growing with the distance;
+* :func:`mark_band` — grid points within a radius of a mesh vertex (the narrow band), vertex by vertex;
+* :func:`propagate` — closest-triangle propagation from the band into the far region (breadth first over the
+  26 neighbours, then Gauss–Seidel passes; see :mod:`phantoms.mesh.grid_sdf`).
+
+Everything is written into arrays the caller allocates: nothing of size N³ is created here.  Compiled on
+first use and cached on disk (``cache=True``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+# feature codes (phantoms.mesh.closest)
+_FACE, _VA, _VB, _VC, _EAB, _EBC, _ECA = range(7)
+
+
+def _jit(fn):
+    return numba.njit(cache=True, nogil=True)(fn)
+
+
+@_jit
+def tri_eval(px, py, pz, pack, f):
+    """(distance, feature) from point p to triangle ``f`` (``pack`` rows: a, ab, ac, ab·ab, ab·ac, ac·ac)."""
+    apx, apy, apz = px - pack[f, 0], py - pack[f, 1], pz - pack[f, 2]
+    abx, aby, abz = pack[f, 3], pack[f, 4], pack[f, 5]
+    acx, acy, acz = pack[f, 6], pack[f, 7], pack[f, 8]
+    abab, abac, acac = pack[f, 9], pack[f, 10], pack[f, 11]
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    d3 = d1 - abab
+    d4 = d2 - abac
+    d5 = d1 - abac
+    d6 = d2 - acac
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    v = 0.0
+    w = 0.0
+    if d1 <= 0 and d2 <= 0:
+        feat = _VA
+    elif d3 >= 0 and d4 <= d3:
+        feat = _VB
+        v = 1.0
+    elif vc <= 0 and d1 >= 0 and d3 <= 0:
+        feat = _EAB
+        v = d1 / (d1 - d3)
+    elif d6 >= 0 and d5 <= d6:
+        feat = _VC
+        w = 1.0
+    elif vb <= 0 and d2 >= 0 and d6 <= 0:
+        feat = _ECA
+        w = d2 / (d2 - d6)
+    elif va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+        feat = _EBC
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        v = 1.0 - t
+        w = t
+    else:
+        feat = _FACE
+        den = va + vb + vc
+        v = vb / den
+        w = vc / den
+    if not (math.isfinite(v) and math.isfinite(w) and math.isfinite(1.0 - v - w)):
+        # degenerate triangle: its nearest vertex
+        da = apx * apx + apy * apy + apz * apz
+        db = (abx - apx) ** 2 + (aby - apy) ** 2 + (abz - apz) ** 2
+        dc = (acx - apx) ** 2 + (acy - apy) ** 2 + (acz - apz) ** 2
+        v = 0.0
+        w = 0.0
+        feat = _VA
+        if db < da and db <= dc:
+            v = 1.0
+            feat = _VB
+        elif dc < da and dc < db:
+            w = 1.0
+            feat = _VC
+    rx = apx - v * abx - w * acx
+    ry = apy - v * aby - w * acy
+    rz = apz - v * abz - w * acz
+    return math.sqrt(rx * rx + ry * ry + rz * rz), feat
+
+
+@_jit
+def build_cells(tri_lo, tri_hi, lo, c, dims):
+    """CSR (start (C + 1,), faces) of the triangles whose bounding box overlaps each cell."""
+    nf = tri_lo.shape[0]
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    count = np.zeros(nx * ny * nz + 1, np.int64)
+    for f in range(nf):
+        i0 = max(int((tri_lo[f, 0] - lo[0]) / c), 0)
+        j0 = max(int((tri_lo[f, 1] - lo[1]) / c), 0)
+        k0 = max(int((tri_lo[f, 2] - lo[2]) / c), 0)
+        i1 = min(int((tri_hi[f, 0] - lo[0]) / c), nx - 1)
+        j1 = min(int((tri_hi[f, 1] - lo[1]) / c), ny - 1)
+        k1 = min(int((tri_hi[f, 2] - lo[2]) / c), nz - 1)
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                for k in range(k0, k1 + 1):
+                    count[(i * ny + j) * nz + k + 1] += 1
+    for q in range(1, count.shape[0]):
+        count[q] += count[q - 1]
+    faces = np.empty(count[-1], np.int32)
+    fill = count[:-1].copy()
+    for f in range(nf):
+        i0 = max(int((tri_lo[f, 0] - lo[0]) / c), 0)
+        j0 = max(int((tri_lo[f, 1] - lo[1]) / c), 0)
+        k0 = max(int((tri_lo[f, 2] - lo[2]) / c), 0)
+        i1 = min(int((tri_hi[f, 0] - lo[0]) / c), nx - 1)
+        j1 = min(int((tri_hi[f, 1] - lo[1]) / c), ny - 1)
+        k1 = min(int((tri_hi[f, 2] - lo[2]) / c), nz - 1)
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                for k in range(k0, k1 + 1):
+                    q = (i * ny + j) * nz + k
+                    faces[fill[q]] = f
+                    fill[q] += 1
+    return count, faces
+
+
+@_jit
+def _box_d2(fx, fy, fz, i, j, k):
+    """Squared distance (in cells²) from the point at fractional cell coordinates f to cell (i, j, k)."""
+    d2 = 0.0
+    for val, ce in ((fx, i), (fy, j), (fz, k)):
+        if val < ce:
+            d2 += (ce - val) ** 2
+        elif val > ce + 1:
+            d2 += (val - ce - 1) ** 2
+    return d2 * (1.0 - 1e-9)
+
+
+@_jit
+def _closest_one(px, py, pz, pack, start, cfaces, lo, c, dims):
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    # the point's cell (may lie outside the cell grid: clamp, and account for the gap in the stop test)
+    fx, fy, fz = (px - lo[0]) / c, (py - lo[1]) / c, (pz - lo[2]) / c
+    ci = min(max(int(math.floor(fx)), 0), nx - 1)
+    cj = min(max(int(math.floor(fy)), 0), ny - 1)
+    ck = min(max(int(math.floor(fz)), 0), nz - 1)
+    # distance from p to the boundary of the block of rings 0..k is at least k·c − slack
+    slack = 0.0
+    for val, ce in ((fx, ci), (fy, cj), (fz, ck)):
+        below = val - ce                 # offset of p inside its (clamped) cell, in cells
+        slack = max(slack, below, 1.0 - below)
+    best = np.inf
+    bestf = -1
+    kmax = max(nx, ny, nz)
+    for ring in range(kmax + 1):
+        for i in range(ci - ring, ci + ring + 1):
+            if i < 0 or i >= nx:
+                continue
+            for j in range(cj - ring, cj + ring + 1):
+                if j < 0 or j >= ny:
+                    continue
+                edge_ij = i == ci - ring or i == ci + ring or j == cj - ring or j == cj + ring
+                k = ck - ring
+                while k <= ck + ring:
+                    if 0 <= k < nz and start[(i * ny + j) * nz + k + 1] > start[(i * ny + j) * nz + k] \
+                            and _box_d2(fx, fy, fz, i, j, k) * (c * c) <= best * best:
+                        q = (i * ny + j) * nz + k
+                        for s in range(start[q], start[q + 1]):
+                            f = cfaces[s]
+                            d, _ = tri_eval(px, py, pz, pack, f)
+                            if d < best or (d == best and f < bestf):
+                                best = d
+                                bestf = f
+                    if edge_ij or k == ck + ring:
+                        k += 1
+                    else:
+                        k = ck + ring            # interior of the block: only its two k faces are new
+        # every triangle with a point within (ring + 1 − slack)·c of p lies in rings 0..ring
+        if best <= (ring + 1.0 - slack) * c:
+            break
+    return bestf
+
+
+@_jit
+def closest_faces(P, pack, start, cfaces, lo, c, dims, out):
+    """Certified exact closest triangle of each point of P (M, 3), written into ``out`` (M,)."""
+    for m in range(P.shape[0]):
+        out[m] = _closest_one(P[m, 0], P[m, 1], P[m, 2], pack, start, cfaces, lo, c, dims)
+
+
+@_jit
+def mark_band(V, axis, radius, state, band_value):
+    """``state[i, j, k] = band_value`` for every grid point within ``radius`` of a vertex of V."""
+    n = axis.shape[0]
+    h = axis[1] - axis[0]
+    r2 = radius * radius
+    for v in range(V.shape[0]):
+        lo_i = np.empty(3, np.int64)
+        hi_i = np.empty(3, np.int64)
+        for a in range(3):
+            lo_i[a] = max(int(math.floor((V[v, a] - radius - axis[0]) / h)) - 1, 0)
+            hi_i[a] = min(int(math.ceil((V[v, a] + radius - axis[0]) / h)) + 1, n - 1)
+        for i in range(lo_i[0], hi_i[0] + 1):
+            dx = axis[i] - V[v, 0]
+            for j in range(lo_i[1], hi_i[1] + 1):
+                dy = axis[j] - V[v, 1]
+                for k in range(lo_i[2], hi_i[2] + 1):
+                    dz = axis[k] - V[v, 2]
+                    if dx * dx + dy * dy + dz * dz <= r2:
+                        state[i, j, k] = band_value
+
+
+@_jit
+def _descend(px, py, pz, d, f, feat, pack, faces, face_adj, vfaces, steps):
+    """Local descent from face f: the faces across its edges and the fan of its closest vertex."""
+    evals = 0
+    for _ in range(steps):
+        bd = d
+        bf = f
+        bfeat = feat
+        for e in range(3):
+            g = face_adj[f, e]
+            if g < 0:
+                continue
+            dd, ft = tri_eval(px, py, pz, pack, g)
+            evals += 1
+            if dd < bd:
+                bd, bf, bfeat = dd, g, ft
+        if _VA <= feat <= _VC:
+            vert = faces[f, feat - _VA]
+            for s in range(vfaces.shape[1]):
+                g = vfaces[vert, s]
+                if g < 0:
+                    break
+                dd, ft = tri_eval(px, py, pz, pack, g)
+                evals += 1
+                if dd < bd:
+                    bd, bf, bfeat = dd, g, ft
+        if bf == f:
+            break
+        d, f, feat = bd, bf, bfeat
+    return d, f, feat, evals
+
+
+@_jit
+def _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, done, seen):
+    """Best of the distinct closest faces of r's 26 neighbours whose state is ≥ ``done``, then descent.
+    Returns (distance, face, evaluations); face −1 when no neighbour is done.  ``seen``: int32 (26,) work space."""
+    nn = n * n
+    i = r // nn
+    j = (r // n) % n
+    k = r % n
+    px, py, pz = axis[i], axis[j], axis[k]
+    ns = 0
+    best = dist[i, j, k]
+    bf = face[i, j, k]
+    bfeat = -1
+    evals = 0
+    for di in range(-1, 2):
+        ii = i + di
+        if ii < 0 or ii >= n:
+            continue
+        for dj in range(-1, 2):
+            jj = j + dj
+            if jj < 0 or jj >= n:
+                continue
+            for dk in range(-1, 2):
+                kk = k + dk
+                if kk < 0 or kk >= n or (di == 0 and dj == 0 and dk == 0):
+                    continue
+                if state[ii, jj, kk] < done:
+                    continue
+                g = face[ii, jj, kk]
+                if g < 0:
+                    continue
+                dup = False
+                for s in range(ns):
+                    if seen[s] == g:
+                        dup = True
+                        break
+                if dup:
+                    continue
+                seen[ns] = g
+                ns += 1
+                dd, ft = tri_eval(px, py, pz, pack, g)
+                evals += 1
+                if dd < best:
+                    best, bf, bfeat = dd, g, ft
+    if bf >= 0 and best < dist[i, j, k]:    # descend from a better face (from the current one it was done)
+        best, bf, bfeat, e2 = _descend(px, py, pz, best, bf, bfeat, pack, faces, face_adj, vfaces, steps)
+        evals += e2
+    return best, bf, evals
+
+
+@_jit
+def _enqueue(i, j, k, n, state, sign, queue, tail):
+    """Queue the unreached (state 0) neighbours of (i, j, k) with its sign; returns the new queue length."""
+    for di in range(-1, 2):
+        ii = i + di
+        if ii < 0 or ii >= n:
+            continue
+        for dj in range(-1, 2):
+            jj = j + dj
+            if jj < 0 or jj >= n:
+                continue
+            for dk in range(-1, 2):
+                kk = k + dk
+                if kk < 0 or kk >= n or state[ii, jj, kk] != 0:
+                    continue
+                state[ii, jj, kk] = 1
+                sign[ii, jj, kk] = sign[i, j, k]
+                queue[tail] = (ii * n + jj) * n + kk
+                tail += 1
+    return tail
+
+
+@_jit
+def _passes(nfar, n, axis, dist, face, state, queue, pack, faces, face_adj, vfaces, steps, passes, seen):
+    """The Gauss–Seidel passes of :func:`propagate`; returns (evaluations, passes done)."""
+    nn = n * n
+    evals = 0
+    # Gauss–Seidel passes; state 4 = changed in the current pass, 5 = changed in the previous pass; a point
+    # is visited when it or a neighbour changed in either
+    done = 0
+    for p in range(passes):
+        changed = 0
+        for t in range(nfar):
+            r = queue[t] if p % 2 == 0 else queue[nfar - 1 - t]
+            i = r // nn
+            j = (r // n) % n
+            k = r % n
+            if p == 0:                      # first pass: only where a neighbour holds another face
+                fr = face[i, j, k]
+                near = False
+                for di in range(-1, 2):
+                    ii = i + di
+                    if ii < 0 or ii >= n:
+                        continue
+                    for dj in range(-1, 2):
+                        jj = j + dj
+                        if jj < 0 or jj >= n:
+                            continue
+                        for dk in range(-1, 2):
+                            kk = k + dk
+                            if 0 <= kk < n and face[ii, jj, kk] != fr and face[ii, jj, kk] >= 0:
+                                near = True
+                if not near:
+                    continue
+            else:
+                near = state[i, j, k] >= 4
+                if not near:
+                    for di in range(-1, 2):
+                        ii = i + di
+                        if ii < 0 or ii >= n:
+                            continue
+                        for dj in range(-1, 2):
+                            jj = j + dj
+                            if jj < 0 or jj >= n:
+                                continue
+                            for dk in range(-1, 2):
+                                kk = k + dk
+                                if 0 <= kk < n and state[ii, jj, kk] >= 4:
+                                    near = True
+                if not near:
+                    continue
+            d, f, e = _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2, seen)
+            evals += e
+            if d < dist[i, j, k]:
+                dist[i, j, k] = d
+                face[i, j, k] = f
+                state[i, j, k] = 4
+                changed += 1
+        # age the marks: previous pass's 5 -> 3, this pass's 4 -> 5
+        for t in range(nfar):
+            r = queue[t]
+            i = r // nn
+            j = (r // n) % n
+            k = r % n
+            s = state[i, j, k]
+            if s == 5:
+                state[i, j, k] = 3
+            elif s == 4:
+                state[i, j, k] = 5
+        done = p + 1
+        if changed == 0:
+            break
+    for t in range(nfar):
+        r = queue[t]
+        state[r // nn, (r // n) % n, r % n] = 3
+    return evals, done
+
+
+@_jit
+def propagate(n, axis, dist, face, state, sign, queue, pack, faces, face_adj, vfaces, steps, passes):
+    """Closest-triangle propagation from the band (state 2) into the far region (state 0).
+
+    1. Breadth first over the 26 neighbours, starting from the band points in index order: a far point
+       takes the best of the closest faces of its finished neighbours (band or far, state ≥ 2 / 3), then
+       descends on the mesh; it inherits the sign of the neighbour that reached it.
+    2. Up to ``passes`` Gauss–Seidel passes over the far points (alternately in and against the breadth-first
+       order): each pulls again from all 26 neighbours (and descends when that found a better face); the
+       first pass visits only points with a neighbour of another face, later ones only points next to a
+       change.  Returns (far points, evaluations, passes done).
+
+    ``state``: 0 far, not reached; 1 queued; 2 band; 3 far, finished (uint8, (n, n, n)); ``queue`` int32 (n³,).
+    """
+    nn = n * n
+    tail = 0
+    evals = 0
+    seen = np.empty(26, np.int32)
+    # seed: the far neighbours of every band point
+    for i in range(n):
+        for j in range(n):
+            for k in range(n):
+                if state[i, j, k] == 2:
+                    tail = _enqueue(i, j, k, n, state, sign, queue, tail)
+    head = 0
+    while head < tail:
+        r = queue[head]
+        head += 1
+        i = r // nn
+        j = (r // n) % n
+        k = r % n
+        d, f, e = _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2, seen)
+        evals += e
+        dist[i, j, k] = d
+        face[i, j, k] = f
+        state[i, j, k] = 3
+        tail = _enqueue(i, j, k, n, state, sign, queue, tail)
+    nfar = tail
+    e, done = _passes(nfar, n, axis, dist, face, state, queue, pack, faces, face_adj, vfaces, steps, passes, seen)
+    return nfar, evals + e, done

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geometry import paraboloid_curvature, radius_neighbors, vertex_normals
+from geometry import radius_curvature, vertex_normals
 
 __all__ = ["vertex_curvature", "constant_curvature_value", "curvature_metrics", "roughness_deg",
            "CONSTANT_CURVATURE"]
@@ -54,10 +54,9 @@ def vertex_curvature(vertices: np.ndarray, faces: np.ndarray, spacing: float, ou
     normals = vertex_normals(vertices, faces)
     if not outward:
         normals = -normals
-    nb = radius_neighbors(vertices, faces, 2.0 * float(spacing))
     # a vertex whose faces all have zero area has no normal: its H, K come out NaN (by design, quietly)
     with np.errstate(invalid="ignore", divide="ignore"):
-        H, K = paraboloid_curvature(vertices, normals, nb, linear=True)
+        H, K = radius_curvature(vertices, faces, 2.0 * float(spacing), normals, linear=True)
     return H, K, normals
 
 

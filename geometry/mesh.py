@@ -123,21 +123,28 @@ def radius_neighbor_blocks(vertices, faces, radius: float, max_width: int = MAX_
     k = int(min(max_width + 1, n))
     k0 = min(k, _FIRST_K)
     bound = np.nextafter(r, np.inf)               # the query keeps d < bound; the radius includes d = r
+    first = k0
     for s in range(0, n, int(block)):
         t = min(s + int(block), n)
-        d, j = _knn(tree, vertices[s:t], k0, bound)
-        full = d[:, -1] <= r if k0 < k else np.zeros(t - s, bool)
+        d, j = _knn(tree, vertices[s:t], first, bound)
+        full = d[:, -1] <= r if first < k else np.zeros(t - s, bool)
         if full.any():                            # the k0 nearest all lie within the radius: ask for k
-            d = np.concatenate([d, np.full((t - s, k - k0), np.inf)], axis=1)
-            j = np.concatenate([j, np.full((t - s, k - k0), n, dtype=j.dtype)], axis=1)
+            d = np.concatenate([d, np.full((t - s, k - first), np.inf)], axis=1)
+            j = np.concatenate([j, np.full((t - s, k - first), n, dtype=j.dtype)], axis=1)
             d[full], j[full] = _knn(tree, vertices[s:t][full], k, bound)
+        # most rows of this block filled up → the mesh is dense here: the next block asks for k at once
+        first = k if full.mean() > 0.5 else k0
         i = np.arange(s, t, dtype=np.int64)[:, None]
         ok = (j < n) & (d <= r) & (j != i)
-        if len(ekey):                             # the 1-ring is in the row already
+        rb = ring[s:t]
+        if rb.shape[1] <= 16:                     # the 1-ring is in the row already: drop it from the rest
+            for c in range(rb.shape[1]):
+                ok &= j != rb[:, c:c + 1]
+        elif len(ekey):
             key = np.minimum(i, j) * nv + np.maximum(i, j)
             pos = np.minimum(np.searchsorted(ekey, key), len(ekey) - 1)
             ok &= ekey[pos] != key
-        cat = np.concatenate([ring[s:t], np.where(ok, j, -1)], axis=1)
+        cat = np.concatenate([rb, np.where(ok, j, -1)], axis=1)
         # left-justify: the 1-ring, then the others nearest first (the query's order), padding last
         cat = np.take_along_axis(cat, np.argsort(cat < 0, axis=1, kind="stable"), axis=1)
         width = int(min(max_width, (cat >= 0).sum(axis=1).max(initial=0)))

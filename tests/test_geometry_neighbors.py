@@ -168,3 +168,21 @@ def test_scoring_an_82k_face_icosphere_at_n24_stays_under_1_gb():
     assert res["faces"] == 81_920
     assert res["peak_rss_mb"] < 1024
     assert res["H_rms_err"] < 0.05 and res["hausdorff_h"] < 0.01
+
+
+@pytest.mark.parametrize("dense", [False, True])
+def test_the_compiled_fit_equals_the_numpy_fit(mc_sphere, dense):
+    from geometry import kernels
+
+    if not kernels.AVAILABLE:
+        pytest.skip("numba missing")
+    if dense:
+        m = trimesh.creation.icosphere(4)
+        v, f, r = np.asarray(m.vertices), np.asarray(m.faces), 0.43       # the cap binds
+    else:
+        v, f, r = mc_sphere
+    H0, K0 = radius_curvature(v, f, r, compiled=False, block=1000)
+    H1, K1 = radius_curvature(v, f, r, compiled=True, block=1000)
+    assert np.array_equal(np.isnan(H0), np.isnan(H1))
+    np.testing.assert_allclose(H1, H0, rtol=1e-11, atol=1e-12)
+    np.testing.assert_allclose(K1, K0, rtol=1e-10, atol=1e-11)

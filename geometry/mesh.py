@@ -77,9 +77,9 @@ def one_ring(faces, n_vertices: int) -> np.ndarray:
 
 
 #: most entries a :func:`radius_neighbors` row keeps: the 1-ring first, then the nearest other vertices within
-#: the radius.  A marching-cubes mesh at N = 48..96 holds ~20–40 vertices in a 2h ball, far below the cap, so
-#: the cap only binds on meshes much denser than their grid (an 80k-face icosphere at N = 24: ~1,900), where it
-#: bounds the cost of a neighbourhood query and fit to O(V · cap) whatever the density.
+#: the radius.  A marching-cubes mesh at N = 48..96 holds ≤ 24 vertices in a 2h ball (mean ~16), far below the
+#: cap, so the cap only binds on meshes much denser than their grid (an 82k-face icosphere at N = 24: ~1,900),
+#: where it bounds the cost of a neighbourhood query and fit to O(V · cap) whatever the density.
 MAX_NEIGHBORS = 96
 
 #: vertices per block of :func:`radius_neighbor_blocks` (the memory of one block is ~ block × cap × 8 bytes per

@@ -4,10 +4,11 @@ The bottom of the stack: shared by the phantoms (`phantoms/`), the methods (`met
 nothing here imports any of them.
 """
 
-from .curvature import paraboloid_curvature
+from .curvature import paraboloid_curvature, radius_curvature
 from .errors import InputError
 from .levelset import newton_project
 from .mesh import (
+    MAX_NEIGHBORS,
     face_areas,
     face_normals,
     lumped_vertex_areas,
@@ -44,7 +45,7 @@ from .topology import (
 __all__ = [
     "InputError",
     "face_normals", "face_areas", "vertex_normals", "lumped_vertex_areas", "edges_unique",
-    "one_ring", "radius_neighbors", "padded_from_pairs", "paraboloid_curvature",
+    "one_ring", "radius_neighbors", "MAX_NEIGHBORS", "padded_from_pairs", "paraboloid_curvature", "radius_curvature",
     "MeshOperators", "cotangent_stiffness", "lumped_mass", "face_gradient", "gradient_operator", "divergence",
     "jacobi_cg", "fibonacci_sphere",
     "face_edge_keys", "face_edges", "edge_face_counts", "directed_edge_repeats", "is_closed", "is_manifold",

@@ -119,14 +119,16 @@ def fit_ring(u, v, z, count, *, linear: bool = True):
     return H, K, A, B, C
 
 
-def paraboloid_curvature(vertices, normals, neighbors, *, linear: bool = True, return_coeffs: bool = False):
+def paraboloid_curvature(vertices, normals, neighbors, *, linear: bool = True, return_coeffs: bool = False,
+                         rows=None):
     """Batched paraboloid-fit curvature over arbitrary (padded) neighbourhoods.
 
     Parameters
     ----------
     vertices : (V, 3) float
     normals : (V, 3) unit outward normals at the vertices
-    neighbors : (V, W) int, padded with −1 (e.g. :func:`geometry.mesh.one_ring`)
+    neighbors : (V, W) int, padded with −1 (e.g. :func:`geometry.mesh.one_ring`); with ``rows`` (R, W), the
+        neighbours of the vertices ``rows``
     linear : bool
         True (default): fit z = D x + E y + A/2 x² + B xy + C/2 y² and evaluate H, K of that graph at
         the vertex, which removes the bias a slightly tilted vertex normal causes (on a level-5
@@ -134,20 +136,29 @@ def paraboloid_curvature(vertices, normals, neighbors, *, linear: bool = True, r
         Needs 5 neighbours; vertices with fewer fall back to the paper's fit.
         False: the paper's fit z = A/2 x² + B xy + C/2 y² exactly as printed.
 
+    rows : slice or (R,) int array, optional
+        Fit only these vertices (a block of a large mesh: :func:`radius_curvature`); default all.
+
     Returns
     -------
-    H, K : (V,) arrays (NaN where a vertex has fewer than 3 neighbours or a degenerate fit);
-    with ``return_coeffs`` also the (V, 3) array of (A, B, C).
+    H, K : (V,) arrays — (R,) with ``rows`` — (NaN where a vertex has fewer than 3 neighbours or a degenerate
+    fit); with ``return_coeffs`` also the (V, 3) array of (A, B, C).
 
     The fit itself is :func:`fit_ring`, the one implementation the shape-gradient flow's in-loop
     curvature (:meth:`geometry.operators.MeshOperators.curvature`) also calls.
     """
     xt = np.asarray(vertices, float).T                         # (3, V)
     n = np.asarray(normals, float).T
-    nb = np.asarray(neighbors).T                               # (W, V)
+    nb = np.asarray(neighbors).T                               # (W, V) or (W, R)
+    centers = np.arange(xt.shape[1])
+    if rows is not None:
+        centers = centers[rows]
+        xc, n = xt[:, centers], n[:, centers]
+    else:
+        xc = xt
     valid = nb >= 0
-    idx = np.where(valid, nb, np.arange(nb.shape[1]))          # padded slots → the vertex itself: offset 0
-    d = [np.take(xt[c], idx) - xt[c] for c in range(3)]        # (W, V) each
+    idx = np.where(valid, nb, centers)                         # padded slots → the vertex itself: offset 0
+    d = [np.take(xt[c], idx) - xc[c] for c in range(3)]        # (W, V) each
     t1, t2 = tangent_frames_t(n)
     u = d[0] * t1[0] + d[1] * t1[1] + d[2] * t1[2]
     v = d[0] * t2[0] + d[1] * t2[1] + d[2] * t2[2]
@@ -155,4 +166,38 @@ def paraboloid_curvature(vertices, normals, neighbors, *, linear: bool = True, r
     H, K, A, B, C = fit_ring(u, v, z, valid.sum(0), linear=linear)
     if return_coeffs:
         return H, K, np.stack([A, B, C], axis=1)
+    return H, K
+
+
+def radius_curvature(vertices, faces, radius: float, normals=None, *, linear: bool = True,
+                     max_width: int | None = None, block: int | None = None, compiled: bool | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """(H, K) per vertex by :func:`paraboloid_curvature` over :func:`geometry.mesh.radius_neighbors` (the 1-ring
+    and the nearest others within ``radius``, at most ``max_width`` = :data:`geometry.mesh.MAX_NEIGHBORS` = 96),
+    fitted block by block (:data:`geometry.mesh.NEIGHBOR_BLOCK` vertices): O(V · max_width) time and
+    O(block · max_width) memory beyond the (V,) results, whatever the mesh density — the neighbour array of
+    the whole mesh and the fit's (W, V) temporaries are never built.  The same numbers as the one-shot fit
+    over the whole neighbour array (each vertex's fit reads only its own row).
+
+    ``normals``: unit outward vertex normals (default :func:`geometry.mesh.vertex_normals`).
+    ``compiled``: fit with :func:`geometry.kernels.ring_curvature` (the same arithmetic vertex by vertex, sums
+    in another order: equal to rounding) instead of :func:`paraboloid_curvature`; None: from
+    :data:`geometry.kernels.MIN_SIZE` vertices on.
+    """
+    from . import kernels
+    from .mesh import MAX_NEIGHBORS, NEIGHBOR_BLOCK, radius_neighbor_blocks, vertex_normals
+
+    vertices = np.asarray(vertices, float)
+    normals = vertex_normals(vertices, faces) if normals is None else np.asarray(normals, float)
+    compiled = kernels.wanted(len(vertices)) if compiled is None else compiled
+    n_t = np.ascontiguousarray(normals.T) if compiled else None
+    H = np.full(len(vertices), np.nan)
+    K = np.full(len(vertices), np.nan)
+    for s, t, nb in radius_neighbor_blocks(vertices, faces, radius,
+                                           MAX_NEIGHBORS if max_width is None else max_width,
+                                           NEIGHBOR_BLOCK if block is None else block):
+        if compiled:                              # rows are left-justified: the kernel stops at the first −1
+            H[s:t], K[s:t] = kernels.ring_curvature(vertices, n_t, nb, (nb >= 0).sum(axis=1), linear, start=s)
+        else:
+            H[s:t], K[s:t] = paraboloid_curvature(vertices, normals, nb, linear=linear, rows=slice(s, t))
     return H, K

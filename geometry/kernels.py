@@ -228,8 +228,9 @@ def _solve_fit(m, cnt, linear):
 
 
 @_jit
-def _ring_curvature(x, n, ring, count, linear, H, K):
-    for i in range(x.shape[0]):
+def _ring_curvature(x, n, ring, count, linear, H, K, start):
+    for r in range(ring.shape[0]):
+        i = start + r                                    # row r holds the neighbours of vertex start + r
         x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
         nx, ny, nz = n[0, i], n[1, i], n[2, i]
         sg = 1.0 if nz >= 0 else -1.0                    # tangent_frames_t
@@ -241,7 +242,7 @@ def _ring_curvature(x, n, ring, count, linear, H, K):
         m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = m8 = m9 = 0.0
         m10 = m11 = m12 = m13 = m14 = m15 = m16 = m17 = m18 = m19 = 0.0
         for w in range(ring.shape[1]):
-            j = ring[i, w]
+            j = ring[r, w]
             if j < 0:
                 break
             dx, dy, dz = x[j, 0] - x0, x[j, 1] - x1, x[j, 2] - x2
@@ -269,18 +270,22 @@ def _ring_curvature(x, n, ring, count, linear, H, K):
             m17 += vv
             m18 += u * z
             m19 += v * z
-        H[i], K[i] = _solve_fit((m0, m1, m2, m3, m4, m5, m6, m7, m8, m9, m10, m11, m12, m13, m14, m15, m16,
-                                 m17, m18, m19), count[i], linear)
+        H[r], K[r] = _solve_fit((m0, m1, m2, m3, m4, m5, m6, m7, m8, m9, m10, m11, m12, m13, m14, m15, m16,
+                                 m17, m18, m19), count[r], linear)
 
 
-def ring_curvature(x: np.ndarray, n: np.ndarray, ring: np.ndarray, count: np.ndarray, linear: bool):
+def ring_curvature(x: np.ndarray, n: np.ndarray, ring: np.ndarray, count: np.ndarray, linear: bool,
+                   start: int = 0):
     """(H, K) of the paraboloid fit over the 1-ring ``ring`` (V, W) padded with −1 (trailing), vertices
     ``x`` (V, 3) and unit normals ``n`` stored by coordinate (3, V):
-    :meth:`geometry.operators.MeshOperators.curvature`."""
-    V = x.shape[0]
-    H, K = np.empty(V), np.empty(V)
+    :meth:`geometry.operators.MeshOperators.curvature`.  With ``start``, ``ring`` (R, W) holds the
+    neighbourhoods of vertices start..start+R−1 only (a block of :func:`geometry.radius_curvature`) and the
+    results are (R,)."""
+    R = ring.shape[0]
+    H, K = np.empty(R), np.empty(R)
     _ring_curvature(np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(n, dtype=np.float64),
-                    ring, np.ascontiguousarray(count, dtype=np.int64), bool(linear), H, K)
+                    np.ascontiguousarray(ring), np.ascontiguousarray(count, dtype=np.int64), bool(linear), H, K,
+                    int(start))
     return H, K
 
 

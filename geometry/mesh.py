@@ -97,33 +97,94 @@ def one_ring(faces, n_vertices: int) -> np.ndarray:
                              n_vertices)
 
 
-def radius_neighbors(vertices, faces, radius: float, max_width: int = 96) -> np.ndarray:
-    """Padded array of every vertex within ``radius`` of each vertex, always including its 1-ring.
+#: most entries a :func:`radius_neighbors` row keeps: the 1-ring first, then the nearest other vertices within
+#: the radius.  A marching-cubes mesh at N = 48..96 holds ≤ 24 vertices in a 2h ball (mean ~16), far below the
+#: cap, so the cap only binds on meshes much denser than their grid (an 82k-face icosphere at N = 24: ~1,900),
+#: where it bounds the cost of a neighbourhood query and fit to O(V · cap) whatever the density.
+MAX_NEIGHBORS = 96
 
-    Rows are capped at ``max_width`` entries (the 1-ring first, then the nearest others).
+#: vertices per block of :func:`radius_neighbor_blocks` (the memory of one block is ~ block × cap × 8 bytes per
+#: array: ~6 MB)
+NEIGHBOR_BLOCK = 8192
+
+
+#: the first query of a block asks for this many nearest vertices (a marching-cubes 2h ball holds ~20); the
+#: rows it fills up are asked again for ``max_width`` + 1
+_FIRST_K = 32
+
+
+def _knn(tree, points, k, bound):
+    d, j = tree.query(points, k=k, distance_upper_bound=bound)
+    return d.reshape(len(points), k), j.reshape(len(points), k)
+
+
+def radius_neighbor_blocks(vertices, faces, radius: float, max_width: int = MAX_NEIGHBORS,
+                           block: int = NEIGHBOR_BLOCK):
+    """The rows of :func:`radius_neighbors` block by block: yields ``(start, stop, rows)``, ``rows`` the padded
+    (stop − start, W) neighbour array of vertices start..stop−1 (W ≤ ``max_width``, the block's widest row).
+
+    Each row is the vertex's 1-ring (in :func:`one_ring` order, at most ``max_width`` of it), then the other
+    vertices within ``radius`` (distance ≤ radius) nearest first, up to ``max_width`` entries in all.  The
+    neighbours within the radius come from a k-nearest query (k = ``max_width`` + 1, the vertex itself
+    included) bounded by the radius, so a block costs O(block · max_width · log V) time and memory however
+    many vertices the radius holds; the whole pass O(V · max_width) — never the number of pairs within the
+    radius, which grows with the square of the mesh density.
     """
     vertices = np.asarray(vertices, float)
-    e = edges_unique(faces)
-    ring_i = np.concatenate([e[:, 0], e[:, 1]])
-    ring_j = np.concatenate([e[:, 1], e[:, 0]])
-    pairs = cKDTree(vertices).query_pairs(float(radius), output_type="ndarray")
-    if len(pairs) and len(e):
-        # drop radius pairs that are ring edges (the ring entry comes first anyway): both pair lists are
-        # unique with a < b and the edge keys are sorted, so a searchsorted replaces a global unique
-        nv = np.int64(len(vertices))
-        ekey = e[:, 0].astype(np.int64) * nv + e[:, 1]
-        pkey = pairs[:, 0].astype(np.int64) * nv + pairs[:, 1]
-        pos = np.minimum(np.searchsorted(ekey, pkey), len(ekey) - 1)
-        pairs = pairs[ekey[pos] != pkey]
-    if len(pairs):
-        pi = np.concatenate([pairs[:, 0], pairs[:, 1]])
-        pj = np.concatenate([pairs[:, 1], pairs[:, 0]])
-        # order the radius pairs by distance so a cap keeps the nearest ones
-        d = np.linalg.norm(vertices[pi] - vertices[pj], axis=1)
-        o = np.argsort(d, kind="stable")
-        pi, pj = pi[o], pj[o]
-    else:
-        pi = pj = np.zeros(0, dtype=np.int64)
-    i = np.concatenate([ring_i, pi])
-    j = np.concatenate([ring_j, pj])
-    return padded_from_pairs(i, j, len(vertices), max_width=max_width)
+    n = len(vertices)
+    if n == 0:
+        return
+    r = float(radius)
+    e = edges_unique(faces).astype(np.int64, copy=False)
+    ring = padded_from_pairs(np.concatenate([e[:, 0], e[:, 1]]), np.concatenate([e[:, 1], e[:, 0]]), n,
+                             max_width=max_width)
+    nv = np.int64(n)
+    ekey = e[:, 0] * nv + e[:, 1]                 # sorted: the edges are unique, a < b, lexicographic
+    tree = cKDTree(vertices)
+    k = int(min(max_width + 1, n))
+    k0 = min(k, _FIRST_K)
+    bound = np.nextafter(r, np.inf)               # the query keeps d < bound; the radius includes d = r
+    first = k0
+    for s in range(0, n, int(block)):
+        t = min(s + int(block), n)
+        d, j = _knn(tree, vertices[s:t], first, bound)
+        full = d[:, -1] <= r if first < k else np.zeros(t - s, bool)
+        if full.any():                            # the k0 nearest all lie within the radius: ask for k
+            d = np.concatenate([d, np.full((t - s, k - first), np.inf)], axis=1)
+            j = np.concatenate([j, np.full((t - s, k - first), n, dtype=j.dtype)], axis=1)
+            d[full], j[full] = _knn(tree, vertices[s:t][full], k, bound)
+        # most rows of this block filled up → the mesh is dense here: the next block asks for k at once
+        first = k if full.mean() > 0.5 else k0
+        i = np.arange(s, t, dtype=np.int64)[:, None]
+        ok = (j < n) & (d <= r) & (j != i)
+        rb = ring[s:t]
+        if rb.shape[1] <= 16:                     # the 1-ring is in the row already: drop it from the rest
+            for c in range(rb.shape[1]):
+                ok &= j != rb[:, c:c + 1]
+        elif len(ekey):
+            key = np.minimum(i, j) * nv + np.maximum(i, j)
+            pos = np.minimum(np.searchsorted(ekey, key), len(ekey) - 1)
+            ok &= ekey[pos] != key
+        cat = np.concatenate([rb, np.where(ok, j, -1)], axis=1)
+        # left-justify: the 1-ring, then the others nearest first (the query's order), padding last
+        cat = np.take_along_axis(cat, np.argsort(cat < 0, axis=1, kind="stable"), axis=1)
+        width = int(min(max_width, (cat >= 0).sum(axis=1).max(initial=0)))
+        yield s, t, cat[:, :width]
+
+
+def radius_neighbors(vertices, faces, radius: float, max_width: int = MAX_NEIGHBORS) -> np.ndarray:
+    """Padded array (V, W) of every vertex within ``radius`` of each vertex, always including its 1-ring;
+    −1 where a row has fewer entries.
+
+    Rows are capped at ``max_width`` entries (:data:`MAX_NEIGHBORS`: the 1-ring first, then the nearest others);
+    see :func:`radius_neighbor_blocks`, which this concatenates — O(V · max_width) time and memory.
+    """
+    n = len(vertices)
+    blocks = [b for _, _, b in radius_neighbor_blocks(vertices, faces, radius, max_width)]
+    width = max((b.shape[1] for b in blocks), default=0)
+    out = np.full((n, width), -1, dtype=np.int64)
+    s = 0
+    for b in blocks:
+        out[s:s + len(b), :b.shape[1]] = b
+        s += len(b)
+    return out

@@ -3,10 +3,13 @@
 
 Per-vertex H and K come from the one shared estimator, :func:`geometry.paraboloid_curvature` (the
 paraboloid fit of docs/METHOD.md, with the linear terms), over a neighbourhood of fixed physical size:
-:func:`geometry.radius_neighbors` with radius 2h (every vertex within 2h, at least the 1-ring), and
-area-weighted vertex normals (:func:`geometry.vertex_normals`).  The mesh is made outward-facing first
-(normals flipped when its enclosed signed volume is negative), so H > 0 on a convex surface whatever the
-method's winding.
+:func:`geometry.radius_neighbors` with radius 2h (every vertex within 2h, at least the 1-ring, at most
+k = :data:`geometry.MAX_NEIGHBORS` = 96: the 1-ring, then the nearest others), and area-weighted vertex normals
+(:func:`geometry.vertex_normals`).  Marching cubes at N = 48..96 puts ≤ 24 vertices in a 2h ball, so k binds
+only on meshes far denser than their grid, where it bounds the cost: :func:`geometry.radius_curvature` queries
+and fits block by block, O(V · k) time and O(block · k) memory whatever the density (issue 30).  The mesh is
+made outward-facing first (normals flipped when its enclosed signed volume is negative), so H > 0 on a convex
+surface whatever the method's winding.
 
 Regions of constant true curvature (for ``H_std``), by phantom:
 
@@ -30,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geometry import paraboloid_curvature, radius_neighbors, vertex_normals
+from geometry import radius_curvature, vertex_normals
 
 __all__ = ["vertex_curvature", "constant_curvature_value", "curvature_metrics", "roughness_deg",
            "CONSTANT_CURVATURE"]
@@ -47,17 +50,18 @@ _NO_CONSTANT = {"ellipsoid", "torus"}
 
 def vertex_curvature(vertices: np.ndarray, faces: np.ndarray, spacing: float, outward: bool = True
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(H, K, unit vertex normals) per vertex with the shared estimator over the 2h neighbourhood.
+    """(H, K, unit vertex normals) per vertex with the shared estimator over the 2h neighbourhood (at most
+    :data:`geometry.MAX_NEIGHBORS` = 96 neighbours per vertex, the 1-ring first, then the nearest; see the module
+    doc), in O(V · 96) time and bounded memory.
 
     ``outward=False`` flips the normals (for a mesh wound inward), which flips the sign of H.
     """
     normals = vertex_normals(vertices, faces)
     if not outward:
         normals = -normals
-    nb = radius_neighbors(vertices, faces, 2.0 * float(spacing))
     # a vertex whose faces all have zero area has no normal: its H, K come out NaN (by design, quietly)
     with np.errstate(invalid="ignore", divide="ignore"):
-        H, K = paraboloid_curvature(vertices, normals, nb, linear=True)
+        H, K = radius_curvature(vertices, faces, 2.0 * float(spacing), normals, linear=True)
     return H, K, normals
 
 

@@ -110,14 +110,13 @@ def vertex_mean_curvature(vertices, faces, h: float) -> np.ndarray:
     """Per-vertex mean curvature for pictures: paraboloid fit over every vertex within 2h (at least the
     1-ring), outward normals — the neighbourhood METRICS.md prescribes, so marching-cubes slivers do not
     blow it up."""
-    from geometry import paraboloid_curvature, radius_neighbors, vertex_normals
+    from geometry import radius_curvature
 
     v = np.asarray(vertices, float)
     f = np.asarray(faces, np.int64)
     if len(v) == 0 or len(f) == 0:
         return np.zeros(len(v))
-    nb = radius_neighbors(v, f, 2.0 * h)
-    H, _ = paraboloid_curvature(v, vertex_normals(v, f), nb)
+    H, _ = radius_curvature(v, f, 2.0 * h)
     return np.asarray(H, float)
 
 

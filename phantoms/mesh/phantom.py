@@ -232,14 +232,14 @@ class MeshPhantom(Phantom):
 
     def _curvature(self):
         if self._HK is None:
-            from geometry import paraboloid_curvature, radius_neighbors, vertex_normals
+            from geometry import radius_curvature
 
             v, f = self.vertices, self.faces
             r = self._curv_radius
             if r is None:
                 r = 2.0 * float(np.median(self.edge_lengths))
             self.curvature_radius = float(r)
-            H, K = paraboloid_curvature(v, vertex_normals(v, f), radius_neighbors(v, f, r))
+            H, K = radius_curvature(v, f, r)
             self._HK = (np.asarray(H, float), np.asarray(K, float))
         return self._HK
 

@@ -131,3 +131,22 @@ def test_evaluate_fidelity_cost_n96(benchmark, cell_n96):
           f"ratio {ratio:.3f}, load average {os.getloadavg()[0]:.2f}")
     assert np.isfinite(out["sdf_rms_h"]) and out["sign_err_pct"] == 0.0
     assert ratio <= 1.2
+
+
+@pytest.fixture(scope="module")
+def icosphere_82k():
+    """An icosphere of 81,920 faces: far denser than its grid at N = 24 (~1,900 vertices in a 2h ball) and
+    N = 96 (~110) — the meshes of issue 30 (before: 269 s and 8.1 GB at N = 24, 24 s at N = 96)."""
+    return trimesh.creation.icosphere(subdivisions=6, radius=1.0), get_phantom("sphere")
+
+
+@pytest.mark.perf_slow
+@pytest.mark.benchmark(group="metrics")
+@pytest.mark.parametrize("n", [24, 96])
+def test_evaluate_dense_icosphere(benchmark, icosphere_82k, n):
+    """``evaluate`` on the 82k-face icosphere with h = 5/(N − 1): the curvature neighbourhood capped at
+    ``geometry.MAX_NEIGHBORS`` and queried and fitted block by block (issue 30 target: within 4× the 100k-face
+    time)."""
+    mesh, ph = icosphere_82k
+    out = _timed(benchmark, mesh, ph, 5.0 / (n - 1))
+    assert out["watertight"] and out["self_intersections"] == 0 and out["H_rms_err"] < 0.05

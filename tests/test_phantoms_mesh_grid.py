@@ -24,7 +24,7 @@ def bunny():
 
 
 def test_bunny_volume_equals_the_previous_implementation_in_the_band(bunny):
-    from tests._grid_sdf_reference import signed_distance_grid as reference
+    from _grid_sdf_reference import signed_distance_grid as reference
 
     n = 48
     h = 5.0 / (n - 1)

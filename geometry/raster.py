@@ -39,6 +39,33 @@ def _candidates(lo_i, hi_i, lo_j, hi_j):
     return tri, lo_i[tri] + local // nj_t, lo_j[tri] + local % nj_t
 
 
+def _piercings(x, y, z, d, lo_i, hi_i, lo_j, hi_j, column_xy):
+    """Batches of (i, j, z, sign) of every column (i, j) that pierces a triangle: the triangles' corner
+    coordinates x, y, z (F, 3), their doubled signed projected areas d (F,), their column footprints
+    [lo_i, hi_i] × [lo_j, hi_j], and ``column_xy(i, j)`` the columns' (x, y).  The sign is that of the
+    triangle's normal along the column."""
+    idx = np.flatnonzero((d != 0) & (hi_i >= lo_i) & (hi_j >= lo_j))
+    if not len(idx):
+        return
+    cum = np.cumsum(((hi_i - lo_i + 1) * (hi_j - lo_j + 1))[idx])
+    edges = np.unique(np.concatenate([[0], np.searchsorted(cum, np.arange(_BATCH, cum[-1], _BATCH)), [len(idx)]]))
+    for start, end in zip(edges[:-1], edges[1:]):
+        sel = idx[start:end]
+        t, ii, jj = _candidates(lo_i[sel], hi_i[sel], lo_j[sel], hi_j[sel])
+        tri = sel[t]
+        px, py = column_xy(ii, jj)
+        xa, xb, xc = x[tri].T
+        ya, yb, yc = y[tri].T
+        dd = d[tri]
+        wa = ((xb - px) * (yc - py) - (xc - px) * (yb - py)) / dd
+        wb = ((xc - px) * (ya - py) - (xa - px) * (yc - py)) / dd
+        wc = 1.0 - wa - wb
+        hit = np.flatnonzero((wa > 0) & (wb > 0) & (wc > 0))
+        zt = z[tri[hit]]
+        zz = wa[hit] * zt[:, 0] + wb[hit] * zt[:, 1] + wc[hit] * zt[:, 2]
+        yield ii[hit], jj[hit], zz, np.where(dd[hit] > 0, 1, -1)
+
+
 def grid_winding(vertices, faces, origin, spacing, shape) -> np.ndarray:
     """The winding number of the mesh at every grid point ``origin + (i, j, k) * spacing``: int16, ``shape``.
 
@@ -64,33 +91,13 @@ def grid_winding(vertices, faces, origin, spacing, shape) -> np.ndarray:
     hi_i = np.clip(np.floor(x.max(1)), -1, shape[0] - 1).astype(np.int64)
     lo_j = np.clip(np.ceil(y.min(1)), 0, shape[1]).astype(np.int64)
     hi_j = np.clip(np.floor(y.max(1)), -1, shape[1] - 1).astype(np.int64)
-    keep = (d != 0) & (hi_i >= lo_i) & (hi_j >= lo_j)
-    idx = np.flatnonzero(keep)
-    if not len(idx):
-        return acc
-    area = ((hi_i - lo_i + 1) * (hi_j - lo_j + 1))[idx]
-    cum = np.cumsum(area)
-    edges = np.unique(np.concatenate([[0], np.searchsorted(cum, np.arange(_BATCH, cum[-1], _BATCH)), [len(idx)]]))
     flat = acc.reshape(-1)
-    for start, end in zip(edges[:-1], edges[1:]):
-        sel = idx[start:end]
-        t, ii, jj = _candidates(lo_i[sel], hi_i[sel], lo_j[sel], hi_j[sel])
-        tri = sel[t]
-        px, py = ii.astype(float), jj.astype(float)
-        xa, xb, xc = x[tri].T
-        ya, yb, yc = y[tri].T
-        dd = d[tri]
-        wa = ((xb - px) * (yc - py) - (xc - px) * (yb - py)) / dd
-        wb = ((xc - px) * (ya - py) - (xa - px) * (yc - py)) / dd
-        wc = 1.0 - wa - wb
-        hit = np.flatnonzero((wa > 0) & (wb > 0) & (wc > 0))
-        zt = z[tri[hit]]
-        zz = wa[hit] * zt[:, 0] + wb[hit] * zt[:, 1] + wc[hit] * zt[:, 2]
+    for ii, jj, zz, sgn in _piercings(x, y, z, d, lo_i, hi_i, lo_j, hi_j,
+                                      lambda i, j: (i.astype(float), j.astype(float))):
         kk = np.ceil(zz).astype(np.int64) - 1            # the highest grid point strictly below the piercing
         ok = kk >= 0
-        hit, kk = hit[ok], np.minimum(kk[ok], shape[2] - 1)
-        sgn = np.where(dd[hit] > 0, 1, -1).astype(np.int16)
-        np.add.at(flat, (ii[hit] * shape[1] + jj[hit]) * shape[2] + kk, sgn)
+        np.add.at(flat, (ii[ok] * shape[1] + jj[ok]) * shape[2] + np.minimum(kk[ok], shape[2] - 1),
+                  sgn[ok].astype(np.int16))
     # every piercing counts for the grid points at or below its kk: a cumulative sum from the top of each column
     return np.flip(np.cumsum(np.flip(acc, axis=2), axis=2, dtype=np.int16), axis=2)
 
@@ -133,29 +140,11 @@ def column_winding(vertices, faces, lo, step, columns, z) -> np.ndarray:
     hi_i = np.clip(np.floor((x.max(1) - lo[0]) / step[0]), -1, m0 - 1).astype(np.int64)
     lo_j = np.clip(np.floor((y.min(1) - lo[1]) / step[1]), 0, m1).astype(np.int64)
     hi_j = np.clip(np.floor((y.max(1) - lo[1]) / step[1]), -1, m1 - 1).astype(np.int64)
-    idx = np.flatnonzero((d != 0) & (hi_i >= lo_i) & (hi_j >= lo_j))
-    if not len(idx):
-        return out
-    area = ((hi_i - lo_i + 1) * (hi_j - lo_j + 1))[idx]
-    cum = np.cumsum(area)
-    edges = np.unique(np.concatenate([[0], np.searchsorted(cum, np.arange(_BATCH, cum[-1], _BATCH)), [len(idx)]]))
-    hit_col, hit_z, hit_s = [], [], []
-    for start, end in zip(edges[:-1], edges[1:]):
-        sel = idx[start:end]
-        t, ii, jj = _candidates(lo_i[sel], hi_i[sel], lo_j[sel], hi_j[sel])
-        tri = sel[t]
-        px, py = cols[ii, jj, 0], cols[ii, jj, 1]
-        xa, xb, xc = x[tri].T
-        ya, yb, yc = y[tri].T
-        dd = d[tri]
-        wa = ((xb - px) * (yc - py) - (xc - px) * (yb - py)) / dd
-        wb = ((xc - px) * (ya - py) - (xa - px) * (yc - py)) / dd
-        wc = 1.0 - wa - wb
-        hit = np.flatnonzero((wa > 0) & (wb > 0) & (wc > 0))
-        zz = zt[tri[hit]]
-        hit_z.append(wa[hit] * zz[:, 0] + wb[hit] * zz[:, 1] + wc[hit] * zz[:, 2])
-        hit_col.append(ii[hit] * m1 + jj[hit])
-        hit_s.append(np.where(dd[hit] > 0, 1, -1))
+    hit_col, hit_z, hit_s = [np.zeros(0, np.int64)], [np.zeros(0)], [np.zeros(0, np.int64)]
+    for ii, jj, zz, sgn in _piercings(x, y, zt, d, lo_i, hi_i, lo_j, hi_j, lambda i, j: (cols[i, j, 0], cols[i, j, 1])):
+        hit_z.append(zz)
+        hit_col.append(ii * m1 + jj)
+        hit_s.append(sgn)
     pc, pz, ps = np.concatenate(hit_col), np.concatenate(hit_z), np.concatenate(hit_s)
     if not len(pc):
         return out

@@ -81,7 +81,28 @@ HINTS = {
 
 @dataclass
 class CaseResult:
-    """One case: what the method did, how long it took, what it returned, what is wrong."""
+    """One case: what the method did, how long it took, what it returned, what is wrong.
+
+    Parameters
+    ----------
+    case : str
+        The case's name (one of :data:`CASES`).
+    outcome : str
+        What the method did: ``mesh``, ``empty mesh``, ``refused``, ``raised``, ``wrong type``, ``timeout``
+        or ``crashed``.
+    seconds : float
+        The case's wall time.
+    violations : list of str
+        What breaks the contract (each has a :data:`HINTS` entry); none: the case passed (:attr:`passed`).
+    notes : list of str
+        Remarks that are no violation (a refusal's message, an ``info`` value of the wrong kind, ...).
+    info : dict
+        The method's ``info``, without its arrays.
+    facts : dict
+        The returned mesh's facts (vertices, faces, Euler characteristic, ...).
+    traceback : str, optional
+        The traceback of an exception that is a violation.
+    """
 
     case: str
     outcome: str = ""                     # "mesh", "empty mesh", "refused", "raised", "wrong type"
@@ -131,7 +152,20 @@ def _torus(n: int) -> Volume:
 
 
 def case_volumes(n: int = 24, seed: int = 0) -> dict[str, tuple[Volume, Volume]]:
-    """``{case: (volume given to the method, clean volume the output is checked against)}``."""
+    """The volumes of the cases (see the module docstring).
+
+    Parameters
+    ----------
+    n : int
+        About how many grid points per axis.
+    seed : int
+        Seed of the ``noisy`` case's noise.
+
+    Returns
+    -------
+    dict of str to (Volume, Volume)
+        ``{case: (volume given to the method, clean volume the output is checked against)}``.
+    """
     sphere = _sphere(n)
     noisy, _ = add_noise(sphere, "gaussian", 30.0, seed=seed)
     ell, torus = _ellipsoid(n + 4), _torus(n + 4)
@@ -212,12 +246,29 @@ def run_case(method, case: str, volume: Volume, clean: Volume) -> CaseResult:
 
 
 def check_method(method, n: int = 24, cases=CASES, seed: int = 0, timeout: float | None = None) -> list[CaseResult]:
-    """Run ``method`` (an instance) on each of ``cases`` at about ``n`` points per axis.
+    """Run a method on each of ``cases`` and judge what it returns against the contract of :class:`methods.Method`.
 
-    With ``timeout`` (seconds), each case runs in a child process (forked, so registered plug-ins come along)
-    that is stopped after ``timeout``: a method that hangs is a ``timeout`` violation and one that ends its
-    process (``os.abort()``, a segfault, ``os._exit``) a ``crashed`` one, and the remaining cases still run.
-    Without it the cases run in this process (the Python API's default)."""
+    Parameters
+    ----------
+    method : methods.Method
+        The method, an instance.
+    n : int
+        About how many grid points per axis.
+    cases : sequence of str
+        Cases to run, of :data:`CASES`.
+    seed : int
+        Seed of the ``noisy`` case's noise.
+    timeout : float, optional
+        Seconds per case.  With it each case runs in a child process (forked, so registered plug-ins come
+        along) that is stopped after ``timeout``: a method that hangs is a ``timeout`` violation and one that
+        ends its process (``os.abort()``, a segfault, ``os._exit``) a ``crashed`` one, and the remaining cases
+        still run.  Without it the cases run in this process (the Python API's default).
+
+    Returns
+    -------
+    list of CaseResult
+        One per case, in the order of ``cases``.
+    """
     volumes = case_volumes(n, seed)
     if timeout is None or "fork" not in mp.get_all_start_methods():
         return [run_case(method, c, *volumes[c]) for c in cases]

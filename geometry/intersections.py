@@ -189,10 +189,24 @@ def _straddles(s: np.ndarray) -> np.ndarray:
 
 def self_intersection_pairs(vertices: np.ndarray, faces: np.ndarray, chunk: int = 500_000,
                             compiled: bool | None = None) -> np.ndarray:
-    """All intersecting pairs (i, j) of faces that share no vertex index; shape (P, 2), each pair once.
+    """All intersecting pairs of faces that share no vertex index.
 
-    ``compiled``: the broad phase of :mod:`geometry.broadphase` (numba) instead of the numpy/cKDTree one
-    (None: from :data:`geometry.kernels.MIN_SIZE` faces on); the same pairs either way."""
+    Parameters
+    ----------
+    vertices : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray of int, shape (F, 3)
+        The mesh.
+    chunk : int
+        Candidate pairs tested per block (bounds the memory of the exact test).
+    compiled : bool, optional
+        True: the broad phase of :mod:`geometry.broadphase` (numba) instead of the numpy/cKDTree one; None:
+        compiled from :data:`geometry.kernels.MIN_SIZE` faces on.  The same pairs either way.
+
+    Returns
+    -------
+    numpy.ndarray of int, shape (P, 2)
+        Face index pairs (i, j), i < j, each pair once.
+    """
     v = np.asarray(vertices, float)
     f = np.asarray(faces, dtype=np.int64)
     if len(f) < 2:

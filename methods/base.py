@@ -46,11 +46,22 @@ BUILTIN_METHODS: dict[str, str] = {
 
 @dataclass(frozen=True)
 class Param:
-    """A documented method parameter.
+    """A documented method parameter: its default, what it does, and the values it accepts.
 
-    ``type`` is the Python type values are converted to (bool, int, float, str, or ``object`` for free-form
-    values such as a mesh); ``choices`` restricts the value to a set; ``min``/``max`` bound numbers
-    (inclusive).
+    Parameters
+    ----------
+    default : object
+        The value used when the parameter is not given; None reads as "auto" (then None, ``'none'`` and
+        ``'auto'`` are accepted back).
+    doc : str
+        What the parameter does (``python -m bench methods`` prints it).
+    type : type
+        The Python type values are converted to: bool, int, float, str, or ``object`` for free-form values
+        such as a mesh.
+    choices : tuple, optional
+        Restricts the value to a set.
+    min, max : float, optional
+        Inclusive bounds of a number.
     """
 
     default: Any
@@ -61,7 +72,11 @@ class Param:
     max: float | None = None
 
     def convert(self, method: str, name: str, value: Any) -> Any:
-        """Convert/validate ``value`` (strings from the command line included); InputError on failure."""
+        """``value`` of parameter ``name`` of ``method`` converted to ``type`` (command-line strings included).
+
+        :class:`InputError` for a value that does not convert, is not one of ``choices`` or lies outside
+        ``[min, max]``.
+        """
         where = f"method {method!r}, parameter {name!r}"
         t = self.type
         if self.default is None and (value is None or (isinstance(value, str)
@@ -126,16 +141,24 @@ INFO_KEYS: dict[str, str] = {
 
 
 class ReconstructionFailed(RuntimeError):
-    """A method ran but its result is not a reconstruction (collapsed, far from φ = 0, ...): the message says why.
-    The command line prints it as one line (exit code 1); a grid run records it as a failed cell."""
+    """A method ran but its result is not a reconstruction (collapsed, far from φ = 0, ...).
+
+    The message says why.  The command line prints it as one line (exit code 1); a grid run records it as a
+    failed cell.
+    """
 
 
 @dataclass
 class Reconstruction:
     """What a method returns: the mesh and facts about how it was made.
 
-    ``mesh`` is a closed, outward-oriented ``trimesh.Trimesh`` in world coordinates.  ``info`` holds the
-    method's facts as plain Python/numpy values; the keys the suite reads are documented in :data:`INFO_KEYS`.
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        A closed, outward-oriented triangle mesh in world coordinates.
+    info : dict
+        The method's facts as plain Python/numpy values; the keys the suite reads are documented in
+        :data:`INFO_KEYS` (and checked by :func:`check_info`).
     """
 
     mesh: trimesh.Trimesh
@@ -143,13 +166,32 @@ class Reconstruction:
 
 
 class WrongReturnType(ReconstructionFailed, TypeError):
-    """A method returned something other than a :class:`Reconstruction` of a ``trimesh.Trimesh`` and a dict (an
-    ``info`` value of :data:`INFO_KEYS` of the wrong type, or a ``sys.exit()`` instead of a return, included)."""
+    """A method returned something other than a :class:`Reconstruction` of a ``trimesh.Trimesh`` and a dict.
+
+    An ``info`` value of :data:`INFO_KEYS` of the wrong type, or a ``sys.exit()`` instead of a return, counts.
+    """
 
 
 def as_reconstruction(result: Any, name: str) -> Reconstruction:
-    """``result`` if it is what a method must return (a :class:`Reconstruction` holding a ``trimesh.Trimesh``
-    and an ``info`` dict); else :class:`WrongReturnType` naming the method and what it returned."""
+    """Check that ``result`` is what a method must return.
+
+    Parameters
+    ----------
+    result : object
+        What the method's ``reconstruct`` returned.
+    name : str
+        The method's name, for the error message.
+
+    Returns
+    -------
+    Reconstruction
+        ``result`` itself: a :class:`Reconstruction` holding a ``trimesh.Trimesh`` and an ``info`` dict.
+
+    Raises
+    ------
+    WrongReturnType
+        Naming the method and what it returned (see :func:`check_info` for the ``info`` values).
+    """
     if not isinstance(result, Reconstruction):
         raise WrongReturnType(f"method {name!r} returned {type(result).__name__}, expected methods.Reconstruction "
                               "(return Reconstruction(mesh, info))")
@@ -182,9 +224,23 @@ _INFO_TYPES = {
 
 
 def check_info(info: dict, name: str) -> None:
-    """:class:`WrongReturnType` naming the key when a value of :data:`INFO_KEYS` the suite reads has the wrong
-    type (``warnings = "text"`` would be one warning per character, ``iterations = "many"`` a text in an integer
-    column).  Keys of the method's own are not checked."""
+    """Check the types of the :data:`INFO_KEYS` values the suite reads; the method's own keys are not checked.
+
+    A wrong type would be read wrongly downstream: ``warnings = "text"`` as one warning per character,
+    ``iterations = "many"`` as a text in an integer column.
+
+    Parameters
+    ----------
+    info : dict
+        A :attr:`Reconstruction.info`.
+    name : str
+        The method's name, for the error message.
+
+    Raises
+    ------
+    WrongReturnType
+        Naming the key, its value and the type expected.
+    """
     for key, (ok, what) in _INFO_TYPES.items():
         value = info.get(key)
         if value is not None and not ok(value):
@@ -194,9 +250,28 @@ def check_info(info: dict, name: str) -> None:
 
 
 def run_reconstruct(method: "Method", volume: Volume) -> Any:
-    """``method.reconstruct(volume)``, with a ``sys.exit()`` inside the method turned into a
-    :class:`WrongReturnType` naming it: a plug-in must not end the suite's process (``reconstruct`` exiting
-    0 with no output, a grid worker gone without a row)."""
+    """Call ``method.reconstruct(volume)``, turning a ``sys.exit()`` inside the method into an error.
+
+    A plug-in must not end the suite's process (``reconstruct`` exiting 0 with no output, a grid worker gone
+    without a row).
+
+    Parameters
+    ----------
+    method : Method
+        The method instance.
+    volume : Volume
+        The volume to reconstruct.
+
+    Returns
+    -------
+    object
+        What ``reconstruct`` returned, unchecked (:func:`as_reconstruction` checks it).
+
+    Raises
+    ------
+    WrongReturnType
+        The method called ``sys.exit()``; any other exception of the method propagates unchanged.
+    """
     try:
         return method.reconstruct(volume)
     except SystemExit as exc:
@@ -205,7 +280,21 @@ def run_reconstruct(method: "Method", volume: Volume) -> Any:
 
 
 class Method:
-    """Base class of the reconstruction methods (see the module docstring)."""
+    """Base class of the reconstruction methods (see the module docstring).
+
+    A subclass sets ``name``, ``description`` and ``params`` and implements :meth:`reconstruct`; the resolved
+    parameter values are in ``self.config``.
+
+    Parameters
+    ----------
+    **params
+        Non-default parameter values, converted and checked by their :class:`Param`.
+
+    Raises
+    ------
+    InputError
+        An unknown parameter name (listing the valid ones) or a value its :class:`Param` refuses.
+    """
 
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
@@ -222,6 +311,25 @@ class Method:
             self.config[key] = spec.convert(self.name, key, value) if key in params else spec.default
 
     def reconstruct(self, volume: Volume) -> Reconstruction:  # pragma: no cover - abstract
+        """Reconstruct the zero level set of ``volume``.
+
+        Parameters
+        ----------
+        volume : Volume
+            φ < 0 inside, in world coordinates.
+
+        Returns
+        -------
+        Reconstruction
+            A closed, outward-oriented mesh in world coordinates and the method's facts.
+
+        Raises
+        ------
+        InputError
+            A volume the method cannot work on (e.g. no closed zero level set: :func:`check_volume`).
+        ReconstructionFailed
+            The method ran but its result is not a reconstruction.
+        """
         raise NotImplementedError
 
     #: rough cost of one run relative to marching cubes + scoring at the same N (the runner starts the dearest
@@ -234,7 +342,20 @@ class Method:
 
 
 def check_volume(volume: Volume, method: str) -> None:
-    """Raise InputError (naming ``method``) when ``volume`` has no closed zero level set inside the grid."""
+    """Check that ``volume`` has a closed zero level set inside its grid, the input every method needs.
+
+    Parameters
+    ----------
+    volume : Volume
+        The volume to check.
+    method : str
+        The method's name, for the error message.
+
+    Raises
+    ------
+    InputError
+        Not a :class:`phantoms.Volume`, no zero crossing, or a zero level set that reaches the grid's boundary.
+    """
     if not isinstance(volume, Volume):
         raise InputError(f"method {method!r}: expected a phantoms.Volume, got {type(volume).__name__}")
     if not volume.has_zero_crossing():
@@ -253,7 +374,26 @@ _REGISTERED: dict[str, type[Method]] = {}
 
 
 def register_method(cls: type[Method]) -> type[Method]:
-    """Register a Method subclass under ``cls.name`` (the code path entry points also take). Usable as a decorator."""
+    """Register a :class:`Method` subclass under ``cls.name``; usable as a decorator.
+
+    Registered methods are listed after the built-ins and entry points (:func:`available_methods`) and replace
+    a method of the same name.
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`Method` subclass with a ``name``.
+
+    Returns
+    -------
+    type
+        ``cls`` itself.
+
+    Raises
+    ------
+    InputError
+        ``cls`` is not a :class:`Method` subclass with a name.
+    """
     if not (isinstance(cls, type) and issubclass(cls, Method)) or not cls.name:
         raise InputError(f"{cls!r} is not a Method subclass with a name")
     _REGISTERED[cls.name] = cls
@@ -263,8 +403,16 @@ def register_method(cls: type[Method]) -> type[Method]:
 def import_plugins(modules) -> None:
     """Import each module named in ``modules`` (in order), e.g. ones that call :func:`register_method`.
 
-    Any failure to import (missing module, an exception the module raises) is the user's to fix: it is
-    raised as :class:`phantoms.InputError` ``cannot import module 'name': <the error>``.
+    Parameters
+    ----------
+    modules : iterable of str
+        Importable module names.
+
+    Raises
+    ------
+    InputError
+        ``cannot import module 'name': <the error>`` for any failure to import (a missing module, an exception
+        the module raises): it is the user's to fix.
     """
     for mod in modules:
         try:
@@ -282,6 +430,11 @@ def available_methods() -> dict[str, type[Method]]:
     """Every method: the built-ins, then entry points of group ``levelset_bench.methods``, then registered ones.
 
     A built-in or plug-in that fails to import is skipped with a warning rather than breaking the others.
+
+    Returns
+    -------
+    dict of str to type
+        Method name → :class:`Method` subclass.
     """
     import warnings
 
@@ -306,11 +459,34 @@ def available_methods() -> dict[str, type[Method]]:
 
 
 def method_names() -> list[str]:
+    """The names of every available method (:func:`available_methods`), in its order.
+
+    Returns
+    -------
+    list of str
+    """
     return list(available_methods())
 
 
 def get_method(name: str, **params: Any) -> Method:
-    """An instance of the method called ``name`` with ``params``; InputError for unknown names/parameters."""
+    """An instance of the method called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A method name (:func:`method_names`).
+    **params
+        Non-default parameter values.
+
+    Returns
+    -------
+    Method
+
+    Raises
+    ------
+    InputError
+        An unknown name (listing the valid ones), or a parameter the method refuses.
+    """
     methods = available_methods()
     if name not in methods:
         raise InputError(f"unknown method {name!r}; valid methods: {', '.join(methods)}")

@@ -41,7 +41,23 @@ VARIANTS = ("sdf", "paper")
 
 @dataclass(frozen=True)
 class Truth:
-    """Ground truth at the closest true-surface point of each query point (all arrays length P)."""
+    """Ground truth at the closest true-surface point of each of P query points (:meth:`Phantom.truth`).
+
+    Parameters
+    ----------
+    closest : numpy.ndarray, shape (P, 3)
+        The closest point on the true surface.
+    distance : numpy.ndarray, shape (P,)
+        The unsigned distance to the true surface.
+    signed : numpy.ndarray, shape (P,)
+        The signed distance (negative inside).
+    normal : numpy.ndarray, shape (P, 3)
+        The outward unit normal at the closest point.
+    H, K : numpy.ndarray, shape (P,)
+        Mean and Gaussian curvature at the closest point (NaN on a crease or rim).
+    crease_distance : numpy.ndarray, shape (P,)
+        Distance from the closest point to the nearest crease (inf if the phantom has none).
+    """
 
     closest: np.ndarray          # (P, 3) closest point on the true surface
     distance: np.ndarray         # (P,) unsigned distance to the true surface
@@ -71,7 +87,27 @@ def unit(v: np.ndarray, fallback) -> np.ndarray:
 
 
 def grid_volume(fn, n: int = DEFAULT_N, extent: float = DEFAULT_EXTENT) -> Volume:
-    """Sample ``fn`` (points (P, 3) → values (P,)) on an n³ grid over [-extent, extent]³."""
+    """Sample a function on an n³ grid over [-extent, extent]³.
+
+    Parameters
+    ----------
+    fn : callable
+        Points (P, 3) → values (P,).
+    n : int
+        Grid points per axis (>= 8).
+    extent : float
+        Half-width of the cubic grid box (positive).
+
+    Returns
+    -------
+    Volume
+        Spacing 2·extent / (n − 1), origin (−extent, −extent, −extent).
+
+    Raises
+    ------
+    InputError
+        A bad ``n`` or ``extent``, or a grid that does not fit in memory.
+    """
     n = check_n(n)
     extent = check_extent(extent)
     # the grid's points (meshgrid + stack: 6 arrays), the values and a copy: at least 8 float64 per point
@@ -121,7 +157,13 @@ def check_sample_count(n) -> int:
 
 
 class Phantom:
-    """Base class of the analytic phantoms."""
+    """Base class of the phantoms: a closed surface with exact ground truth.
+
+    A subclass sets ``name``, ``description``, ``genus`` and ``has_creases`` and implements :meth:`sdf` (exact
+    signed distance, negative inside), :meth:`paper` (the paper's level-set polynomial), :meth:`truth` and
+    :meth:`sample_surface` (seeded area-uniform samples and their normals); its constructor takes the
+    phantom's geometric parameters (:attr:`params`).
+    """
 
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""

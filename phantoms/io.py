@@ -88,7 +88,27 @@ def load_volume(path, mask: bool | None = None, **options) -> Volume:
 
 
 def save_volume(path, volume: Volume) -> Path:
-    """Write ``volume`` as ``.npz`` (keys values, origin, spacing)."""
+    """Write ``volume`` as ``.npz`` (keys values, origin, spacing), atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output file; must end in ``.npz`` and lie in a writable place.
+    volume : Volume
+        The volume to write.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    InputError
+        ``path`` is not an ``.npz`` name.
+    geometry.files.WriteError
+        The place is not writable (naming the cause).
+    """
     path = check_volume_output(path)
     with atomic_path(path) as tmp:
         np.savez_compressed(tmp, values=volume.values, origin=volume.origin, spacing=volume.spacing)
@@ -96,8 +116,25 @@ def save_volume(path, volume: Volume) -> Path:
 
 
 def check_volume_output(path) -> Path:
-    """``path`` as a volume output: an ``.npz`` name in a writable place (checked before any work is done;
-    :class:`geometry.files.WriteError` naming the cause otherwise)."""
+    """Check ``path`` as a volume output before any work is done: an ``.npz`` name in a writable place.
+
+    Parameters
+    ----------
+    path : str or Path
+        The intended output file.
+
+    Returns
+    -------
+    Path
+        ``path`` as a :class:`~pathlib.Path`.
+
+    Raises
+    ------
+    InputError
+        ``path`` is not an ``.npz`` name.
+    geometry.files.WriteError
+        The place is not writable (naming the cause).
+    """
     path = Path(path)
     if _suffix(path) != ".npz":
         raise InputError(f"volumes are written as .npz; got {path.name!r}")

@@ -25,8 +25,17 @@ def mask_to_sdf(mask, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> Volume
 
     Parameters
     ----------
-    mask : (nx, ny, nz) array, true (non-zero) inside.
-    origin, spacing : the grid's world position and per-axis spacing.
+    mask : array_like, shape (nx, ny, nz)
+        True (non-zero) inside.
+    origin : array_like, shape (3,)
+        The world position of voxel (0, 0, 0).
+    spacing : float or array_like, shape (3,)
+        The per-axis voxel spacing, world units.
+
+    Returns
+    -------
+    Volume
+        The signed distance, world units, negative inside.
 
     Raises
     ------

@@ -20,7 +20,18 @@ __all__ = ["NOISE_KINDS", "add_noise", "snr_db"]
 
 
 def snr_db(signal: np.ndarray, noise: np.ndarray) -> float:
-    """10·log10(mean(signal²) / mean(noise²)) in dB (inf for zero noise)."""
+    """The signal-to-noise ratio 10·log10(mean(signal²) / mean(noise²)) in dB.
+
+    Parameters
+    ----------
+    signal, noise : numpy.ndarray
+        The clean field and the additive noise (any shape; means over all entries).
+
+    Returns
+    -------
+    float
+        The SNR in dB; inf for zero noise.
+    """
     p_noise = float(np.mean(np.square(noise)))
     if p_noise == 0.0:
         return math.inf
@@ -29,11 +40,31 @@ def snr_db(signal: np.ndarray, noise: np.ndarray) -> float:
 
 def add_noise(volume: Volume, kind: str = "gaussian", snr: float | None = None,
               seed: int = 0) -> tuple[Volume, float]:
-    """Return ``(noisy_volume, achieved_snr_db)``.
+    """Add seeded noise to a volume at a requested SNR.
 
-    ``kind`` is ``'none'``, ``'gaussian'`` or ``'uniform'``; ``snr`` is the requested SNR in dB (required
-    unless kind is ``'none'``, for which the volume is returned unchanged with an SNR of inf).
-    The achieved SNR is measured on the noise actually drawn.
+    Parameters
+    ----------
+    volume : Volume
+        The clean volume.
+    kind : {'none', 'gaussian', 'uniform'}
+        The noise distribution (:data:`NOISE_KINDS`); ``'none'`` returns a copy of the volume unchanged.
+    snr : float, optional
+        The requested SNR in dB; required unless ``kind`` is ``'none'``.
+    seed : int
+        Seed (>= 0) of the PCG64 generator: the same seed gives a bitwise-identical volume on every machine.
+
+    Returns
+    -------
+    noisy : Volume
+        The volume plus the noise.
+    achieved_snr_db : float
+        The SNR measured on the noise actually drawn (inf for ``'none'``).
+
+    Raises
+    ------
+    InputError
+        An unknown kind, a negative or non-integer seed, a missing or non-finite SNR, or a volume that is zero
+        everywhere (no SNR can be set).
     """
     if kind not in NOISE_KINDS:
         raise InputError(f"unknown noise kind {kind!r}; valid kinds: {', '.join(NOISE_KINDS)}")

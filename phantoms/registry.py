@@ -34,7 +34,14 @@ MESH_PREFIX = "mesh:"
 
 
 def phantom_names() -> list[str]:
-    """Analytic phantoms, then the named real shapes (``mesh:PATH`` is accepted too)."""
+    """The registered phantom names: the analytic phantoms, then the named real shapes.
+
+    ``mesh:PATH`` and ``volume:PATH`` are accepted too (:func:`is_phantom_name`) but are not listed.
+
+    Returns
+    -------
+    list of str
+    """
     return list(PHANTOMS) + list(REAL_PHANTOMS)
 
 
@@ -43,19 +50,50 @@ def _is_mesh_name(name) -> bool:
 
 
 def is_file_phantom(name) -> bool:
-    """True for ``mesh:PATH`` and ``volume:PATH[?options]``."""
+    """Whether ``name`` names a file phantom: ``mesh:PATH`` or ``volume:PATH[?options]``.
+
+    Parameters
+    ----------
+    name : object
+        A phantom name or spec; anything that is not a string is not a file phantom.
+
+    Returns
+    -------
+    bool
+    """
     return isinstance(name, str) and (name.startswith(MESH_PREFIX) or name.startswith(VOLUME_PREFIX))
 
 
 def phantom_path(spec: str) -> str:
-    """The file (or folder, or glob) part of a ``mesh:`` / ``volume:`` spec."""
+    """The file (or folder, or glob) part of a ``mesh:`` / ``volume:`` spec.
+
+    Parameters
+    ----------
+    spec : str
+        ``mesh:PATH`` or ``volume:PATH[?key=value&...]``.
+
+    Returns
+    -------
+    str
+        ``PATH``, without the prefix and the options.
+    """
     if spec.startswith(VOLUME_PREFIX):
         return parse_spec(spec)[0]
     return spec[len(MESH_PREFIX):]
 
 
 def is_phantom_name(name: str) -> bool:
-    """True for a registered phantom name, ``mesh:PATH`` or ``volume:PATH`` (the file is not checked here)."""
+    """Whether ``name`` is a registered phantom name, ``mesh:PATH`` or ``volume:PATH``.
+
+    Parameters
+    ----------
+    name : str
+        The name to check; the file of a file phantom is not looked at here.
+
+    Returns
+    -------
+    bool
+    """
     return name in PHANTOMS or name in REAL_PHANTOMS or is_file_phantom(name)
 
 
@@ -71,9 +109,24 @@ def _stem(path: Path) -> str:
 
 
 def expand_phantoms(specs) -> list[tuple[str, str]]:
-    """``[(name, source), ...]``: each spec once, a ``mesh:`` / ``volume:`` spec whose path is a glob as one
-    phantom per matching file (sorted; named by the file's stem, its options kept).  :class:`InputError` for an
-    empty glob (naming the pattern) or two phantoms of the same name.  Files are not read here."""
+    """Expand the globs of a list of phantom specs into one phantom per matching file.
+
+    Parameters
+    ----------
+    specs : iterable of str
+        Phantom names and ``mesh:`` / ``volume:`` specs; a spec whose path is a glob stands for a dataset.
+
+    Returns
+    -------
+    list of (str, str)
+        ``[(name, source), ...]``, each spec once: a globbed spec as one phantom per matching file (sorted,
+        named by the file's stem, its options kept), any other spec as ``(spec, spec)``.  Files are not read.
+
+    Raises
+    ------
+    InputError
+        An empty glob (naming the pattern), or two phantoms of the same name.
+    """
     out: list[tuple[str, str]] = []
     for spec in specs:
         if not is_file_phantom(spec) or not _GLOB_CHARS.search(phantom_path(spec)):
@@ -96,8 +149,26 @@ def expand_phantoms(specs) -> list[tuple[str, str]]:
 
 
 def get_phantom(name: str, **params) -> Phantom:
-    """The phantom called ``name`` (optionally with non-default parameters); ``mesh:PATH`` for a mesh file,
-    ``volume:PATH[?options]`` for a user volume."""
+    """The phantom called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A registered name (:func:`phantom_names`), ``mesh:PATH`` for a closed mesh file, or
+        ``volume:PATH[?options]`` for a user volume.
+    **params
+        Non-default parameters of the phantom (e.g. the semi-axes of an ellipsoid).
+
+    Returns
+    -------
+    Phantom
+
+    Raises
+    ------
+    InputError
+        An unknown name (listing the valid ones) or parameters the phantom does not take; a file phantom's
+        file that cannot be read.
+    """
     if name.startswith(VOLUME_PREFIX):
         return get_volume_phantom(name, **params)
     if _is_mesh_name(name):

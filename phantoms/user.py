@@ -294,6 +294,11 @@ class VolumePhantom(Phantom):
         ``volume:PATH[?key=value&...]``.
     name : str, optional
         The phantom's name in results (default: ``spec``).
+
+    Raises
+    ------
+    InputError
+        An unreadable image, bad options, or a ``truth=`` file that is missing or does not fit the volume.
     """
 
     description = "a user's volume file"

@@ -89,9 +89,16 @@ def _check_scale(spacing: np.ndarray, shape, origin: np.ndarray) -> None:
 
 @dataclass(frozen=True)
 class Sample:
-    """Interpolated values at a batch of points.
+    """Interpolated values at a batch of P points (:meth:`Volume.sample`).
 
-    ``phi`` has shape (P,), ``grad`` (P, 3) and ``hess`` (P, 3, 3); the ones not asked for are None.
+    Parameters
+    ----------
+    phi : numpy.ndarray, shape (P,)
+        The field's values.
+    grad : numpy.ndarray, shape (P, 3), optional
+        Its gradient; None when not asked for.
+    hess : numpy.ndarray, shape (P, 3, 3), optional
+        Its Hessian; None when not asked for.
     """
 
     phi: np.ndarray

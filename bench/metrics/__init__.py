@@ -91,7 +91,7 @@ METRIC_NAMES = list(METRICS)
 def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_000, seed: int = 0,
              crease_band: float = 0.1, timings: dict | None = None, vertex_H: dict | None = None,
              truth_points: np.ndarray | None = None) -> dict:
-    """All METRICS.md metrics of ``mesh`` against the phantom ``truth`` (or the truth-free subset).
+    """All the metrics of ``docs/METRICS.md`` of ``mesh`` against the phantom ``truth`` (or the truth-free subset).
 
     Parameters
     ----------
@@ -119,15 +119,16 @@ def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_0
         Filled with ``"H"`` and ``"K"``: the per-vertex mean and Gaussian curvature the curvature metrics used,
         one value per vertex of ``mesh`` as given (NaN for a vertex no face uses) — for pictures and the report,
         so nobody fits them twice.
-    truth_points : (n_samples, 3) array, optional
+    truth_points : numpy.ndarray, shape (n_samples, 3), optional
         ``truth.sample_surface(n_samples, seed)[0]`` computed before (a cache: the same for every mesh
         scored against this truth).
 
     Returns
     -------
-    dict with the keys of :data:`METRIC_NAMES` except :data:`RUNNER_NAMES` (plain Python floats, ints,
-    bools; NaN where a metric is undefined, e.g. ``H_std`` on the ellipsoid); without a truth the keys of
-    :data:`TRUTH_FREE_NAMES`.
+    dict
+        The keys of :data:`METRIC_NAMES` except :data:`RUNNER_NAMES` (plain Python floats, ints, bools; NaN
+        where a metric is undefined, e.g. ``H_std`` on the ellipsoid); without a truth the keys of
+        :data:`TRUTH_FREE_NAMES`.
 
     Raises
     ------

@@ -50,11 +50,25 @@ _NO_CONSTANT = {"ellipsoid", "torus"}
 
 def vertex_curvature(vertices: np.ndarray, faces: np.ndarray, spacing: float, outward: bool = True
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(H, K, unit vertex normals) per vertex with the shared estimator over the 2h neighbourhood (at most
-    :data:`geometry.MAX_NEIGHBORS` = 96 neighbours per vertex, the 1-ring first, then the nearest; see the module
-    doc), in O(V · 96) time and bounded memory.
+    """Mean and Gaussian curvature and unit normal per vertex, by the shared estimator over the 2h neighbourhood.
 
-    ``outward=False`` flips the normals (for a mesh wound inward), which flips the sign of H.
+    At most :data:`geometry.MAX_NEIGHBORS` = 96 neighbours per vertex, the 1-ring first, then the nearest (see
+    the module doc): O(V · 96) time and bounded memory.
+
+    Parameters
+    ----------
+    vertices : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray of int, shape (F, 3)
+        The mesh.
+    spacing : float
+        The grid spacing h; the neighbourhood radius is 2h.
+    outward : bool
+        False flips the normals (for a mesh wound inward), which flips the sign of H.
+
+    Returns
+    -------
+    H, K : numpy.ndarray, shape (V,)
+    normals : numpy.ndarray, shape (V, 3)
     """
     normals = vertex_normals(vertices, faces)
     if not outward:
@@ -66,7 +80,23 @@ def vertex_curvature(vertices: np.ndarray, faces: np.ndarray, spacing: float, ou
 
 
 def constant_curvature_value(phantom, H_true: np.ndarray, ok: np.ndarray) -> float | None:
-    """True H of the phantom's constant-curvature region, or None when it has none (see module doc)."""
+    """The true H of the phantom's constant-curvature region, the reference of ``H_std`` (see the module doc).
+
+    Parameters
+    ----------
+    phantom : phantoms.Phantom
+        The phantom; a named one is looked up in :data:`CONSTANT_CURVATURE`.
+    H_true : numpy.ndarray, shape (P,)
+        The true mean curvature at the vertices' closest true points.
+    ok : numpy.ndarray of bool, shape (P,)
+        The vertices to consider (outside the crease band); any other phantom has a constant-curvature region
+        when ``H_true`` is one constant over them.
+
+    Returns
+    -------
+    float or None
+        None when the phantom has no such region.
+    """
     name = getattr(phantom, "name", "")
     if name in CONSTANT_CURVATURE:
         return float(CONSTANT_CURVATURE[name](phantom))

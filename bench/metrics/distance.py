@@ -37,10 +37,26 @@ DISTANCE_LIBRARY = "geometry.closest.point_mesh_distance (uniform grid of triang
 
 def sample_mesh_surface(vertices: np.ndarray, faces: np.ndarray, n: int, seed: int = 0
                         ) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` seeded, area-uniform i.i.d. samples on a triangle mesh: (points (n, 3), face index (n,)).
+    """``n`` seeded, area-uniform i.i.d. samples on a triangle mesh.
 
     Faces are chosen with probability ∝ area (inverse CDF on the cumulative areas), points uniformly in
     the face by the square-root barycentric map.  Same seed → same samples.
+
+    Parameters
+    ----------
+    vertices : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray of int, shape (F, 3)
+        The mesh.
+    n : int
+        The number of samples.
+    seed : int
+        Seed of the generator.
+
+    Returns
+    -------
+    points : numpy.ndarray, shape (n, 3)
+    face_index : numpy.ndarray of int, shape (n,)
+        The face each point lies in.
     """
     return sample_surface(vertices, faces, n, seed)
 
@@ -50,19 +66,23 @@ def point_mesh_distance(points: np.ndarray, vertices: np.ndarray, faces: np.ndar
 
     Parameters
     ----------
-    points : (P, 3) float array.
-    vertices, faces : the mesh ((V, 3) floats, (F, 3) ints, at least one face when P > 0).
+    points : numpy.ndarray, shape (P, 3)
+        The query points.
+    vertices : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray of int, shape (F, 3)
+        The mesh; at least one face when P > 0.
 
     Returns
     -------
-    (P,) float array.
+    numpy.ndarray, shape (P,)
+        The distances.
     """
     return closest.point_mesh_distance(points, vertices, faces)
 
 
 def distance_metrics(d_rt_samples: np.ndarray, d_rt_max: float, d_tr: np.ndarray, h: float,
                      sample_normals: np.ndarray, true_normals: np.ndarray) -> dict:
-    """The METRICS.md distance block from the two directed distance sets.
+    """The distance block of ``docs/METRICS.md`` from the two directed distance sets.
 
     d_rt_samples : recon → truth distance of the area-uniform mesh samples
     d_rt_max     : max recon → truth distance over vertices and samples

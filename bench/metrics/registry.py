@@ -23,6 +23,24 @@ __all__ = ["Metric", "METRICS"]
 
 @dataclass(frozen=True)
 class Metric:
+    """One metric column: its name, how to rank and show it, and who computes it (see the module docstring).
+
+    Parameters
+    ----------
+    name : str
+        The column name (a key of :func:`bench.metrics.evaluate`'s row).
+    best : {"min", "max"} or ("target", value) or None
+        Which value is the best in a table; None: not ranked.
+    dtype : {"float", "int", "bool"}
+        How a value is shown.
+    meaning : str
+        One line.
+    unit : str
+        "" for a pure number.
+    kind : {"distance", "distance_h", "truth", "truth_free", "fidelity", "runner"}
+        Who computes it and what it needs.
+    """
+
     name: str
     best: Any          # "min", "max", ("target", value) or None
     dtype: str         # "float", "int" or "bool"

@@ -85,7 +85,19 @@ def sif_pct(pairs: np.ndarray, n_faces: int) -> float:
 # --------------------------------------------------------------------------- quality
 
 def triangle_angles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Interior angles (F, 3) in degrees; a face with a zero-length edge gets 0° at the affected corners."""
+    """The interior angles of every triangle, in degrees.
+
+    Parameters
+    ----------
+    vertices : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray of int, shape (F, 3)
+        The mesh.
+
+    Returns
+    -------
+    numpy.ndarray, shape (F, 3)
+        The angle at each face's corners; a face with a zero-length edge gets 0° at the affected corners.
+    """
     t = np.asarray(vertices, float)[faces]
     out = np.empty((len(faces), 3))
     for k in range(3):

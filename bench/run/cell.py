@@ -227,9 +227,21 @@ def method_info(info: dict) -> dict:
 def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
     """Compute one cell from its parameters; never raises for a failing method (see the module docstring).
 
-    ``on_phase(phase, facts)``, when given, is called as the method starts (``"method"``, {}) and as it
-    returns (``"scoring"``, its wall time and info columns): the executor's per-phase time limits
-    (:mod:`bench.run.limits`)."""
+    Parameters
+    ----------
+    cell : dict
+        A cell of :func:`bench.run.grid.expand_grid`.
+    cache_dir : str, optional
+        Folder of the shared cache of clean volumes and truth samples (the same for every method and noise).
+    on_phase : callable, optional
+        ``on_phase(phase, facts)``, called as the method starts (``"method"``, {}) and as it returns
+        (``"scoring"``, its wall time and info columns): the executor's per-phase time limits.
+
+    Returns
+    -------
+    dict
+        ``{"row", "artifacts", "traceback"}``; a failing method's row has ``status`` ``failed``, ``error``.
+    """
     from bench.metrics import evaluate
 
     t0, c0 = time.perf_counter(), time.process_time()
@@ -314,7 +326,22 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
 
 
 def failed_result(cell: dict, status: str, error: str) -> dict:
-    """The result of a cell that produced nothing (crash, timeout)."""
+    """The result of a cell that produced nothing (a crash, a timeout), shaped as :func:`run_cell`'s.
+
+    Parameters
+    ----------
+    cell : dict
+        The cell.
+    status : str
+        The row's ``status``, e.g. ``failed``.
+    error : str
+        What happened, one line (the row's ``error``).
+
+    Returns
+    -------
+    dict
+        ``{"row": ID columns + status + error, "artifacts": {}, "traceback": None}``.
+    """
     row = _id_row(cell)
     row.update(status=status, error=error)
     return {"row": row, "artifacts": {}, "traceback": None}

@@ -37,6 +37,15 @@ def cell_id(cell: dict) -> str:
     """A readable, stable identifier: ``<phantom>_<variant>_n<N>_<noise>[<snr>dB]_s<seed>_<label>_<hash>``.
 
     The hash covers every parameter of the cell, so sweeps and changed settings never collide.
+
+    Parameters
+    ----------
+    cell : dict
+        A cell's parameters (as :func:`expand_grid` builds them).
+
+    Returns
+    -------
+    str
     """
     key = {k: cell[k] for k in ("phantom", "variant", "n", "extent", "noise", "snr_requested", "seed",
                                 "method", "params", "n_samples")}
@@ -94,13 +103,29 @@ def method_codes(names) -> dict[str, dict | None]:
 
 
 def expand_grid(cfg) -> list[dict]:
-    """All cells of a validated :class:`bench.config.RunConfig`, in order phantom → variant → N → noise →
-    seed → method.
+    """All cells of a run config, in order phantom → variant → N → noise → seed → method.
 
     A ``mesh:`` / ``volume:`` glob is one phantom per file (:func:`phantoms.expand_phantoms`; the cell's
-    ``source`` is the file's spec, its ``phantom`` the file's stem).  Clean cells (noise ``none``) are run for the first seed only: without noise the seed changes nothing
-    but the metric sampling.  With ``grid.vary = "one_at_a_time"`` only the (N, noise) pairs that keep one of
-    them at its first value are run: every noise setting at the first N, every N with the first noise setting.
+    ``source`` is the file's spec, its ``phantom`` the file's stem).  Clean cells (noise ``none``) are run for
+    the first seed only: without noise the seed changes nothing but the metric sampling.  With
+    ``grid.vary = "one_at_a_time"`` only the (N, noise) pairs that keep one of them at its first value are run:
+    every noise setting at the first N, every N with the first noise setting.
+
+    Parameters
+    ----------
+    cfg : bench.config.RunConfig
+        A validated config.
+
+    Returns
+    -------
+    list of dict
+        The cells, each with its ``cell_id`` (:func:`cell_id`).
+
+    Raises
+    ------
+    InputError
+        An empty phantom glob or two phantoms of the same name (:func:`phantoms.expand_phantoms`), or
+        duplicate cells.
     """
     cells = []
     one = getattr(cfg, "vary", "all") == "one_at_a_time"

@@ -201,7 +201,13 @@ def check_run_folder(out: Path) -> tuple[list[str], int]:
 
 
 def load_cells(out: Path) -> dict[str, dict]:
-    """``{cell_id: record}`` of every finished cell in ``out/cells`` (unreadable files are skipped)."""
+    """``{cell_id: record}`` of every finished cell in ``out/cells`` (unreadable files are skipped).
+
+    Parameters
+    ----------
+    out : Path
+        The run folder.
+    """
     return scan_cells(out)[0]
 
 
@@ -251,8 +257,22 @@ def _csv_text(cols: list[str], rows: list[dict]) -> str:
 
 
 def write_results_csv(out: Path, cells: list[dict], records: dict[str, dict]) -> Path:
-    """``results.csv`` and ``results.parquet``: one row per finished cell of the grid, in grid order (the
-    parquet file written second, recording the CSV's SHA-1)."""
+    """Write ``results.csv``, then ``results.parquet`` recording the CSV's SHA-1: a row per finished cell.
+
+    Parameters
+    ----------
+    out : Path
+        The run folder.
+    cells : list of dict
+        The grid's cells; rows follow their order.
+    records : dict
+        ``{cell_id: record}`` of the finished cells (:func:`load_cells`).
+
+    Returns
+    -------
+    Path
+        The CSV file.
+    """
     rows = [records[c["cell_id"]]["row"] for c in cells if c["cell_id"] in records]
     cols = result_columns(rows)
     path = Path(out) / RESULTS_CSV

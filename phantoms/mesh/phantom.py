@@ -124,14 +124,27 @@ class MeshPhantom(Phantom):
 
     Parameters
     ----------
-    vertices, faces : the mesh; it must be watertight (every edge in exactly two faces) with a
-        consistent orientation.  An inward-oriented mesh is flipped.
-    name, description : for listings and result records.
-    normalize : centre on the minimum bounding sphere and scale it to radius :data:`TARGET_RADIUS`
-        (default True).  The applied map is ``x ↦ (x − centre) · scale`` (attributes ``centre``, ``scale``).
-    crease_angle_deg : dihedral threshold (angle between adjacent face normals) of a crease edge.
-    curvature_radius : neighbourhood radius of the curvature fit (default 2 × median edge length).
-    source : where the mesh came from (shown in ``params``).
+    vertices : array_like, shape (V, 3)
+        The mesh's vertex positions.
+    faces : array_like of int, shape (F, 3)
+        Its triangles; the mesh must be watertight (every edge in exactly two faces) with a consistent
+        orientation.  An inward-oriented mesh is flipped.
+    name, description : str, optional
+        For listings and result records.
+    normalize : bool
+        Centre on the minimum bounding sphere and scale it to radius :data:`TARGET_RADIUS` (default True).
+        The applied map is ``x ↦ (x − centre) · scale`` (attributes ``centre``, ``scale``).
+    crease_angle_deg : float
+        Dihedral threshold (angle between adjacent face normals) of a crease edge.
+    curvature_radius : float, optional
+        Neighbourhood radius of the curvature fit (default 2 × median edge length).
+    source : str, optional
+        Where the mesh came from (shown in ``params``).
+
+    Raises
+    ------
+    InputError
+        A mesh that is not closed and consistently oriented, or has zero extent or zero enclosed volume.
     """
 
     name = "mesh"

@@ -89,6 +89,20 @@ class LocalExecutor:
     Processes come from a fork server that preloaded the suite, so starting one costs milliseconds, and
     killing one (timeout) cannot take the others down.  The interface is kept tiny so another executor can
     replace it: ``run(cells, on_start, on_result)``.
+
+    Parameters
+    ----------
+    jobs : int
+        Cells run at once (at least 1).
+    timeout : float or TimeLimits or None
+        The time limits (:class:`bench.run.limits.TimeLimits`); a number is the whole-cell limit in seconds,
+        None no limit.
+    cache_dir : str, optional
+        The shared volume cache of :func:`bench.run.cell.run_cell`.
+    preload : list of str, optional
+        Further modules the fork server imports once (e.g. plug-ins), so no cell pays for them.
+    memory_gb : float, optional
+        GB of address space per cell process; None: no limit.
     """
 
     def __init__(self, jobs: int, timeout: "float | TimeLimits | None", cache_dir: str | None = None,
@@ -190,6 +204,18 @@ class LocalExecutor:
 
     def run(self, cells: list[dict], on_start: Callable[[dict], None],
             on_result: Callable[[dict, dict], None]) -> None:
+        """Run ``cells`` and report each as it starts and ends; returns when all have ended.
+
+        Parameters
+        ----------
+        cells : list of dict
+            The cells, started in this order.
+        on_start : callable
+            ``on_start(cell)``, as a cell's process starts.
+        on_result : callable
+            ``on_result(cell, result)`` with :func:`bench.run.cell.run_cell`'s result, or a ``timeout`` /
+            ``failed`` result for a cell killed at its deadline or whose process ended without one.
+        """
         from multiprocessing.connection import wait
 
         ctx = self._context()

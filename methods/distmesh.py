@@ -184,7 +184,8 @@ class DistMesh(Method):
                                  "stop the nodes from oscillating there)", type=int, min=1, max=20),
         "history": Param(True, "record the max move of every iteration in info['max_move_history']",
                          type=bool),
-        "compiled": Param(True, "run the iterations compiled (methods/distmesh_loop.py, numba: ≈ 40× faster); "
+        "compiled": Param(True, "run the iterations compiled (methods/distmesh_loop.py, numba; faster: "
+                                "docs/NOTES.md); "
                                 "False: the numpy form, the reference (the same steps; nodes equal to rounding)",
                           type=bool),
     }

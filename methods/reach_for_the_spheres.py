@@ -25,56 +25,38 @@ which is the library's own default, twice the mean sample spacing).
 Radii (``redistance``).  The method needs |φ| to be the distance to the surface: a sphere smaller than the
 distance cannot be made tangent, one larger crosses the surface.  The suite's volumes are level sets, not
 always distances (the paper's polynomial variant: |φ| ≈ 2 × the distance near the sphere; a normalised implicit
-of the ellipsoid (1, 0.7, 0.5), as in ``check-method``: 0.5–1 ×).  Given such a field the flow crumples: on
-``check-method``'s anisotropic ellipsoid at N = 24 the old adapter grew the mesh to 2,584 vertices in 56 steps,
-19 of them out of the grid; on 0.5 × a sphere's SDF 4,290 vertices, 18 h off; on 2 × it stopped 7 h off the
-zero set.  So the adapter reads |φ| / d, d = the distance to φ's zero set (its marching-cubes triangulation,
-exact point-to-triangle distance, gpytoolbox), over the samples 2–6 h from it: an exact SDF reads 0.99–1.0 (the
-bunny and the cortex 0.96–0.99, their distance being certified exact only near the surface), one with the
-paper's noise 1.02–1.03, c × an SDF reads c.  ``redistance = "auto"`` (default) keeps |φ| when the median ratio
-is within 15 % of 1 — the library then sees exactly the grid it is given — and otherwise gives it sign(φ) · d
-(the zero set unchanged).  A field so noisy that marching cubes breaks its zero set into bubbles (the ratio's
-90th/10th percentiles more than 2× apart: SNR 20 dB reads 1.3–10) is given as it is.  ``"yes"``/``"no"``
-force either.  The paper's polynomial at N = 48 (ratio 2.1 sphere, 1.75 fused spheres): with |φ| the flow leaves
-the grid in 1–2 steps; redistanced, the sphere is within 0.11 h (14 steps), the fused spheres 0.89 h.
+of the ellipsoid (1, 0.7, 0.5), as in ``check-method``: 0.5–1 ×), and given such a field the flow crumples or
+stops off the zero set.  So the adapter reads |φ| / d, d = the distance to φ's zero set (its marching-cubes
+triangulation, exact point-to-triangle distance, gpytoolbox), over the samples 2–6 h from it: an exact SDF reads
+about 1, c × an SDF reads c.  ``redistance = "auto"`` (default) keeps |φ| when the median ratio is within 15 % of
+1 — the library then sees exactly the grid it is given — and otherwise gives it sign(φ) · d (the zero set
+unchanged).  A field so noisy that marching cubes breaks its zero set into bubbles (the ratio's 90th/10th
+percentiles more than 2× apart) is given as it is.  ``"yes"``/``"no"`` force either.
 
 Start.  An icosphere (``init_subdivisions``) centred on the bounding box of the inside samples, through its
-corners (radius ``init_radius`` × half its diagonal, + h) — and, new, squeezed per axis to end one h inside the
-grid box.  The sphere alone stuck out of flat grids (the torus case: to z = ±2.2 in a grid of ±0.76), where no
-sample's sphere holds the surface; in the suite's cubic grids it fits and nothing changes.
+corners (radius ``init_radius`` × half its diagonal, + h), squeezed per axis to end one h inside the grid box:
+in a grid too flat for it (the torus case) the sphere would stick out where no sample's sphere holds the
+surface; in a cubic grid it fits as it is.
 
-Divergence.  A flow that crumples grows its mesh and leaves the samples, each step slower (the cortex at N = 96
-grew past 30,000 vertices in 85 steps).  The run fails with ``methods.ReconstructionFailed``
-— never a crumpled mesh returned as a result — when the mesh has more than ``max_vertices`` vertices (default:
-the samples with |φ| < h, ≈ 4× what 2 h edges need) or a vertex is more than 2 h outside the grid box; the
-message gives the iteration, the reason and the target's topology read at grid resolution (the suite's
-``target_topology``): the flow keeps the start's genus 0, so a torus (χ = 0) cannot be reached — measured at
-N = 24: it fails at step 6, a vertex out of the box.  The cortex at N = 96 crumples too (past max_vertices
-at step 72; the old adapter returned that mesh: 6.1 h, 127,433 intersecting face pairs, scored as valid).  There
-is no automatic restart with "safer" settings because none was found: a coarser edge_length converges on that
-cortex but no better (edge_length 4: 2.9 h, 10,009 intersecting pairs; 3: 2.7 h, 243,351 pairs, 120 s).
+Divergence.  A flow that crumples grows its mesh and leaves the samples, each step slower.  The run fails with
+``methods.ReconstructionFailed`` — never a crumpled mesh returned as a result — when the mesh has more than
+``max_vertices`` vertices (default: the samples with |φ| < h, ≈ 4× what 2 h edges need) or a vertex is more than
+2 h outside the grid box; the message gives the iteration, the reason and the target's topology read at grid
+resolution (the suite's ``target_topology``): the flow keeps the start's genus 0, so a torus (χ = 0) cannot be
+reached.  There is no automatic restart with "safer" settings because none was found: a coarser edge_length
+converges on the N = 96 cortex, but no better.
 
-Samples.  ``samples = "all"`` (default) gives every grid sample, the paper's setting: ≈ N³ spheres, of
-which each step uses ``batch_size`` random ones plus every inside one (the library's batching).  ``"band"``
-gives every inside sample (φ < 0) and the outside samples with φ < ``band`` · h: cheaper steps (bunny,
-N = 48, loaded machine: 20 s instead of 45 s, Hausdorff 0.81 h either way), but fragile — without the far
-outside spheres nothing stops the surface from crumpling outwards, and at N = 96 with band = 4 the bunny's
-and the cortex's meshes grow without bound (band = 8 recovers the bunny).  A two-sided band |φ| < band·h is
-worse still (the bunny crumples at N = 48).
+Samples.  ``samples = "all"`` (default) gives every grid sample, the paper's setting: ≈ N³ spheres, of which
+each step uses ``batch_size`` random ones plus every inside one (the library's batching).  ``"band"`` gives every
+inside sample (φ < 0) and the outside samples with φ < ``band`` · h: cheaper steps, but fragile — without the far
+outside spheres nothing stops the surface from crumpling outwards (a two-sided band |φ| < band·h is worse still).
 
 Noise and patience.  The library stops when every sphere is tangent within ``tol``, or after 100 steps without
 progress at the finest edge length.  On a noisy volume the first never happens, so every noisy cell pays the
-100 stalled steps: on the paper grid (N = 96, loaded 2-core machine) the clean cells take 2–23 s, the noisy
-ones 13–87 s.  The root cause is that fixed rule, not a slow step: on the noisy sphere (N = 96, paper SNR) the
-finest edge length is reached at step 39 of 138, and over the 100 stalled steps that follow (80 % of the time)
-the Hausdorff distance only wanders between 0.135 and 0.18 h (95th percentile 0.054–0.055 h).  ``patience``
-(default 100, the library's rule) stops sooner; measured with the suite's metrics (load 3–4, times ± 50 %
-from the load): patience = 20 gives the noisy sphere 0.154 h in 27 s instead of 0.135 h in 67 s, and on
-peers.toml's clean cells 2–3× fewer steps for somewhat worse distances on the hard shapes (cortex N = 32:
-1.62 h instead of 1.35 h; bunny N = 32: 1.29 h instead of 1.20 h; the sphere and the ellipsoid converge by
-tangency and are unchanged).  The grids keep the library's 100.  ``tol = 0.02`` would cut the noisy sphere
-from 66–124 s to 6 s, but stops the clean sphere after 2 steps off the zero set (median |φ| 0.57 h at the
-vertices: invalid), so the grids keep 0.01.
+100 stalled steps, over which the distances barely change.  ``patience`` stops sooner, at somewhat worse
+distances on the hard shapes, so the grids keep the library's 100; they keep ``tol`` = 0.01 too (a looser one
+stops the clean sphere off the zero set).  The figures behind these choices: docs/NOTES.md,
+"reach_for_the_spheres: the adapter's choices".
 
 Limits (the library's docstring and the paper): the result has the initial mesh's topology (genus 0); deep,
 narrow concavities (cortical sulci) are reached slowly and may self-intersect.

@@ -1,4 +1,4 @@
-"""Analytic phantoms with exact ground truth (see ``PHANTOMS.md``): sphere, ellipsoid, fused spheres,
+"""Analytic phantoms with exact ground truth (see ``docs/PHANTOMS.md``): sphere, ellipsoid, fused spheres,
 finite cylinder and torus, each implementing the :class:`phantoms.base.Phantom` interface in closed form.
 """
 
@@ -150,7 +150,7 @@ class Ellipsoid(Phantom):
         return np.where((p ** 2 / self.axes ** 2).sum(1) < 1.0, -d, d)
 
     def curvature_at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(H, K) at points on the ellipsoid (PHANTOMS.md formulas)."""
+        """(H, K) at points on the ellipsoid (docs/PHANTOMS.md formulas)."""
         a, b, c = self.axes
         s = (x ** 2 / self.axes ** 4).sum(1)
         K = 1.0 / ((a * b * c) ** 2 * s ** 2)

@@ -1,4 +1,4 @@
-"""Seeded additive noise at a requested signal-to-noise ratio (PHANTOMS.md, "Noise").
+"""Seeded additive noise at a requested signal-to-noise ratio (docs/PHANTOMS.md, "Noise").
 
 SNR_dB = 10·log10(mean(φ²) / σ²), the mean over the whole grid.  Gaussian noise has standard deviation σ;
 uniform noise is drawn on [−a, a] with a = σ√3 (the same variance).  The generator is NumPy's PCG64 seeded

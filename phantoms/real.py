@@ -157,7 +157,7 @@ class BrainMRI(MeshPhantom):
         self.voxel_mm = float(spacing.min())
         super().__init__(v, f, crease_angle_deg=crease_angle_deg,
                          source="nilearn:datasets/data/mni_icbm152_t1_tal_nlin_sym_09a_converted.nii.gz")
-        # curvature of the truth over 2 voxels (METRICS.md's 2h neighbourhood; MC slivers)
+        # curvature of the truth over 2 voxels (docs/METRICS.md's 2h neighbourhood; MC slivers)
         self._curv_radius = 2.0 * self.voxel_mm * self.scale
 
     @property

@@ -1,4 +1,4 @@
-"""Curvature accuracy and smoothness (METRICS.md): ``H_rms_err``, ``H_max_err``, ``K_rms_err``, ``H_std``,
+"""Curvature accuracy and smoothness (docs/METRICS.md): ``H_rms_err``, ``H_max_err``, ``K_rms_err``, ``H_std``,
 ``roughness_deg``.
 
 Per-vertex H and K come from the one shared estimator, :func:`geometry.paraboloid_curvature` (the

@@ -1,4 +1,4 @@
-"""Distances between a reconstructed mesh and the true surface (METRICS.md).
+"""Distances between a reconstructed mesh and the true surface (docs/METRICS.md).
 
 Two directed distance sets:
 

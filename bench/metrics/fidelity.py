@@ -1,4 +1,4 @@
-"""Data fidelity: does the mesh lie on the data?  Truth-free metrics read against the volume φ (METRICS.md).
+"""Data fidelity: does the mesh lie on the data?  Truth-free metrics read against the volume φ (docs/METRICS.md).
 
 Computed for every cell — phantoms with a truth and user scans without — so they compare across both:
 

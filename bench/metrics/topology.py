@@ -1,4 +1,4 @@
-"""Mesh topology, triangle quality and self-intersections (METRICS.md).
+"""Mesh topology, triangle quality and self-intersections (docs/METRICS.md).
 
 All functions take plain arrays (vertices (V, 3) float, faces (F, 3) int) and are vectorised.
 

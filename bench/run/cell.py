@@ -108,7 +108,7 @@ def truth_samples(cell: dict, ph, cache_dir: str | None = None) -> np.ndarray | 
 
 def vertex_mean_curvature(vertices, faces, h: float) -> np.ndarray:
     """Per-vertex mean curvature for pictures: paraboloid fit over every vertex within 2h (at least the
-    1-ring), outward normals — the neighbourhood METRICS.md prescribes, so marching-cubes slivers do not
+    1-ring), outward normals — the neighbourhood docs/METRICS.md prescribes, so marching-cubes slivers do not
     blow it up."""
     from geometry import radius_curvature
 

@@ -1,6 +1,6 @@
-"""Cost of one call: wall-clock time and peak memory (METRICS.md ``wall_s``, ``peak_mem_mb``).
+"""Cost of one call: wall-clock time and peak memory (docs/METRICS.md ``wall_s``, ``peak_mem_mb``).
 
->>> from bench.cost import measure
+>>> from bench.run.cost import measure
 >>> result, cost = measure(method.reconstruct, volume)          # doctest: +SKIP
 >>> cost                                                         # doctest: +SKIP
 {'wall_s': 1.93, 'peak_mem_mb': 212.4}

@@ -6,8 +6,8 @@ metric samples and the plug-in modules to import.  Executors ship cells to worke
 
 A plug-in method's cells also carry ``method_code``, the fingerprint of its code
 (:func:`bench.run.method_code.method_fingerprint`).  It is not part of the ``cell_id``: the cell record keeps it, and
-``--resume`` reruns (and overwrites) a finished cell whose plug-in changed since.  Built-in methods have none —
-the suite's code identity covers them — so their cells are as before.
+``--resume`` reruns (and overwrites) a finished cell whose plug-in changed since.  Built-in methods have none:
+the suite's code identity covers them.
 """
 
 from __future__ import annotations
@@ -62,7 +62,8 @@ def cell_id(cell: dict) -> str:
 def input_fingerprint(source: str) -> str | None:
     """For a ``mesh:`` / ``volume:`` phantom, a hash of its files' sizes and modification times (the image, a DICOM
     folder's files, a ``truth=`` file): part of the cell's identity, so ``--resume`` after the data changed
-    computes the cells anew instead of keeping results of the old file.  None for a built-in phantom."""
+    computes the cells anew instead of keeping results computed from the file as it was.  None for a built-in
+    phantom."""
     from pathlib import Path
 
     from phantoms import is_file_phantom, phantom_path

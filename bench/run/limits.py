@@ -84,7 +84,7 @@ class TimeLimits:
 
     @classmethod
     def of(cls, value) -> "TimeLimits":
-        """A :class:`TimeLimits` from one itself, or from a number / None (the whole-cell limit, as before)."""
+        """A :class:`TimeLimits` from one itself, or from a number / None (the whole-cell limit alone)."""
         return value if isinstance(value, TimeLimits) else cls(cell=value)
 
     def __bool__(self) -> bool:

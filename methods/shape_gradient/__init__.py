@@ -1,11 +1,12 @@
 """The paper's method: shape-gradient descent of E(Γ) = ∫_Γ α φ² + β |∇_Γ φ|² dΓ (docs/METHOD.md).
 
-Before the loop: the initial surface (Fibonacci sphere, radius 2, 1,896 vertices / 3,788 triangles, or a
-user's closed genus-0 mesh, checked to lie in the grid), the noise estimate of the volume and — on noisy
-volumes (``presmooth='auto'``) — Gaussian pre-smoothing of the grids ∇φ and D²φ are computed from (φ
-itself is kept, so the data term has no shrinkage bias); there ``beta='auto'`` lowers β to 0.01 (∇φ of the
-smoothed volume is wrong across voxel-thin parts) and the genus-0 start is grown from values smoothed only
-as much as brings the noise below one voxel (``start_smooth='auto'``, :func:`start_smoothing`).
+Before the loop: the initial surface (by default, ``init='genus0'``, a genus-0 surface grown from the region
+φ < 0 of the volume; the paper's Fibonacci sphere, radius 2, 1,896 vertices / 3,788 triangles, with
+``init='sphere'``; or a user's closed genus-0 mesh, checked to lie in the grid), the noise estimate of the volume
+and — on noisy volumes (``presmooth='auto'``) — Gaussian pre-smoothing of the grids ∇φ and D²φ are computed from
+(φ itself is kept, so the data term has no shrinkage bias); there ``beta='auto'`` lowers β to 0.01 (∇φ of the
+smoothed volume is wrong across voxel-thin parts) and the genus-0 start is grown from values smoothed only as
+much as brings the noise below one voxel (``start_smooth='auto'``, :func:`start_smoothing`).
 
 One iteration, every step vectorised over all vertices/faces (the only Python loops are over the
 ≤ 3 coordinates, the ≤ 30 halvings of a line search and the CG iterations):

@@ -59,14 +59,14 @@ def _auto_or_number(key: str, value: Any, hi: float) -> "float | str":
 
 class ShapeGradient(Method):
     name = "shape_gradient"
-    description = ("the paper's shape-gradient descent of E = ∫ αφ² + β|∇_Γφ|² from a sphere (full gradient, "
-                   "H¹ preconditioning, capped backtracking)")
+    description = ("the paper's shape-gradient descent of E = ∫ αφ² + β|∇_Γφ|² from a genus-0 surface grown "
+                   "from the volume (full gradient, H¹ preconditioning, capped backtracking)")
     params = {
         "alpha": Param(5.0, "weight α of the data term φ² (pulls Γ onto φ = 0)", float, min=0.0),
         "beta": Param("auto", "weight β of the alignment term |∇_Γφ|² (wants n ∥ ∇φ); 0 = the paper's ablation; "
                       "'auto' = 1 on clean volumes, 0.01 on noisy ones (estimated noise ≥ 0.05 voxel), where ∇φ is "
                       "read from the pre-smoothed volume: in it voxel-thin parts (the bunny's ears) have merged, and "
-                      "β = 1 pulls them off (40 dB bunny: Hausdorff 3.6 h at β = 1, 0.86 h at 0.01)", object),
+                      "β = 1 pulls them off (the sweep: docs/NOTES.md)", object),
         "gradient": Param("full", "'full': the true shape gradient of E (docs/METHOD.md, with the divergence term); "
                           "'paper': the paper's eq. (dJ_finel) without it", str, choices=("full", "paper")),
         "step": Param("capped", "'capped': largest move capped at max_move voxels, then halved until E "
@@ -94,8 +94,7 @@ class ShapeGradient(Method):
                               "data's own values); 'auto' = the presmooth σ", object),
         "unbias": Param(True, "on noisy volumes, subtract the estimated noise variance from φ² in the data term: "
                         "trilinear φ of noise with std σ has E[φ²] = φ_true² + (2/3)³σ² on average, so ∫αφ² carries "
-                        "(2/3)³ασ² × area, a mean-curvature flow that shrinks thin parts and tips (40 dB airplane: "
-                        "3.16 → 1.39 h)",
+                        "(2/3)³ασ² × area, a mean-curvature flow that shrinks thin parts and tips (docs/NOTES.md)",
                         bool),
         "presmooth_phi": Param(False, "pre-smooth φ itself too (True: the data term then sees the shrunken "
                                "level set of the smoothed volume), or only the derivative grids (False)", bool),
@@ -130,8 +129,8 @@ class ShapeGradient(Method):
         "sign_guard": Param(True, "with the genus-0 start on a clean volume: at every remesh, count the grid samples "
                             "that are clearly inside or outside (|φ| > h/4, within 3 h of φ = 0) but on the wrong side "
                             "of the surface (fast winding number); when the flow puts more there than its start did "
-                            "(+2), it is cutting a part of the object (a voxel-thin ear at N = 32: 0.8 h → 5.2 h "
-                            "without it), so the mesh goes back to the last checkpoint and the run stops "
+                            "(+2), it is cutting a part of the object (a voxel-thin ear on a coarse grid; "
+                            "docs/NOTES.md), so the mesh goes back to the last checkpoint and the run stops "
                             "(stop_reason 'sign_guard'); info['sign_guard'] lists (iteration, count)", bool),
         "edge_length": Param(0.5, "target edge length of the initial sphere (init='auto') and of the remeshing, "
                              "in voxels; 0.5 keeps parts a voxel thin (the bunny's ear tips are lost at 1)",

@@ -1,7 +1,7 @@
 """Mesh-backed phantoms: any closed triangle mesh as a phantom whose ground truth is the mesh itself.
 
 :class:`MeshPhantom` centres the mesh on its minimum bounding sphere and scales it uniformly so that
-sphere has radius 1.5 (inside the initial sphere of radius 2 and the default grid [−2.5, 2.5]³).  It then
+sphere has radius 1.5 (inside the paper's initial sphere of radius 2 and the default grid [−2.5, 2.5]³).  It then
 offers the same interface as the analytic phantoms (``phantoms/analytic.py``):
 
 * ``truth(points)`` – **exact** closest point on the mesh (point-to-triangle, not point-to-vertex),

@@ -179,15 +179,68 @@ class Phantom:
 
     # ---- to implement
     def sdf(self, points) -> np.ndarray:
+        """The exact signed distance to the true surface, negative inside.
+
+        Parameters
+        ----------
+        points : array_like, shape (P, 3)
+            World coordinates.
+
+        Returns
+        -------
+        numpy.ndarray, shape (P,)
+        """
         raise NotImplementedError
 
     def paper(self, points) -> np.ndarray:
+        """The paper's printed level-set function (variant ``'paper'``): same zero set, not a distance.
+
+        Parameters
+        ----------
+        points : array_like, shape (P, 3)
+            World coordinates.
+
+        Returns
+        -------
+        numpy.ndarray, shape (P,)
+
+        Raises
+        ------
+        InputError
+            The phantom has no such polynomial (mesh phantoms, user volumes).
+        """
         raise NotImplementedError
 
     def truth(self, points) -> Truth:
+        """The ground truth at each point's closest true-surface point.
+
+        Parameters
+        ----------
+        points : array_like, shape (P, 3)
+            World coordinates.
+
+        Returns
+        -------
+        Truth
+        """
         raise NotImplementedError
 
     def sample_surface(self, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """``n`` seeded, area-uniform i.i.d. samples on the true surface (same seed → same samples).
+
+        Parameters
+        ----------
+        n : int
+            The number of samples (>= 1).
+        seed : int
+            Seed of the generator.
+
+        Returns
+        -------
+        points : numpy.ndarray, shape (n, 3)
+        normals : numpy.ndarray, shape (n, 3)
+            The outward unit normals at the samples.
+        """
         raise NotImplementedError
 
     # ---- shared
@@ -219,7 +272,24 @@ class Phantom:
     def volume(self, n: int = DEFAULT_N, extent: float = DEFAULT_EXTENT, variant: str = "sdf") -> Volume:
         """The phantom's level set on an n³ grid over [-extent, extent]³.
 
-        ``variant='sdf'`` (default) samples the exact signed distance, ``'paper'`` the printed polynomial.
+        Parameters
+        ----------
+        n : int
+            Grid points per axis (>= 8).
+        extent : float
+            Half-width of the grid box.
+        variant : {'sdf', 'paper'}
+            ``'sdf'`` samples the exact signed distance (:meth:`sdf`), ``'paper'`` the printed polynomial
+            (:meth:`paper`).
+
+        Returns
+        -------
+        Volume
+
+        Raises
+        ------
+        InputError
+            An unknown variant, a bad ``n`` or ``extent``, or a grid that does not fit in memory.
         """
         if variant not in VARIANTS:
             raise InputError(f"unknown variant {variant!r}; valid variants: {', '.join(VARIANTS)}")

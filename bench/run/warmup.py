@@ -62,6 +62,7 @@ def warm() -> float | None:
         from methods import get_method
         from phantoms import add_noise, get_phantom
 
+        get_phantom("ellipsoid").truth([[0.3, 0.2, 0.1]])     # its closest-point root find is compiled
         ph = get_phantom("sphere")
         vol = ph.volume(n=24)
         noisy, _ = add_noise(vol, "gaussian", 40.0, seed=0)

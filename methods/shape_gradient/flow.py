@@ -322,8 +322,10 @@ class ShapeGradientFlow:
     def _remesh_and_guard(self, it: int) -> None:
         """Remesh toward the target edge length, then make sure no faces intersect (repair or roll back)."""
         t0 = time.perf_counter()
-        # the flow's meshes are closed (checked at every remesh); the start is checked here once more
-        out = remesh(self.state.x, self.ops.faces, self.edge_length, self._remesh_rounds, closed=it > 0)
+        # the flow's meshes are closed (checked at every remesh); the start is checked here once more, and gets
+        # all the rounds (marching cubes' slivers); a later mesh is near isotropic: one round
+        out = remesh(self.state.x, self.ops.faces, self.edge_length, self._remesh_rounds if it == 0 else 1,
+                     closed=it > 0)
         if out is None:
             self.remesh_refused += 1
         else:

@@ -139,7 +139,9 @@ class ShapeGradient(Method):
                                 "concavities and sulci (the alignment term resists the intermediate shapes), then "
                                 "the configured β smooths and aligns it; a stage ends when the flow settles. False "
                                 "(or beta = 0, or remesh_every = 0): one stage", bool),
-        "remesh_iterations": Param(3, "split/collapse/flip/relax rounds per remesh", int, min=1, max=20),
+        "remesh_iterations": Param(3, "split/collapse/flip/relax rounds of the start's remesh (marching cubes' "
+                                   "slivers); the later remeshes, of a mesh already near isotropic, run one", int,
+                                   min=1, max=20),
         "remesh_every": Param(5, "isotropic remeshing (Botsch–Kobbelt, gpytoolbox) toward edge_length every this "
                               "many iterations; 0 = fixed connectivity (the paper)", int, min=0, max=100000),
         "guard": Param(True, "keep the surface free of self-intersections: check at every remesh and at the end, "

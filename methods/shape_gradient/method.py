@@ -127,10 +127,17 @@ class ShapeGradient(Method):
                       "enclosing the region φ < 0 (its bounding sphere plus 2 voxels) meshed at edge_length; "
                       "'sphere' = the Fibonacci sphere of init_radius / init_vertices / init_center (the paper's "
                       "Γ0); init_mesh overrides all", str, choices=("genus0", "auto", "sphere")),
+        "join_below": Param(0.5, "init='genus0': where the region φ < 0 falls apart into pieces at grid resolution, "
+                            "join the pieces whose lowest saddle of φ is below this many voxels (a part thinner than "
+                            "a voxel: a neck 0.6 voxel thick has its saddle at 0.41 voxel at worst; two objects d "
+                            "voxels apart at d/2) through a path of samples at that saddle, so the start grows into "
+                            "all of them; farther pieces: the largest is kept, with the topology warning. 0 = "
+                            "never join", float, min=0.0, max=10.0),
         "sign_guard": Param(True, "with the genus-0 start on a clean volume: at every remesh, count the grid samples "
                             "that are clearly inside or outside (|φ| > h/4, within 3 h of φ = 0) but on the wrong side "
-                            "of the surface (fast winding number); when the flow puts more there than its start did "
-                            "(+2), it is cutting a part of the object (a voxel-thin ear at N = 32: 0.8 h → 5.2 h "
+                            "of the surface (inside samples it covered and no longer covers, outside samples it "
+                            "covers; inside samples the start missed may be grown into); when the flow puts more "
+                            "there than its start did (+2), it is cutting a part of the object (a voxel-thin ear at N = 32: 0.8 h → 5.2 h "
                             "without it), so the mesh goes back to the last checkpoint and the run stops "
                             "(stop_reason 'sign_guard'); info['sign_guard'] lists (iteration, count)", bool),
         "edge_length": Param(0.5, "target edge length of the initial sphere (init='auto') and of the remeshing, "

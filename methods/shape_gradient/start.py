@@ -13,6 +13,11 @@ from phantoms import InputError, Volume
 
 #: the enclosing sphere of init='auto' clears the inside grid points by this many voxels
 _INIT_MARGIN_VOXELS = 2.0
+#: pieces of φ < 0 whose lowest saddle of φ lies below this many voxels are joined by the genus-0 start
+#: (docs/METHOD.md, "The genus-0 start"; measured in docs/NOTES.md)
+JOIN_BELOW_VOXELS = 0.5
+#: the samples of a joining path are set to at most −this many voxels (a tube about a voxel wide)
+JOIN_DEPTH_VOXELS = 0.5
 
 __all__ = ["parse_snapshots", "prepare_init_mesh", "initial_surface", "enclosing_sphere", "genus0_surface",
            "target_topology"]
@@ -124,7 +129,8 @@ def initial_surface(cfg: dict, volume: Volume, edge_length_voxels: float | None 
     facts: dict = {"kind": cfg["init"] if cfg["init_mesh"] is None else "mesh"}
     x = None
     if cfg["init_mesh"] is None and cfg["init"] == "genus0":
-        x, faces, more = genus0_surface(volume, volume.values if values is None else values)
+        x, faces, more = genus0_surface(volume, volume.values if values is None else values,
+                                        cfg.get("join_below", JOIN_BELOW_VOXELS))
         facts.update(more)
         if x is None:
             facts["kind"] = "auto"
@@ -208,7 +214,7 @@ def target_topology(volume: Volume) -> dict:
     return out
 
 
-def genus0_surface(volume: Volume, values: np.ndarray):
+def genus0_surface(volume: Volume, values: np.ndarray, join_below: float = JOIN_BELOW_VOXELS):
     """(vertices, faces, facts) of a genus-0 surface of the region ``values < 0`` (world coordinates, outward),
     or ``(None, None, facts)`` when no attempt gave one.
 
@@ -220,12 +226,20 @@ def genus0_surface(volume: Volume, values: np.ndarray):
     out, how marching cubes' ambiguous cells were resolved.
     """
     from geometry.digital import ball_field, homotopic_growth
+    from geometry.saddles import join_pieces
 
     values = np.asarray(values, dtype=np.float64)
     inside = values < 0
+    core, joins = join_pieces(values[1:-1, 1:-1, 1:-1], 0.0, join_below * volume.h, JOIN_DEPTH_VOXELS * volume.h)
+    if joins["joins"]:
+        values = values.copy()
+        values[1:-1, 1:-1, 1:-1] = core
     solid = homotopic_growth(values, 0.0)
     facts = {"inside_samples": int(inside.sum()), "solid_samples": int(solid.sum()),
-             "left_out_samples": int((inside & ~solid).sum()), "disambiguation": "failed"}
+             "left_out_samples": int((inside & ~solid).sum()), "disambiguation": "failed",
+             "pieces": joins["pieces"], "joined_pieces": joins["joins"],
+             "join_saddles_voxels": [round(w / volume.h, 3) for w in joins["join_saddles"]],
+             "join_samples": joins["join_samples"]}
     if not solid.any():
         raise InputError("method 'shape_gradient': no sample of the volume is inside (φ < 0) away from the box's "
                          "outer layer — there is no surface to reconstruct")

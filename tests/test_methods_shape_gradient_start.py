@@ -159,3 +159,12 @@ def test_two_balls_five_voxels_apart_are_not_joined_and_say_so():
     assert is_sphere_like(r.mesh.faces, len(r.mesh.vertices))
     assert np.abs(np.abs(sdf(r.mesh.vertices))).max() < 0.5 * h                     # one of the balls, whole
 
+
+
+def test_pieces_are_joined_on_clean_volumes_only():
+    """Under noise the pieces of φ < 0 beside the surface are speckles, not parts: no joins (join_below_used 0)."""
+    vol, _, _, _ = _lobes(40, None, 0.6)
+    noisy, _ = add_noise(vol, "gaussian", 30.0, seed=0)
+    r = ShapeGradient(max_iter=2).reconstruct(noisy)
+    assert r.info["parameters"]["join_below_used"] == 0.0 and r.info["init"]["joined_pieces"] == 0
+    assert ShapeGradient(max_iter=2).reconstruct(vol).info["parameters"]["join_below_used"] == 0.5

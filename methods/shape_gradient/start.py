@@ -121,16 +121,17 @@ def initial_surface(cfg: dict, volume: Volume, edge_length_voxels: float | None 
     """(vertices, faces, flipped, facts) of the initial surface the config asks for, checked to lie in the grid.
 
     ``init_mesh`` given: that mesh; ``init='genus0'``: :func:`genus0_surface` of ``values`` (default: the
-    volume's samples; the method passes its pre-smoothed samples on noisy volumes), or the enclosing sphere if
-    that fails; ``init='auto'``: :func:`enclosing_sphere` at ``edge_length_voxels`` (default: the config's edge
-    length); ``init='sphere'``: the Fibonacci sphere of ``init_vertices`` / ``init_radius`` / ``init_center``.
+    volume's samples; the method passes its pre-smoothed samples on noisy volumes), joining pieces below
+    ``join_below_used`` (else ``join_below``) voxels, or the enclosing sphere if that fails; ``init='auto'``:
+    :func:`enclosing_sphere` at ``edge_length_voxels`` (default: the config's edge length); ``init='sphere'``:
+    the Fibonacci sphere of ``init_vertices`` / ``init_radius`` / ``init_center``.
     """
     flipped = False
     facts: dict = {"kind": cfg["init"] if cfg["init_mesh"] is None else "mesh"}
     x = None
     if cfg["init_mesh"] is None and cfg["init"] == "genus0":
         x, faces, more = genus0_surface(volume, volume.values if values is None else values,
-                                        cfg.get("join_below", JOIN_BELOW_VOXELS))
+                                        cfg.get("join_below_used", cfg.get("join_below", JOIN_BELOW_VOXELS)))
         facts.update(more)
         if x is None:
             facts["kind"] = "auto"
@@ -218,12 +219,17 @@ def genus0_surface(volume: Volume, values: np.ndarray, join_below: float = JOIN_
     """(vertices, faces, facts) of a genus-0 surface of the region ``values < 0`` (world coordinates, outward),
     or ``(None, None, facts)`` when no attempt gave one.
 
-    The region is grown from its deepest sample, in order of φ, keeping only simple points
+    Where the region falls apart into pieces at grid resolution (a part thinner than a voxel), the pieces whose
+    lowest saddle of φ lies below ``join_below`` voxels are first joined through it
+    (:func:`geometry.saddles.join_pieces`: the samples of a 6-connected path through each saddle of a spanning
+    tree set to −:data:`JOIN_DEPTH_VOXELS` voxel); farther pieces stay apart and the growth keeps the largest
+    group.  The region is grown from its deepest sample, in order of φ, keeping only simple points
     (:func:`geometry.digital.homotopic_growth`): a solid with one component, no handle and no cavity that takes
     every inside sample except where the sampled region has a handle (two sulcal banks closer than a voxel), where
     it stops at the thinnest place.  Its marching-cubes surface (:func:`geometry.digital.ball_field`) is one closed
-    genus-0 surface within a fraction of a voxel of φ = 0 elsewhere.  Facts: samples inside / in the solid / left
-    out, how marching cubes' ambiguous cells were resolved.
+    genus-0 surface within a fraction of a voxel of φ = 0 elsewhere (a joining path: a tube about a voxel wide).
+    Facts: samples inside / in the solid / left out (the path samples count in the solid, not as inside), how
+    marching cubes' ambiguous cells were resolved, pieces of φ < 0, joins, their saddles (voxels), path samples.
     """
     from geometry.digital import ball_field, homotopic_growth
     from geometry.saddles import join_pieces

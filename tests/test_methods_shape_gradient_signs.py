@@ -51,3 +51,33 @@ def test_the_sign_guard_is_off_on_noisy_volumes_and_other_starts():
     assert ShapeGradient(init="auto").reconstruct(ph.volume(n=32)).info["sign_guard"] == []
     clean = ShapeGradient().reconstruct(ph.volume(n=32))
     assert clean.info["sign_guard"][0] == [0, 0] and clean.info["stop_reason"] != "sign_guard"
+
+
+def _capped(vertices: np.ndarray, axis_sign: float, depth: float) -> np.ndarray:
+    """The unit sphere's vertices with the cap beyond 1 − depth on the side ``axis_sign`` (of x) cut flat."""
+    v = vertices.copy()
+    v[:, 0] = np.minimum(v[:, 0], 1 - depth) if axis_sign > 0 else np.maximum(v[:, 0], -(1 - depth))
+    return v
+
+
+def test_growing_into_samples_the_start_missed_is_no_cut_and_earns_no_allowance():
+    """Only clearly-inside samples that the surface covered and no longer covers are a cut.  A start missing the
+    +x cap (as a genus-0 start missing a part): the flow growing it back is not stopped; growing it back then
+    cutting the −x cap is stopped, although fewer samples are outside the surface than at the start (the count
+    the guard used to compare, which let a flow trade a grown part for a cut one); cutting the grown-back cap
+    again is a cut too."""
+    vol = get_phantom("sphere").volume(n=32)
+    h = vol.h
+    exact = trimesh.creation.icosphere(5, radius=1.0)
+    ops = type("Ops", (), {"faces": exact.faces})()
+    start = _capped(exact.vertices, +1, 3 * h)
+    g = SignGuard(vol, h, start, exact.faces, ops)
+    r = np.linalg.norm(vol.index_to_world(np.argwhere(g.sel)), axis=1)
+    x = vol.index_to_world(np.argwhere(g.sel))[:, 0]
+    missed = int(np.count_nonzero((r < 1 - 0.25 * h) & (x > 1 - 3 * h)))
+    cut = int(np.count_nonzero((r < 1 - 0.25 * h) & (x < -(1 - 2 * h))))
+    assert missed > cut > g.allowed + 20 and g.log == [(0, 0)]
+    assert g.check(5, exact.vertices, ops) is None and g.log[-1] == (5, 0)          # grown back: no cut
+    assert g.check(10, _capped(exact.vertices, -1, 2 * h), ops) is not None          # ... then cut elsewhere
+    assert abs(g.log[-1][1] - cut) <= 0.05 * cut and g.checkpoint[0] == 5
+    assert g.check(15, start, ops) is not None and g.log[-1][1] >= 0.95 * missed     # the grown part cut again

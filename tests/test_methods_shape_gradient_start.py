@@ -85,3 +85,86 @@ def test_a_mildly_noisy_volume_starts_from_its_own_samples():
     plain = genus0_surface(vol, vol.values)
     v0, f0 = r.info["snapshots"][0]                      # the start before its first remesh
     assert len(v0) == len(plain[0]) and np.array_equal(f0, plain[1])
+
+
+def _lobes(n: int, gap_voxels: float | None, neck_voxels: float = 0.0):
+    """(volume, sdf, h): two balls of radius 0.7 on the x axis, ``gap_voxels`` apart (None: centres at ±0.9, 3
+    voxels apart at n = 40), joined by a cylinder ``neck_voxels`` thick along the axis (0: no neck).  The axis
+    lies half-way between sample rows (n even), so a neck thinner than √2 voxels holds no sample of φ < 0."""
+    h = 5.0 / (n - 1)
+    c = 0.9 if gap_voxels is None else 0.7 + 0.5 * gap_voxels * h
+    rn = 0.5 * neck_voxels * h
+
+    def sdf(p):
+        balls = np.minimum(np.linalg.norm(p - [c, 0, 0], axis=1), np.linalg.norm(p + [c, 0, 0], axis=1)) - 0.7
+        if rn == 0:
+            return balls
+        radial, axial = np.linalg.norm(p[:, 1:], axis=1) - rn, np.abs(p[:, 0]) - c
+        outside = np.linalg.norm(np.stack([np.maximum(radial, 0), np.maximum(axial, 0)], axis=1), axis=1)
+        return np.minimum(balls, np.minimum(np.maximum(radial, axial), 0) + outside)
+    return grid_volume(sdf, n=n), sdf, h, (c, rn)
+
+
+def _pieces(values: np.ndarray) -> int:
+    """26-connected pieces of values < 0."""
+    from scipy import ndimage
+    return int(ndimage.label(values < 0, structure=np.ones((3, 3, 3)))[1])
+
+
+def _truth_samples(sdf, c: float, rn: float, count: int = 20000) -> np.ndarray:
+    """Points of the lobes' true surface: the balls' spheres and the neck's side, where the union's SDF is 0."""
+    from geometry.sphere import fibonacci_sphere
+    s, _ = fibonacci_sphere(count, 0.7, (0.0, 0.0, 0.0))
+    t = np.linspace(-c, c, 400)
+    a = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    neck = np.stack([np.repeat(t, len(a)), rn * np.tile(np.cos(a), len(t)), rn * np.tile(np.sin(a), len(t))], 1)
+    pts = np.concatenate([s + [c, 0, 0], s - [c, 0, 0], neck])
+    return pts[np.abs(sdf(pts)) < 1e-9]
+
+
+def _hausdorff_h(mesh, sdf, h, c, rn) -> float:
+    """Symmetric Hausdorff distance (in h) between the mesh and the lobes' true surface."""
+    from geometry.closest import point_mesh_distance
+    on_mesh = np.concatenate([mesh.vertices, trimesh.sample.sample_surface(mesh, 20000, seed=0)[0]])
+    to_truth = np.abs(sdf(on_mesh)).max()
+    to_mesh = point_mesh_distance(_truth_samples(sdf, c, rn), mesh.vertices, mesh.faces).max()
+    return float(max(to_truth, to_mesh) / h)
+
+
+def test_two_balls_joined_by_a_neck_thinner_than_a_voxel_give_one_surface_with_the_neck():
+    """A neck 0.6 voxel thick between two balls: φ < 0 is two pieces at grid resolution (their saddle, the
+    lowest φ between them, is 0.41 voxel).  The start joins them through the saddle, and the default flow returns
+    one genus-0 surface with the neck, within a voxel of the truth everywhere, with no topology warning; without
+    the join (join_below = 0) the start keeps one ball and the other is lost."""
+    vol, sdf, h, (c, rn) = _lobes(40, None, 0.6)
+    assert _pieces(vol.values) == 2
+    r = ShapeGradient().reconstruct(vol)
+    m = r.mesh
+    assert r.info["warnings"] == [] and r.info["init"]["kind"] == "genus0"
+    assert r.info["init"]["pieces"] == 2 and r.info["init"]["joined_pieces"] == 1
+    assert 0.35 < r.info["init"]["join_saddles_voxels"][0] < 0.45
+    assert is_sphere_like(m.faces, len(m.vertices)) and len(self_intersection_pairs(m.vertices, m.faces)) == 0
+    assert np.any(np.abs(m.vertices[:, 0]) < h)                                    # the neck is there
+    assert _hausdorff_h(m, sdf, h, c, rn) <= 1.0
+    lone = ShapeGradient(join_below=0.0).reconstruct(vol)
+    assert lone.info["init"]["joined_pieces"] == 0 and _hausdorff_h(lone.mesh, sdf, h, c, rn) > 5.0
+
+
+def test_two_balls_five_voxels_apart_are_not_joined_and_say_so():
+    vol, sdf, h, _ = _lobes(40, 5.0)
+    r = ShapeGradient().reconstruct(vol)
+    assert r.info["init"]["pieces"] == 2 and r.info["init"]["joined_pieces"] == 0
+    assert not r.info["topology"]["compatible"]
+    assert len(r.info["warnings"]) == 1 and "2 separate components" in r.info["warnings"][0]
+    assert is_sphere_like(r.mesh.faces, len(r.mesh.vertices))
+    assert np.abs(np.abs(sdf(r.mesh.vertices))).max() < 0.5 * h                     # one of the balls, whole
+
+
+
+def test_pieces_are_joined_on_clean_volumes_only():
+    """Under noise the pieces of φ < 0 beside the surface are speckles, not parts: no joins (join_below_used 0)."""
+    vol, _, _, _ = _lobes(40, None, 0.6)
+    noisy, _ = add_noise(vol, "gaussian", 30.0, seed=0)
+    r = ShapeGradient(max_iter=2).reconstruct(noisy)
+    assert r.info["parameters"]["join_below_used"] == 0.0 and r.info["init"]["joined_pieces"] == 0
+    assert ShapeGradient(max_iter=2).reconstruct(vol).info["parameters"]["join_below_used"] == 0.5

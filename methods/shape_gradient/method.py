@@ -126,11 +126,19 @@ class ShapeGradient(Method):
                       "enclosing the region φ < 0 (its bounding sphere plus 2 voxels) meshed at edge_length; "
                       "'sphere' = the Fibonacci sphere of init_radius / init_vertices / init_center (the paper's "
                       "Γ0); init_mesh overrides all", str, choices=("genus0", "auto", "sphere")),
+        "join_below": Param(0.5, "init='genus0': where the region φ < 0 falls apart into pieces at grid resolution, "
+                            "join the pieces whose lowest saddle of φ is below this many voxels (a part thinner than "
+                            "a voxel: a neck 0.6 voxel thick has its saddle at 0.41 voxel at worst; two objects d "
+                            "voxels apart at d/2) through a path of samples at that saddle, so the start grows into "
+                            "all of them; farther pieces: the largest is kept, with the topology warning. Clean "
+                            "volumes only (under noise the pieces beside the surface are speckles). 0 = never join", float, min=0.0, max=10.0),
         "sign_guard": Param(True, "with the genus-0 start on a clean volume: at every remesh, count the grid samples "
                             "that are clearly inside or outside (|φ| > h/4, within 3 h of φ = 0) but on the wrong side "
-                            "of the surface (fast winding number); when the flow puts more there than its start did "
-                            "(+2), it is cutting a part of the object (a voxel-thin ear on a coarse grid; "
-                            "docs/NOTES.md), so the mesh goes back to the last checkpoint and the run stops "
+                            "of the surface (inside samples it covered and no longer covers, outside samples it "
+                            "covers; inside samples the start missed may be grown into); when the flow puts more "
+                            "there than its start did (+2), it is cutting a part of the object (a voxel-thin ear "
+                            "on a coarse grid; docs/NOTES.md), so the mesh goes back to the last checkpoint and "
+                            "the run stops "
                             "(stop_reason 'sign_guard'); info['sign_guard'] lists (iteration, count)", bool),
         "edge_length": Param(0.5, "target edge length of the initial sphere (init='auto') and of the remeshing, "
                              "in voxels; 0.5 keeps parts a voxel thin (the bunny's ear tips are lost at 1)",
@@ -225,6 +233,9 @@ class ShapeGradient(Method):
         if s0 > 0 and cfg["init"] == "genus0" and cfg["init_mesh"] is None:
             from scipy.ndimage import gaussian_filter
             values = gaussian_filter(volume.values, float(s0), mode="nearest")
+        # under noise the pieces of φ < 0 beside the surface are speckles (30 dB: 13–31 on the fused spheres and
+        # the cortex at N = 96), not parts: the genus-0 start joins pieces on clean volumes only
+        cfg["join_below_used"] = float(cfg["join_below"]) if clean else 0.0
         x, faces, flipped, init_facts = initial_surface(cfg, volume, values=values)
         cfg["remesh_start"] = init_facts["kind"] == "genus0"
         cfg["presmooth_used"] = float(sigma)

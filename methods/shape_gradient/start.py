@@ -13,6 +13,11 @@ from phantoms import InputError, Volume
 
 #: the enclosing sphere of init='auto' clears the inside grid points by this many voxels
 _INIT_MARGIN_VOXELS = 2.0
+#: pieces of φ < 0 whose lowest saddle of φ lies below this many voxels are joined by the genus-0 start
+#: (docs/METHOD.md, "The genus-0 start"; measured in docs/NOTES.md)
+JOIN_BELOW_VOXELS = 0.5
+#: the samples of a joining path are set to at most −this many voxels (a tube about a voxel wide)
+JOIN_DEPTH_VOXELS = 0.5
 
 __all__ = ["parse_snapshots", "prepare_init_mesh", "initial_surface", "enclosing_sphere", "genus0_surface",
            "target_topology"]
@@ -116,15 +121,17 @@ def initial_surface(cfg: dict, volume: Volume, edge_length_voxels: float | None 
     """(vertices, faces, flipped, facts) of the initial surface the config asks for, checked to lie in the grid.
 
     ``init_mesh`` given: that mesh; ``init='genus0'``: :func:`genus0_surface` of ``values`` (default: the
-    volume's samples; the method passes its pre-smoothed samples on noisy volumes), or the enclosing sphere if
-    that fails; ``init='auto'``: :func:`enclosing_sphere` at ``edge_length_voxels`` (default: the config's edge
-    length); ``init='sphere'``: the Fibonacci sphere of ``init_vertices`` / ``init_radius`` / ``init_center``.
+    volume's samples; the method passes its pre-smoothed samples on noisy volumes), joining pieces below
+    ``join_below_used`` (else ``join_below``) voxels, or the enclosing sphere if that fails; ``init='auto'``:
+    :func:`enclosing_sphere` at ``edge_length_voxels`` (default: the config's edge length); ``init='sphere'``:
+    the Fibonacci sphere of ``init_vertices`` / ``init_radius`` / ``init_center``.
     """
     flipped = False
     facts: dict = {"kind": cfg["init"] if cfg["init_mesh"] is None else "mesh"}
     x = None
     if cfg["init_mesh"] is None and cfg["init"] == "genus0":
-        x, faces, more = genus0_surface(volume, volume.values if values is None else values)
+        x, faces, more = genus0_surface(volume, volume.values if values is None else values,
+                                        cfg.get("join_below_used", cfg.get("join_below", JOIN_BELOW_VOXELS)))
         facts.update(more)
         if x is None:
             facts["kind"] = "auto"
@@ -208,24 +215,37 @@ def target_topology(volume: Volume) -> dict:
     return out
 
 
-def genus0_surface(volume: Volume, values: np.ndarray):
+def genus0_surface(volume: Volume, values: np.ndarray, join_below: float = JOIN_BELOW_VOXELS):
     """(vertices, faces, facts) of a genus-0 surface of the region ``values < 0`` (world coordinates, outward),
     or ``(None, None, facts)`` when no attempt gave one.
 
-    The region is grown from its deepest sample, in order of φ, keeping only simple points
+    Where the region falls apart into pieces at grid resolution (a part thinner than a voxel), the pieces whose
+    lowest saddle of φ lies below ``join_below`` voxels are first joined through it
+    (:func:`geometry.saddles.join_pieces`: the samples of a 6-connected path through each saddle of a spanning
+    tree set to −:data:`JOIN_DEPTH_VOXELS` voxel); farther pieces stay apart and the growth keeps the largest
+    group.  The region is grown from its deepest sample, in order of φ, keeping only simple points
     (:func:`geometry.digital.homotopic_growth`): a solid with one component, no handle and no cavity that takes
     every inside sample except where the sampled region has a handle (two sulcal banks closer than a voxel), where
     it stops at the thinnest place.  Its marching-cubes surface (:func:`geometry.digital.ball_field`) is one closed
-    genus-0 surface within a fraction of a voxel of φ = 0 elsewhere.  Facts: samples inside / in the solid / left
-    out, how marching cubes' ambiguous cells were resolved.
+    genus-0 surface within a fraction of a voxel of φ = 0 elsewhere (a joining path: a tube about a voxel wide).
+    Facts: samples inside / in the solid / left out (the path samples count in the solid, not as inside), how
+    marching cubes' ambiguous cells were resolved, pieces of φ < 0, joins, their saddles (voxels), path samples.
     """
     from geometry.digital import ball_field, homotopic_growth
+    from geometry.saddles import join_pieces
 
     values = np.asarray(values, dtype=np.float64)
     inside = values < 0
+    core, joins = join_pieces(values[1:-1, 1:-1, 1:-1], 0.0, join_below * volume.h, JOIN_DEPTH_VOXELS * volume.h)
+    if joins["joins"]:
+        values = values.copy()
+        values[1:-1, 1:-1, 1:-1] = core
     solid = homotopic_growth(values, 0.0)
     facts = {"inside_samples": int(inside.sum()), "solid_samples": int(solid.sum()),
-             "left_out_samples": int((inside & ~solid).sum()), "disambiguation": "failed"}
+             "left_out_samples": int((inside & ~solid).sum()), "disambiguation": "failed",
+             "pieces": joins["pieces"], "joined_pieces": joins["joins"],
+             "join_saddles_voxels": [round(w / volume.h, 3) for w in joins["join_saddles"]],
+             "join_samples": joins["join_samples"]}
     if not solid.any():
         raise InputError("method 'shape_gradient': no sample of the volume is inside (φ < 0) away from the box's "
                          "outer layer — there is no surface to reconstruct")

@@ -40,6 +40,7 @@ _OFF_SURFACE_VOXELS = 0.5      # a result whose median |φ| at the vertices exce
 _OFF_SURFACE_NOISE = 1.0       # ... added in quadrature to this many noise stds (on the true surface of a noisy
 #                                volume the median |φ| is already 0.67 std)
 _FOLD_DEGREES = 60.0       # a trial step that turns any face normal by more than this is rejected
+_AMG_SMOOTH = ("jacobi", {"weighting": "local"})  # row-wise weights: no spectral-radius estimate (docs/NOTES.md)
 
 
 class ShapeGradientFlow:
@@ -237,9 +238,8 @@ class ShapeGradientFlow:
         ``solver='direct'``: a sparse LU of M + sK (SuperLU, COLAMD ordering), refreshed every
         ``_LU_REFRESH`` iterations and at every remesh — between refreshes the factor of a nearby geometry is
         used, which is still a symmetric positive-definite smoothing, so V stays a descent direction.
-        ``'amg'``: CG on the current matrix preconditioned by a smoothed-aggregation multigrid hierarchy
-        (pyamg) of a nearby geometry, refreshed likewise (the LU's fill-in grows too fast past ~50k vertices).
-        ``'auto'``: :meth:`_auto_solver`.
+        ``'amg'``: CG preconditioned by a smoothed-aggregation multigrid (pyamg) of a nearby geometry, refreshed
+        likewise (the LU's fill-in grows too fast past ~50k vertices).  ``'auto'``: :meth:`_auto_solver`.
         ``'cg'``: Jacobi-preconditioned CG on the current matrix, warm-started (the exact operator every
         iteration; slow when s is many squared edge lengths).
         """
@@ -265,7 +265,8 @@ class ShapeGradientFlow:
 
             A = ops.h1_matrix(geo, s)[0]
             if self._lu is None or self._lu_age >= _LU_REFRESH:
-                self._lu = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric").aspreconditioner(cycle="V")
+                self._lu = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", smooth=_AMG_SMOOTH
+                                                             ).aspreconditioner(cycle="V")
                 self._lu_age = 0
             sol, _ = cg(A, b, x0=self._V_prev, rtol=_CG_RTOL, maxiter=_CG_MAXITER, M=self._lu)
             self._lu_age += 1

@@ -180,7 +180,7 @@ def _check_executor_args(args) -> None:
             if getattr(args, opt) is not None:
                 raise InputError(f"--{opt} needs --executor dask")
         return
-    from ..run.executors.dask import parse_scheduler_address, require_dask
+    from ..run.inputs import parse_scheduler_address, require_dask
 
     require_dask()
     if args.jobs is not None:
@@ -228,7 +228,10 @@ def _cmd_run(args) -> int:
         from ..run.runner import time_limits
 
         limits = time_limits(cfg, args.timeout, args.method_timeout, args.score_timeout)  # as run_grid does
-        executor = DaskExecutor(scheduler=args.scheduler, workers=args.workers, timeout=limits,
+        from ..run.inputs import parse_scheduler_address
+
+        scheduler = parse_scheduler_address(args.scheduler) if args.scheduler else None
+        executor = DaskExecutor(scheduler=scheduler, workers=args.workers, timeout=limits,
                                 cache_dir=str(out / CACHE_DIR), imports=list(cfg.imports))
     print(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
     try:

@@ -59,7 +59,7 @@ class SuiteOnWorker(WorkerPlugin):
                                 f"machine at {self.commit[:12]}: install the same checkout on every worker machine")
 
 
-def run_cell_task(cell: dict, cache_dir: str | None, limits: TimeLimits, imports: list[str]) -> dict:
+def _run_cell_task(cell: dict, cache_dir: str | None, limits: TimeLimits, imports: list[str]) -> dict:
     """The Dask task: one cell in a child process of this worker; ``{"row", "artifacts", "traceback"}``."""
     results: list[dict] = []
     cache_dir = cache_dir or os.path.join(get_worker().local_directory, "levelset-bench-cache")
@@ -126,7 +126,7 @@ class DaskExecutor:
         """Submit every cell (the runner's order first), hand each result to ``on_result`` as it arrives.  The client
         does not see a task start (no ``on_start``); closing the client cancels what is left on the cluster."""
         owned, start, lost = self.client is None, time.monotonic(), []
-        futures = {self.connect().client.submit(run_cell_task, cell, self.cache_dir, self.limits, self.imports,
+        futures = {self.connect().client.submit(_run_cell_task, cell, self.cache_dir, self.limits, self.imports,
                                                 pure=False, retries=self.retries, priority=len(cells) - i): cell
                    for i, cell in enumerate(cells)}
         try:

@@ -231,6 +231,19 @@ def test_unreachable_scheduler_exits_2_before_any_cell(tmp_path, capsys):
     assert not list(out.glob("cells/*.json"))
 
 
+def test_a_scheduler_without_workers_is_one_error_naming_the_command_that_starts_them():
+    from distributed import LocalCluster
+
+    from bench.run.executors.dask import DaskExecutor
+    from phantoms import InputError
+
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+        address = cluster.scheduler_address
+        with pytest.raises(InputError, match=f"no Dask worker connected to {address} within 1 s") as exc:
+            DaskExecutor(scheduler=address, wait_for_workers_s=1).connect()
+    assert f"`dask worker {address}`" in str(exc.value)
+
+
 def test_without_dask_installed_the_message_names_the_extra(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
     assert main(["run", "--quick", "--executor", "dask", "--out", str(tmp_path / "o"), "--dry-run"]) == 2

@@ -99,8 +99,10 @@ class DaskExecutor:
         except Exception as exc:  # noqa: BLE001 - each becomes one line and exit 2
             why = (f"cannot reach the Dask scheduler at {self.scheduler} ({exc}); start one with `dask scheduler`"
                    if self.client is None else str(exc) if isinstance(exc, WorkerRefused) else
-                   f"no Dask worker connected within {self.wait_for_workers_s:g} s" if isinstance(exc, TimeoutError)
-                   else f"the Dask workers cannot load the suite ({type(exc).__name__}: {exc}); install it there")
+                   f"no Dask worker connected to {self.scheduler} within {self.wait_for_workers_s:g} s (start some "
+                   f"with `dask worker {self.scheduler}`)" if isinstance(exc, TimeoutError) else
+                   f"the Dask workers cannot load this checkout of the suite ({type(exc).__name__}: {exc}); install "
+                   "the same checkout on every worker machine")
             self.close()
             raise InputError(why) from None
         with warnings.catch_warnings(record=True) as caught:   # Dask's table of the packages whose versions differ

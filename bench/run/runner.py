@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry.files import WriteError
+
 from ..terminal import printable
 from .executors.local import LocalExecutor
 from .grid import expand_grid
@@ -160,12 +161,13 @@ def memory_limit(cfg, memory_gb: float | None, jobs: int) -> float | None:
     return float(value) or None
 
 
-def _load_done(out: Path, cells: list[dict], cfg, resume: bool, retry_failed: bool,
+def _load_done(out: Path, cells: list[dict], resume: bool, retry_failed: bool,
                allow_mixed_code: bool) -> tuple[dict, dict, dict]:
     """The finished cells to keep (verified: a cell whose json or npz does not load is rerun, with a warning;
     a cell whose plug-in method's code changed since is rerun, with a note per method), ``{code: cells}`` when
-    several versions of the code are (or would be) mixed, and ``{method: cells rerun}`` of the changed plug-ins."""
-    if not resume:   # (the folder's config is the same grid: checked by check_run_inputs)
+    several versions of the code are (or would be) mixed, and ``{method: cells rerun}`` of the changed plug-ins.
+    That the folder's config gives the same grid was checked before the run (:func:`check_run_inputs`)."""
+    if not resume:
         return {}, {}, {}
     ids = {c["cell_id"] for c in cells}
     found, problems = scan_cells(out, verify_artifacts=True)
@@ -256,7 +258,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     limits = time_limits(cfg, timeout, method_timeout, score_timeout)
     jobs = jobs or os.cpu_count() or 1
     memory = memory_limit(cfg, memory_gb, jobs) if executor is None else None   # local cells only
-    records, mixed, changed = _load_done(out, cells, cfg, resume, retry_failed, allow_mixed_code)
+    records, mixed, changed = _load_done(out, cells, resume, retry_failed, allow_mixed_code)
     write_json(out / "config.json", cfg.to_dict())
     code = code_identity()
     todo = sorted((c for c in cells if c["cell_id"] not in records), key=_expected_cost, reverse=True)

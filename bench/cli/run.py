@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import json
 import os
 import sys
 from pathlib import Path
@@ -120,15 +119,9 @@ def _resolve_config(args) -> RunConfig:
     elif args.quick:
         cfg = builtin_config("quick")
     elif args.resume and args.out:
-        path = Path(args.out) / "config.json"
-        if not path.exists():
-            raise InputError(f"--resume: {str(args.out)!r} holds no run to resume (no config.json there); check "
-                             "--out, or run without --resume")
-        try:
-            data = json.loads(path.read_text())
-        except (OSError, ValueError) as exc:
-            raise InputError(f"cannot read {str(path)!r}: {exc}") from None
-        cfg = config_from_dict(data, source=str(path))
+        from ..run.inputs import folder_config
+
+        cfg = config_from_dict(folder_config(Path(args.out)), source=str(Path(args.out) / "config.json"))
     else:
         cfg = builtin_config("paper")
     if args.phantoms:
@@ -174,72 +167,27 @@ def _drop_replaced_report_labels(cfg: RunConfig) -> None:
         cfg.report["uniform_label"] = kept[0] if isinstance(uniform, str) else kept
 
 
-def _check_executor_args(args) -> None:
-    if args.executor == "local":
-        for opt in ("scheduler", "workers"):
-            if getattr(args, opt) is not None:
-                raise InputError(f"--{opt} needs --executor dask")
-        return
-    from ..run.executors.dask import parse_scheduler_address, require_dask
-
-    require_dask()
-    if args.jobs is not None:
-        raise InputError("--jobs sizes the local process pool; with --executor dask use --workers N "
-                         "(local cluster) or --scheduler ADDRESS")
-    if args.scheduler is not None:
-        parse_scheduler_address(args.scheduler)
-        if args.workers is not None:
-            raise InputError("--workers sets the size of the local Dask cluster; with --scheduler the "
-                             "cluster's own workers run the cells")
-
-
 def _cmd_run(args) -> int:
     from ..run import expand_grid, run_grid
-    from ..run.store import CACHE_DIR, check_output_dir
+    from ..run.inputs import ExecutorSpec, check_run_inputs
 
-    _check_executor_args(args)
-    if args.retry_failed and not args.resume:
-        raise InputError("--retry-failed needs --resume")
-    if args.allow_mixed_code and not args.resume:
-        raise InputError("--allow-mixed-code needs --resume")
     if args.resume and not args.out:
         raise InputError("--resume needs --out DIR (the folder of the run to complete)")
-    from ..run.limits import check_gb, check_seconds
-
-    for opt in ("timeout", "method_timeout", "score_timeout"):   # before any work: no OverflowError mid-run
-        check_seconds(getattr(args, opt), "--" + opt.replace("_", "-"))
-    check_gb(args.memory_limit, "--memory-limit")
-    if args.memory_limit is not None and args.executor == "dask":
-        raise InputError("--memory-limit applies to the local executor's cell processes; a Dask worker's memory "
-                         "is limited by the cluster (dask worker --memory-limit)")
     cfg = _resolve_config(args)
-    cells = expand_grid(cfg)
-    if args.dry_run:
+    options = dict(jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
+                   allow_mixed_code=args.allow_mixed_code, timeout=args.timeout, method_timeout=args.method_timeout,
+                   score_timeout=args.score_timeout, memory_gb=args.memory_limit,
+                   executor=ExecutorSpec(args.executor, args.scheduler, args.workers))
+    if args.dry_run:   # nothing runs, so run_grid does not check the inputs: the same checks, no folder
+        check_run_inputs(cfg, None, **options)
+        cells = expand_grid(cfg)
         for c in cells:
             print(c["cell_id"])
         print(f"{len(cells)} cells ({printable(cfg.name)})")
         return 0
     out = Path(args.out) if args.out else Path("reports") / _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    check_output_dir(out, args.resume)
-    executor = None
-    if args.executor == "dask":
-        from ..run.executors.dask import DaskExecutor
-
-        from ..run.runner import time_limits
-
-        limits = time_limits(cfg, args.timeout, args.method_timeout, args.score_timeout)  # as run_grid does
-        executor = DaskExecutor(scheduler=args.scheduler, workers=args.workers, timeout=limits,
-                                cache_dir=str(out / CACHE_DIR), imports=list(cfg.imports))
-    print(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
     try:
-        if executor is not None:
-            executor.connect()
-            print(f"dask: {executor.describe()}", file=sys.stderr)
-        summary = run_grid(cfg, out, jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
-                           timeout=args.timeout, save_meshes=args.save_meshes, argv=sys.argv[1:],
-                           executor=executor, method_timeout=args.method_timeout,
-                           score_timeout=args.score_timeout, allow_mixed_code=args.allow_mixed_code,
-                           memory_gb=args.memory_limit)
+        summary = run_grid(cfg, out, save_meshes=args.save_meshes, argv=sys.argv[1:], **options)
     except WriteError as exc:
         raise InputError(f"{exc}; the finished cells are saved in {str(out)!r}; free space (or fix the "
                          f"permissions) and complete the run with `python -m bench run --resume --out {out}`") \
@@ -254,9 +202,6 @@ def _cmd_run(args) -> int:
         print(f"error: {printable(exc)}; the finished cells are in {out}; complete the run with "
               f"`python -m bench run --resume --out {out} --executor dask ...`", file=sys.stderr)
         return 1
-    finally:
-        if executor is not None:
-            executor.close()
     if not args.no_report:
         _report_after_run(out, summary)
     print(printable(summary.line()))

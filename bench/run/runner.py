@@ -8,6 +8,7 @@ report: the command line does that after the run.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import os
 import shutil
@@ -19,18 +20,16 @@ from pathlib import Path
 import numpy as np
 
 from geometry.files import WriteError
-from phantoms import InputError
 
 from ..terminal import printable
 from .executors.local import LocalExecutor
 from .grid import expand_grid
 from .limits import TimeLimits, default_memory_gb
 from .provenance import environment
-from .identity import (MixedCodeError, changed_methods, check_same_config, config_fingerprint, code_identity,
-                       mixed_code)
+from .identity import MixedCodeError, changed_methods, config_fingerprint, code_identity, mixed_code
+from .inputs import ExecutorSpec, check_run_inputs
 from .lock import RunLock
-from .store import (CACHE_DIR, check_output_dir, clean_temp_files, read_json, save_cell, scan_cells, write_json,
-                    write_results_csv)
+from .store import CACHE_DIR, clean_temp_files, read_json, save_cell, scan_cells, write_json, write_results_csv
 
 __all__ = ["run_grid", "RunSummary", "time_limits", "memory_limit"]
 
@@ -162,18 +161,14 @@ def memory_limit(cfg, memory_gb: float | None, jobs: int) -> float | None:
     return float(value) or None
 
 
-def _load_done(out: Path, cells: list[dict], cfg, resume: bool, retry_failed: bool,
+def _load_done(out: Path, cells: list[dict], resume: bool, retry_failed: bool,
                allow_mixed_code: bool) -> tuple[dict, dict, dict]:
     """The finished cells to keep (verified: a cell whose json or npz does not load is rerun, with a warning;
     a cell whose plug-in method's code changed since is rerun, with a note per method), ``{code: cells}`` when
-    several versions of the code are (or would be) mixed, and ``{method: cells rerun}`` of the changed plug-ins."""
+    several versions of the code are (or would be) mixed, and ``{method: cells rerun}`` of the changed plug-ins.
+    That the folder's config gives the same grid was checked before the run (:func:`check_run_inputs`)."""
     if not resume:
         return {}, {}, {}
-    stored = read_json(out / "config.json")
-    if not isinstance(stored, dict):
-        raise InputError(f"--resume: {str(out / 'config.json')!r} is missing or unreadable, so {str(out)!r} holds "
-                         "no run to resume; check --out, or run without --resume")
-    check_same_config(stored, cfg.to_dict(), str(out))
     ids = {c["cell_id"] for c in cells}
     found, problems = scan_cells(out, verify_artifacts=True)
     for msg in problems:
@@ -208,19 +203,40 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
     ``allow_mixed_code``); ``timeout`` is per cell, ``method_timeout`` per method run and ``score_timeout`` per
     scoring, in seconds (None: the config's, 0: none; see :mod:`bench.run.limits`); ``memory_gb`` is the
     address space of each cell's process with the local executor, in GB (None: the config's
-    ``run.memory_limit``, else 75 % of the physical memory divided by ``jobs``; 0: none); ``executor`` is any object
-    with ``run(cells, on_start, on_result)`` (default: a :class:`LocalExecutor` of ``jobs`` processes).  The
-    folder is locked for the run (:mod:`bench.run.lock`); a write error (disk full, ...) raises
-    :class:`geometry.files.WriteError` after the finished cells are saved.
+    ``run.memory_limit``, else 75 % of the physical memory divided by ``jobs``; 0: none); ``executor`` is an
+    :class:`~bench.run.inputs.ExecutorSpec` (``dask``: the runner starts the Dask cluster, after the checks, and
+    closes it), or any object with ``run(cells, on_start, on_result)`` (default: a :class:`LocalExecutor` of
+    ``jobs`` processes).  Every input is checked first (:func:`~bench.run.inputs.check_run_inputs`: an
+    :class:`~phantoms.InputError` before anything runs).  The folder is locked for the run (:mod:`bench.run.lock`);
+    a write error (disk full, ...) raises :class:`geometry.files.WriteError` after the finished cells are saved.
     """
     out = Path(out)
-    check_output_dir(out, resume)
-    with RunLock(out):
+    executor = check_run_inputs(cfg, out, jobs=jobs, resume=resume, retry_failed=retry_failed,
+                                allow_mixed_code=allow_mixed_code, timeout=timeout, method_timeout=method_timeout,
+                                score_timeout=score_timeout, memory_gb=memory_gb, executor=executor)
+    with RunLock(out), _started(executor, cfg, out, time_limits(cfg, timeout, method_timeout, score_timeout)) as ex:
         clean_temp_files(out)
         return _run_locked(cfg, out, jobs=jobs, resume=resume, retry_failed=retry_failed, timeout=timeout,
-                           save_meshes=save_meshes, progress=progress, argv=argv, executor=executor,
+                           save_meshes=save_meshes, progress=progress, argv=argv, executor=ex,
                            allow_mixed_code=allow_mixed_code, method_timeout=method_timeout,
                            score_timeout=score_timeout, memory_gb=memory_gb)
+
+
+@contextlib.contextmanager
+def _started(executor, cfg, out: Path, limits: TimeLimits):
+    """The executor object for the run: None (the local pool, built by the run) for a ``local`` spec, a connected
+    :class:`~bench.run.executors.dask.DaskExecutor` for a ``dask`` one (closed after the run), else ``executor``."""
+    if not isinstance(executor, ExecutorSpec):
+        yield executor
+    elif executor.kind == "local":
+        yield None
+    else:
+        from .executors.dask import DaskExecutor
+
+        with DaskExecutor(scheduler=executor.scheduler, workers=executor.workers, timeout=limits,
+                          cache_dir=str(out / CACHE_DIR), imports=list(cfg.imports)) as dask:
+            print(f"dask: {dask.describe()}", file=sys.stderr)
+            yield dask
 
 
 def _expected_cost(cell: dict) -> float:
@@ -242,7 +258,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     limits = time_limits(cfg, timeout, method_timeout, score_timeout)
     jobs = jobs or os.cpu_count() or 1
     memory = memory_limit(cfg, memory_gb, jobs) if executor is None else None   # local cells only
-    records, mixed, changed = _load_done(out, cells, cfg, resume, retry_failed, allow_mixed_code)
+    records, mixed, changed = _load_done(out, cells, resume, retry_failed, allow_mixed_code)
     write_json(out / "config.json", cfg.to_dict())
     code = code_identity()
     todo = sorted((c for c in cells if c["cell_id"] not in records), key=_expected_cost, reverse=True)
@@ -257,6 +273,8 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     log.mixed_code = mixed
     log.write(records, end=False)
     bar = _Progress(len(cells), summary.skipped, sys.stderr.isatty() if progress is None else progress)
+    if bar.show:
+        bar.bar.write(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
 
     def on_result(cell: dict, result: dict) -> None:
         save_cell(out, cell, result, save_meshes, code=code)

@@ -15,6 +15,7 @@ method"); each entry point names a :class:`Method` subclass.
 from __future__ import annotations
 
 import importlib
+import sys
 from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any, ClassVar
@@ -30,6 +31,8 @@ __all__ = [
 ]
 
 ENTRY_POINT_GROUP = "levelset_bench.methods"
+#: the plug-ins' entry points per sys.path: a scan of every distribution's metadata costs ~0.1 s a call
+_ENTRY_POINTS: dict[tuple, tuple] = {}
 
 #: built-in methods: name -> "module:Class" (imported lazily so one broken adapter cannot break the rest)
 BUILTIN_METHODS: dict[str, str] = {
@@ -444,7 +447,10 @@ def available_methods() -> dict[str, type[Method]]:
             out[name] = _load(target)
         except (ImportError, AttributeError) as exc:
             warnings.warn(f"built-in method {name!r} unavailable: {exc}", stacklevel=2)
-    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
+    key = tuple(sys.path)
+    if key not in _ENTRY_POINTS:
+        _ENTRY_POINTS[key] = tuple(metadata.entry_points(group=ENTRY_POINT_GROUP))
+    for ep in _ENTRY_POINTS[key]:
         try:
             cls = ep.load()
         except Exception as exc:  # a broken plug-in must not take the suite down

@@ -147,3 +147,22 @@ def test_import_plugins_imports_modules_and_reports_failures():
     import_plugins(["json", "textwrap"])
     with pytest.raises(InputError, match=r"cannot import module 'no_such_plugin_module_xyz': No module named"):
         import_plugins(["json", "no_such_plugin_module_xyz"])
+
+
+def test_entry_points_are_read_once_per_sys_path(plugin_dir, monkeypatch):
+    """The runner asks for a method once per cell: the distributions' metadata is scanned once per sys.path
+    (a plug-in directory added to the path is still found)."""
+    calls = []
+    real = methods_base.metadata.entry_points
+
+    def counting(**kw):
+        calls.append(kw)
+        return real(**kw)
+
+    monkeypatch.setattr(methods_base.metadata, "entry_points", counting)
+    monkeypatch.setattr(methods_base, "_ENTRY_POINTS", {})
+    available_methods()
+    available_methods()
+    assert len(calls) == 1
+    monkeypatch.syspath_prepend(str(plugin_dir))
+    assert "sphere_fit" in available_methods() and len(calls) == 2

@@ -376,3 +376,54 @@ def test_the_docstring_check_finds_a_missing_parameter(tmp_path):
     assert docstring_problems(sources, ["pkg"]) == [
         "pkg.a.f: Parameters section leaves out b", "pkg.a.g: no Parameters section (takes x)",
         "pkg.C: no Parameters section (takes x)", "pkg.h: no docstring"]
+
+
+# ------------------------------------------------------------------------------------ settings resolved in one place
+#: a name holds settings when it contains one of these (``cfg``, ``self.config``, ``settings``, ``stage``, ...)
+_SETTINGS_NAMES = ("cfg", "config", "setting", "param", "stage", "option")
+
+
+def _holds_settings(node: ast.expr) -> bool:
+    name = node.id if isinstance(node, ast.Name) else getattr(node, "attr", "")
+    return any(word in name.lower() for word in _SETTINGS_NAMES)
+
+
+def settings_defaults(paths) -> list[str]:
+    """``"file:line: call"`` for every read of a setting with a fallback of its own: ``<settings>.get(key,
+    default)`` (a default given positionally or by keyword) or ``getattr(<settings>, name, default)``, where
+    ``<settings>`` is a name or attribute that holds settings (:data:`_SETTINGS_NAMES`)."""
+    hits = []
+    for path in paths:
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+            if not isinstance(node, ast.Call):
+                continue
+            f = node.func
+            by_get = (isinstance(f, ast.Attribute) and f.attr == "get" and _holds_settings(f.value)
+                      and len(node.args) + len(node.keywords) >= 2)
+            by_getattr = (isinstance(f, ast.Name) and f.id == "getattr" and len(node.args) == 3
+                          and _holds_settings(node.args[0]))
+            if by_get or by_getattr:
+                hits.append((str(path.relative_to(REPO)), node.lineno, ast.unparse(node)))
+    return [f"{p}:{line}: {call}" for p, line, call in sorted(hits)]
+
+
+def test_the_shape_gradient_flow_reads_settings_without_defaults():
+    """methods/shape_gradient/ resolves its settings once (settings.FlowSettings, from the Params): no module
+    reads a setting with a default of its own, which could contradict the parameter's documented default."""
+    assert settings_defaults(sorted((REPO / "methods" / "shape_gradient").glob("*.py"))) == []
+
+
+def test_the_settings_check_finds_a_default(tmp_path):
+    """The check above on a made-up module: defaults read from cfg, self.config, a stage and by getattr are
+    reported; a lookup without a default, a dict that holds no settings and a plain attribute are not."""
+    p = tmp_path / "flow.py"
+    p.write_text("a = cfg.get('guard', False)\nb = self.config.get('x', default=1)\nc = stage.get('beta', 1.0)\n"
+                 "d = getattr(settings, 'tol', 0.0)\ne = cfg.get('x')\nf = topology.get('compatible', True)\n"
+                 "g = settings.tol\n")
+    global REPO
+    saved, REPO = REPO, tmp_path
+    try:
+        hits = settings_defaults([p])
+    finally:
+        REPO = saved
+    assert [h.split(": ")[0] for h in hits] == ["flow.py:1", "flow.py:2", "flow.py:3", "flow.py:4"]

@@ -19,6 +19,7 @@ from .energy import evaluate_state, gradient_from_state, no_fold
 from .guard import count_intersections, repair_intersections
 from .polish import crease_polish, newton_project
 from .remesh import remesh
+from .settings import FlowSettings, Stage
 from .signs import SignGuard
 
 __all__ = ["ShapeGradientFlow", "STOP_REASONS"]
@@ -32,7 +33,7 @@ _CG_RTOL = 1e-3            # relative residual of the H¹ solve (an inexact solv
 _CG_MAXITER = 100
 _DIRECT_MAX_VERTICES = 40_000  # solver='auto': the LU up to this many vertices, multigrid above ...
 _CG_MAX_S_EDGES = 2.0          # ... or CG while s is at most this many squared edge lengths
-_LU_REFRESH = 5                # the direct H¹ solver refactors M + sK every this many iterations
+_FACTOR_REFRESH = 5            # the direct and multigrid H¹ solvers rebuild their factor every this many iterations
 _PROJECTION_STEPS = 3          # final Newton projection onto φ = 0: steps ...
 _PROJECTION_MAX_VOXELS = 0.5   # ... each capped at this many voxels
 _PROJECTION_REVERT_ROUNDS = 4  # rounds of putting back the vertices whose projection made faces intersect
@@ -51,29 +52,27 @@ class ShapeGradientFlow:
     >>> rec = flow.result()                     # the Reconstruction (mesh + info)
     """
 
-    def __init__(self, field, ops: MeshOperators, x: np.ndarray, cfg: dict, h: float, *,
+    def __init__(self, field, ops: MeshOperators, x: np.ndarray, settings: FlowSettings, h: float, *,
                  setup_seconds: float = 0.0):
-        self.field, self.ops, self.cfg, self.h = field, ops, cfg, float(h)
+        self.field, self.ops, self.settings, self.h = field, ops, settings, float(h)
         self.t_start = time.perf_counter() - setup_seconds
         self.timings = dict.fromkeys(("setup", "interpolation", "curvature", "gradient", "preconditioner",
                                       "energy", "relax", "polish", "remesh", "guard", "projection"), 0.0)
         self.timings["setup"] = setup_seconds
-        self.alpha, self.beta = cfg["alpha"], cfg["beta"]
+        self.alpha, self.beta = settings.alpha, settings.beta
         # −α(2/3)³σ̂² on a noisy volume (unbias): the area term a noisy φ² adds to E (energy.evaluate_state)
-        self.density = -float(cfg["alpha"]) * float(cfg.get("noise_variance", 0.0))
-        self.kind, self.linear = cfg["gradient"], cfg["curvature"] == "tilted"
-        self.max_move = cfg["max_move"] * self.h
+        self.density = -float(settings.alpha) * settings.noise_variance
+        self.kind, self.linear = settings.gradient, settings.curvature == "tilted"
+        self.max_move = settings.max_move * self.h
         self.floor_move = _FLOOR_MOVE_VOXELS * self.h
-        self.snap_set = set(cfg["snapshots"])
+        self.snap_set = set(settings.snapshots)
         self.init_flipped = False
         self.noise = float("nan")
         self.topology: dict = {}
         self.init_facts: dict = {}
         self.iteration = 0
-        self.remesh_every = int(cfg.get("remesh_every") or 0)
-        self._remesh_rounds = int(cfg.get("remesh_iterations", 3))
-        # coarse to fine: the stages' settings ({"beta", "edge_length" in voxels}), first first
-        self.stages = [dict(st) for st in (cfg.get("stages") or [{}])]
+        self.remesh_every = settings.remesh_every
+        self.stages = list(settings.stages)             # coarse to fine: the stages still to come, first first
         self.stage_starts: list[dict] = []
         self._enter_stage(self.stages.pop(0))
         self.state = evaluate_state(field, ops, np.asarray(x, float), self.alpha, self.beta, self.timings,
@@ -94,21 +93,21 @@ class ShapeGradientFlow:
         self.n_rejected_folds = 0
         self.curvature_fallbacks = 0
         self._V_prev = None
-        self._lu = None
-        self._lu_age = 0
+        self._factor = None                      # the H¹ solve's LU factor or multigrid preconditioner
+        self._factor_age = 0
         self._solver_choice: str | None = None
         self._move_prev = self.max_move
         self._grow = True
         self.cg_iterations: list[int] = []
         self.moves: list[float] = []
         self._polished = None
-        self.guard = bool(cfg.get("guard", False))
+        self.guard = settings.guard
         self.signs = None                            # the sign guard (signs.py), on clean volumes
-        if self.remesh_every and cfg.get("remesh_start"):
+        if self.remesh_every and settings.remesh_start:
             self._remesh_and_guard(0)                # a start with marching cubes' slivers: isotropic first
         elif self.guard:
             self._guard(0)                           # the start: the first safe state (or repaired)
-        if cfg.get("sign_guard_used"):
+        if settings.sign_guard:
             if getattr(field, "volume", None) is not None:
                 self.signs = SignGuard(field.volume, self.h, self.state.x, self.ops.faces, self.ops)
 
@@ -117,9 +116,9 @@ class ShapeGradientFlow:
         self.stop, self.message = reason, message
         return False
 
-    def _enter_stage(self, stage: dict) -> None:
-        self.beta = float(stage.get("beta", self.cfg["beta"]))
-        self.edge_length = float(stage.get("edge_length", self.cfg.get("edge_length") or 1.0)) * self.h
+    def _enter_stage(self, stage: Stage) -> None:
+        self.beta = stage.beta
+        self.edge_length = stage.edge_length * self.h
         self.stage_starts.append({"iteration": self.iteration, "beta": self.beta,
                                   "edge_length_voxels": self.edge_length / self.h})
 
@@ -141,9 +140,9 @@ class ShapeGradientFlow:
         """Do one iteration; False when the run has ended (``stop``/``message`` say why)."""
         if self.stop is not None:
             return False
-        if self.iteration >= self.cfg["max_iter"]:
-            return self._end("max_iter", f"reached max_iter = {self.cfg['max_iter']}")
-        cfg, ops, field, timings = self.cfg, self.ops, self.field, self.timings
+        if self.iteration >= self.settings.max_iter:
+            return self._end("max_iter", f"reached max_iter = {self.settings.max_iter}")
+        st, ops, field, timings = self.settings, self.ops, self.field, self.timings
         alpha, beta, h = self.alpha, self.beta, self.h
         it = self.iteration + 1
         state = self.state
@@ -163,15 +162,15 @@ class ShapeGradientFlow:
         if vmax == 0.0:
             return self._end("converged", f"iteration {it}: the shape gradient vanishes")
         shift = None
-        if cfg["relax"] > 0:
+        if st.relax > 0:
             t0 = time.perf_counter()
             nt = geo.vertex_normals_t
             d = ops.ring_mean_t(geo.vertices_t) - geo.vertices_t
             d -= (d[0] * nt[0] + d[1] * nt[1] + d[2] * nt[2]) * nt
-            shift = cfg["relax"] * d.T
+            shift = st.relax * d.T
             timings["relax"] += time.perf_counter() - t0
-        if cfg["step"] == "fixed":
-            tau = cfg["tau"]
+        if st.step == "fixed":
+            tau = st.tau
             x_new = state.x + tau * direction + (0.0 if shift is None else shift)
             if not np.isfinite(x_new).all():
                 return self._end("diverged", f"iteration {it}: non-finite vertex positions")
@@ -222,54 +221,54 @@ class ShapeGradientFlow:
                 self._guard(it)                      # a snapshot is a result too: intersection-free
             self.snapshots[it] = self._snapshot()
         rel = abs(prev - new.E) / max(abs(prev), 1e-300)
-        self._calm = self._calm + 1 if rel < cfg["tol"] else 0
-        self._still = self._still + 1 if move < cfg["move_tol"] * h else 0
+        self._calm = self._calm + 1 if rel < st.tol else 0
+        self._still = self._still + 1 if move < st.move_tol * h else 0
         if self._calm >= _CONVERGE_PATIENCE:
-            return self._settle("converged", f"iteration {it}: relative energy change below tol = {cfg['tol']:g} "
+            return self._settle("converged", f"iteration {it}: relative energy change below tol = {st.tol:g} "
                                           f"for {_CONVERGE_PATIENCE} iterations")
         if self._still >= _CONVERGE_PATIENCE:
             return self._settle("converged", f"iteration {it}: largest normal move below move_tol = "
-                                          f"{cfg['move_tol']:g} voxels for {_CONVERGE_PATIENCE} iterations")
+                                          f"{st.move_tol:g} voxels for {_CONVERGE_PATIENCE} iterations")
         return True
 
     def _velocity(self, geo, G: np.ndarray, b: np.ndarray) -> np.ndarray:
         """The normal velocity: the H¹ (Sobolev) gradient V = (M + sK)⁻¹ M G, or G itself.
 
         ``solver='direct'``: a sparse LU of M + sK (SuperLU, COLAMD ordering), refreshed every
-        ``_LU_REFRESH`` iterations and at every remesh — between refreshes the factor of a nearby geometry is
+        ``_FACTOR_REFRESH`` iterations and at every remesh — between refreshes the factor of a nearby geometry is
         used, which is still a symmetric positive-definite smoothing, so V stays a descent direction.
         ``'amg'``: CG preconditioned by a smoothed-aggregation multigrid (pyamg) of a nearby geometry, refreshed
         likewise (the LU's fill-in grows too fast past ~50k vertices).  ``'auto'``: :meth:`_auto_solver`.
         ``'cg'``: Jacobi-preconditioned CG on the current matrix, warm-started (the exact operator every
         iteration; slow when s is many squared edge lengths).
         """
-        cfg, ops = self.cfg, self.ops
-        if cfg["precondition"] != "h1" or cfg["s_world"] <= 0:
+        st, ops = self.settings, self.ops
+        if st.precondition != "h1" or st.s_world <= 0:
             return G
         t0 = time.perf_counter()
-        s = cfg["s_world"]
-        solver = cfg.get("solver", "auto")
+        s = st.s_world
+        solver = st.solver
         if solver == "auto":
             solver = self._auto_solver(geo, s)
         if solver == "direct":
-            if self._lu is None or self._lu_age >= _LU_REFRESH:
+            if self._factor is None or self._factor_age >= _FACTOR_REFRESH:
                 # M + sK is symmetric: a symmetric ordering (minimum degree on A + Aᵀ, diagonal pivots) fills
                 # 40 % less than COLAMD (cortex, 34k vertices: factor 0.28 s vs 0.36 s, solve 10 vs 19 ms)
-                self._lu = splu(ops.h1_matrix(geo, s)[0].tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                self._factor = splu(ops.h1_matrix(geo, s)[0].tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                                 options={"SymmetricMode": True})
-                self._lu_age = 0
-            sol = self._lu.solve(b)
-            self._lu_age += 1
+                self._factor_age = 0
+            sol = self._factor.solve(b)
+            self._factor_age += 1
         elif solver == "amg":
             import pyamg
 
             A = ops.h1_matrix(geo, s)[0]
-            if self._lu is None or self._lu_age >= _LU_REFRESH:
-                self._lu = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", smooth=_AMG_SMOOTH
-                                                             ).aspreconditioner(cycle="V")
-                self._lu_age = 0
-            sol, _ = cg(A, b, x0=self._V_prev, rtol=_CG_RTOL, maxiter=_CG_MAXITER, M=self._lu)
-            self._lu_age += 1
+            if self._factor is None or self._factor_age >= _FACTOR_REFRESH:
+                self._factor = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", smooth=_AMG_SMOOTH
+                                                                 ).aspreconditioner(cycle="V")
+                self._factor_age = 0
+            sol, _ = cg(A, b, x0=self._V_prev, rtol=_CG_RTOL, maxiter=_CG_MAXITER, M=self._factor)
+            self._factor_age += 1
         else:
             A, diag = ops.h1_matrix(geo, s)
             sol, ncg, _ = jacobi_cg(A, b, diag, x0=self._V_prev, rtol=_CG_RTOL, maxiter=_CG_MAXITER)
@@ -304,7 +303,7 @@ class ShapeGradientFlow:
         self.state = state if state is not None else evaluate_state(self.field, ops, x, self.alpha, self.beta,
                                                                     self.timings, density=self.density)
         self._V_prev = None          # the warm start and the factor of the H¹ solve belong to the old mesh
-        self._lu = None
+        self._factor = None
         self._solver_choice = None
 
     def _remesh_point(self, it: int) -> bool:
@@ -325,7 +324,7 @@ class ShapeGradientFlow:
         t0 = time.perf_counter()
         # the flow's meshes are closed (checked at every remesh); the start is checked here once more, and gets
         # all the rounds (marching cubes' slivers); a later mesh is near isotropic: one round
-        out = remesh(self.state.x, self.ops.faces, self.edge_length, self._remesh_rounds if it == 0 else 1,
+        out = remesh(self.state.x, self.ops.faces, self.edge_length, self.settings.remesh_iterations if it == 0 else 1,
                      closed=it > 0)
         if out is None:
             self.remesh_refused += 1
@@ -379,16 +378,16 @@ class ShapeGradientFlow:
         The crease polish (clean volumes) and the final Newton projection onto φ = 0 (``projection``) are each
         kept only if they leave the mesh free of self-intersections (when the guard is on).
         """
-        cfg, h = self.cfg, self.h
-        guard = bool(cfg.get("guard", False))
+        st, h = self.settings, self.h
+        guard = st.guard
         if guard and not self._checked():
             self._guard(self.iteration)
         x = self.state.x
-        polish = {"used": bool(cfg.get("polish_used", False))}
+        polish = {"used": st.polish}
         if polish["used"]:
             t0 = time.perf_counter()
-            xp, stats = crease_polish(self.field, self.ops, x, h, angle=cfg["polish_angle"],
-                                      weight=cfg["polish_weight"])
+            xp, stats = crease_polish(self.field, self.ops, x, h, angle=st.polish_angle,
+                                      weight=st.polish_weight)
             polish.update(stats)
             moved = np.flatnonzero(np.any(xp != x, axis=1))    # x was checked: only the polished patch can meet
             if guard and stats["zone_vertices"] and count_intersections(xp, self.ops.faces, moved=moved)[0]:
@@ -399,7 +398,7 @@ class ShapeGradientFlow:
                                                         density=self.density).E) \
                 if stats["zone_vertices"] else float(self.state.E)
             self.timings["polish"] += time.perf_counter() - t0
-        projection = {"used": bool(cfg.get("projection_used", False))}
+        projection = {"used": st.projection}
         if projection["used"]:
             t0 = time.perf_counter()
             xq, _ = newton_project(self.field, x, steps=_PROJECTION_STEPS, max_step=_PROJECTION_MAX_VOXELS * h)
@@ -433,7 +432,7 @@ class ShapeGradientFlow:
         noise = float(self.noise) if np.isfinite(self.noise) else 0.0
         limit = float(np.hypot(_OFF_SURFACE_VOXELS * self.h, _OFF_SURFACE_NOISE * noise))
         facts = {"signed_volume": vol, "median_abs_phi_voxels": med / self.h, "off_surface_limit_voxels": limit / self.h}
-        if self.stop != "diverged" and self.cfg.get("guard", False):
+        if self.stop != "diverged" and self.settings.guard:
             if vol <= self.h ** 3:
                 raise ReconstructionFailed(
                     f"method 'shape_gradient': the surface collapsed (enclosed volume {vol:.3g}, less than one "
@@ -447,7 +446,7 @@ class ShapeGradientFlow:
 
     def result(self) -> Reconstruction:
         """The mesh (closed, outward) and the info dict; ReconstructionFailed for a collapsed or off-surface result."""
-        cfg, h = self.cfg, self.h
+        st, h = self.settings, self.h
         if self._polished is None:
             self._polished = self._finish()
         t0 = time.perf_counter()
@@ -457,9 +456,6 @@ class ShapeGradientFlow:
         self.timings["curvature"] += time.perf_counter() - t0
         self.timings["total"] = time.perf_counter() - self.t_start
         mesh = trimesh.Trimesh(final_geo.vertices.copy(), self.ops.faces.copy(), process=False)
-        params_used = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in cfg.items()}
-        params_used["init_mesh"] = None if cfg["init_mesh"] is None else "user mesh"
-        params_used["snapshots"] = list(cfg["snapshots"])
         info = {
             "iterations": int(self.iteration),
             "stop_reason": self.stop or "max_iter",
@@ -469,7 +465,7 @@ class ShapeGradientFlow:
             "snapshots": dict(self.snapshots),
             "H": H_final,
             "K": K_final,
-            "parameters": params_used,
+            "parameters": st.reported_parameters(),
             "timings": dict(self.timings),
             "n_backtracks": int(self.n_backtracks),
             "n_rejected_folds": int(self.n_rejected_folds),
@@ -483,9 +479,9 @@ class ShapeGradientFlow:
             "warnings": [] if self.topology.get("compatible", True) else [self.topology["message"]],
             "noise_estimate": float(self.noise),
             "noise_estimate_voxels": float(self.noise / h),
-            "presmooth_used": float(cfg.get("presmooth_used", 0.0)),
-            "start_smooth_used": float(cfg.get("start_smooth_used", 0.0)),
-            "beta_used": float(cfg["beta"]),
+            "presmooth_used": float(st.presmooth),
+            "start_smooth_used": float(st.start_smooth),
+            "beta_used": float(st.beta),
             "grid_spacing": float(h),
             "polish": polish_info,
             "projection": projection_info,

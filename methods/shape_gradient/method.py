@@ -14,6 +14,7 @@ from phantoms import InputError, Volume
 from ..base import Method, Param, Reconstruction, check_volume
 from .field import estimate_noise, smoothed_field, start_smoothing
 from .flow import ShapeGradientFlow
+from .settings import FlowSettings
 from .start import initial_surface, parse_snapshots, target_topology
 
 __all__ = ["ShapeGradient", "PRESETS"]
@@ -39,8 +40,6 @@ PRESETS: dict[str, dict[str, Any]] = {
 
 _AUTO_PRESMOOTH_SIGMA = 1.0   # presmooth='auto': σ (voxels) used on noisy volumes ...
 _AUTO_PRESMOOTH_NOISE = 0.05  # ... i.e. when the estimated noise is at least this many voxels
-_AUTO_BETA = (1.0, 0.01)      # beta='auto': on clean / noisy volumes
-_INTERP_NOISE_GAIN = (2.0 / 3.0) ** 3   # mean of Σwᵢ² of trilinear weights over a cell
 
 
 def _auto_or_number(key: str, value: Any, hi: float) -> "float | str":
@@ -212,19 +211,13 @@ class ShapeGradient(Method):
         ``ops`` reuses a :class:`MeshOperators` built for the same initial connectivity (benchmarks).
         """
         check_volume(volume, self.name)
-        cfg = dict(self.config)
+        cfg = self.config
         t_start = time.perf_counter()
         topology = target_topology(volume)
         if not topology["compatible"] and cfg["strict_topology"]:
             raise InputError(f"method 'shape_gradient' (strict_topology): {topology['message']}")
         noise = estimate_noise(volume)
         clean = noise < _AUTO_PRESMOOTH_NOISE * volume.h
-        if cfg["beta"] == "auto":
-            cfg["beta"] = _AUTO_BETA[0] if clean else _AUTO_BETA[1]
-        cfg["stages"] = [{"beta": cfg["beta"], "edge_length": cfg["edge_length"]}]
-        if cfg["coarse_to_fine"] and cfg["remesh_every"] > 0 and cfg["beta"] > 0:
-            cfg["stages"].insert(0, {"beta": 0.0, "edge_length": cfg["edge_length"]})
-        cfg["s_world"] = cfg["s"] * volume.h ** 2
         sigma = cfg["presmooth"]
         if sigma == "auto":
             sigma = 0.0 if clean else _AUTO_PRESMOOTH_SIGMA
@@ -235,22 +228,18 @@ class ShapeGradient(Method):
             values = gaussian_filter(volume.values, float(s0), mode="nearest")
         # under noise the pieces of φ < 0 beside the surface are speckles (30 dB: 13–31 on the fused spheres and
         # the cortex at N = 96), not parts: the genus-0 start joins pieces on clean volumes only
-        cfg["join_below_used"] = float(cfg["join_below"]) if clean else 0.0
-        x, faces, flipped, init_facts = initial_surface(cfg, volume, values=values)
-        cfg["remesh_start"] = init_facts["kind"] == "genus0"
-        cfg["presmooth_used"] = float(sigma)
-        # the noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise has variance
-        # σ²Σwᵢ², on average (∫₀¹ t² + (1 − t)² dt)³ = (2/3)³ of σ² over positions in a cell
-        cfg["noise_variance"] = _INTERP_NOISE_GAIN * float(noise) ** 2 if (cfg["unbias"] and not clean) else 0.0
-        cfg["start_smooth_used"] = float(s0)
-        cfg["polish_used"] = cfg["polish"] == "on" or (cfg["polish"] == "auto" and clean)
-        cfg["projection_used"] = cfg["projection"] == "on" or (cfg["projection"] == "auto" and clean)
-        cfg["sign_guard_used"] = bool(cfg["sign_guard"]) and clean and cfg["remesh_start"]
+        join_below = float(cfg["join_below"]) if clean else 0.0
+        x, faces, flipped, init_facts = initial_surface(
+            volume, init=cfg["init"], init_mesh=cfg["init_mesh"], edge_length=cfg["edge_length"],
+            join_below=join_below, init_vertices=cfg["init_vertices"], init_radius=cfg["init_radius"],
+            init_center=cfg["init_center"], values=values)
+        settings = FlowSettings.resolve(cfg, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,
+                                        join_below=join_below, remesh_start=init_facts["kind"] == "genus0")
         field = smoothed_field(volume, sigma, cfg["presmooth_phi"])
         if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):
             ops = MeshOperators(faces, len(x))
         field.sample_t(np.ascontiguousarray(x[:1].T), 2)     # build the cached derivative grids now (setup)
-        flow = ShapeGradientFlow(field, ops, x, cfg, volume.h, setup_seconds=time.perf_counter() - t_start)
+        flow = ShapeGradientFlow(field, ops, x, settings, volume.h, setup_seconds=time.perf_counter() - t_start)
         flow.init_flipped = flipped
         flow.noise = noise
         flow.topology = topology

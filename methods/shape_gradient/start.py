@@ -116,39 +116,56 @@ def prepare_init_mesh(mesh) -> tuple[np.ndarray, np.ndarray, bool]:
 
 
 
-def initial_surface(cfg: dict, volume: Volume, edge_length_voxels: float | None = None,
+def initial_surface(volume: Volume, *, init: str, init_mesh, edge_length: float, join_below: float,
+                    init_vertices: int, init_radius: float, init_center: np.ndarray | None = None,
                     values: np.ndarray | None = None):
-    """(vertices, faces, flipped, facts) of the initial surface the config asks for, checked to lie in the grid.
+    """(vertices, faces, flipped, facts) of the initial surface the parameters ask for, checked to lie in the grid.
 
-    ``init_mesh`` given: that mesh; ``init='genus0'``: :func:`genus0_surface` of ``values`` (default: the
-    volume's samples; the method passes its pre-smoothed samples on noisy volumes), joining pieces below
-    ``join_below_used`` (else ``join_below``) voxels, or the enclosing sphere if that fails; ``init='auto'``:
-    :func:`enclosing_sphere` at ``edge_length_voxels`` (default: the config's edge length); ``init='sphere'``:
-    the Fibonacci sphere of ``init_vertices`` / ``init_radius`` / ``init_center``.
+    Parameters
+    ----------
+    volume : Volume
+        The volume the flow will run on.
+    init : {'genus0', 'auto', 'sphere'}
+        ``'genus0'``: :func:`genus0_surface` of ``values``, or the enclosing sphere if that fails; ``'auto'``:
+        :func:`enclosing_sphere` at ``edge_length``; ``'sphere'``: the Fibonacci sphere of ``init_vertices`` /
+        ``init_radius`` / ``init_center``.
+    init_mesh : object or None
+        A user's closed genus-0 mesh (:func:`prepare_init_mesh`); given, it is the start whatever ``init`` says.
+    edge_length : float
+        Edge length of the enclosing sphere, in voxels.
+    join_below : float
+        ``init='genus0'``: join the pieces of φ < 0 whose lowest saddle is below this many voxels.
+    init_vertices : int
+        Vertices of the Fibonacci sphere.
+    init_radius : float
+        Radius of the Fibonacci sphere (world units).
+    init_center : array of 3 floats, optional
+        Centre of the Fibonacci sphere (default: the centre of the grid box).
+    values : ndarray, optional
+        The samples the genus-0 start is grown from (default: the volume's; the method passes pre-smoothed
+        samples on noisy volumes).
     """
     flipped = False
-    facts: dict = {"kind": cfg["init"] if cfg["init_mesh"] is None else "mesh"}
+    facts: dict = {"kind": init if init_mesh is None else "mesh"}
     x = None
-    if cfg["init_mesh"] is None and cfg["init"] == "genus0":
-        x, faces, more = genus0_surface(volume, volume.values if values is None else values,
-                                        cfg.get("join_below_used", cfg.get("join_below", JOIN_BELOW_VOXELS)))
+    if init_mesh is None and init == "genus0":
+        x, faces, more = genus0_surface(volume, volume.values if values is None else values, join_below)
         facts.update(more)
         if x is None:
             facts["kind"] = "auto"
             facts["fallback"] = "the genus-0 start failed (" + more["disambiguation"] + "): enclosing sphere"
     if x is not None:
         pass
-    elif cfg["init_mesh"] is not None:
-        x, faces, flipped = prepare_init_mesh(cfg["init_mesh"])
-    elif cfg["init"] in ("auto", "genus0"):
-        ell = cfg["edge_length"] if edge_length_voxels is None else edge_length_voxels
-        x, faces, more = enclosing_sphere(volume, ell * volume.h, _INIT_MARGIN_VOXELS * volume.h)
+    elif init_mesh is not None:
+        x, faces, flipped = prepare_init_mesh(init_mesh)
+    elif init in ("auto", "genus0"):
+        x, faces, more = enclosing_sphere(volume, edge_length * volume.h, _INIT_MARGIN_VOXELS * volume.h)
         facts.update(more)
     else:
-        center = cfg["init_center"]
+        center = init_center
         if center is None:
             center = 0.5 * (volume.lower + volume.upper)
-        x, faces = fibonacci_sphere(cfg["init_vertices"], cfg["init_radius"], center)
+        x, faces = fibonacci_sphere(init_vertices, init_radius, center)
     inside = volume.contains(x)
     if not inside.all():
         raise InputError(

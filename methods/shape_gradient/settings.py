@@ -1,0 +1,201 @@
+"""What the flow is told: :class:`FlowSettings`, every setting the shape-gradient flow reads, resolved once from
+the method's parameters and the volume (``beta='auto'``, ``polish='auto'``, the noise term, the stages), so
+the flow reads fields and never falls back on a default of its own."""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+__all__ = ["FlowSettings", "Stage"]
+
+_AUTO_BETA = (1.0, 0.01)      # beta='auto': on clean / noisy volumes
+_INTERP_NOISE_GAIN = (2.0 / 3.0) ** 3   # mean of Σwᵢ² of trilinear weights over a cell
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of the flow (coarse to fine: the data term alone first, then the configured β).
+
+    Parameters
+    ----------
+    beta : float
+        The weight β of the alignment term during the stage.
+    edge_length : float
+        The remeshing's target edge length during the stage, in voxels.
+    """
+
+    beta: float
+    edge_length: float
+
+
+@dataclass(frozen=True)
+class FlowSettings:
+    """Every setting :class:`~methods.shape_gradient.flow.ShapeGradientFlow` reads, with the values the
+    parameters leave to the volume (``'auto'``) decided; lengths in voxels unless named ``_world``.
+
+    Built by :meth:`resolve`; the parameters are those of :class:`~methods.shape_gradient.ShapeGradient`.
+
+    Parameters
+    ----------
+    alpha : float
+        Weight α of the data term φ².
+    beta : float
+        The configured weight β of the alignment term (``'auto'`` decided); the stages carry β per stage.
+    gradient : {'full', 'paper'}
+        Which shape gradient is descended.
+    curvature : {'tilted', 'paper'}
+        The paraboloid fit for H.
+    step : {'capped', 'fixed'}
+        The step rule.
+    max_move : float
+        Step cap (``step='capped'``): the largest vertex move per iteration, in voxels.
+    tau : float
+        The constant step of ``step='fixed'``.
+    precondition : {'h1', 'none'}
+        Whether the velocity is the H¹ (Sobolev) gradient.
+    s_world : float
+        The H¹ smoothing weight in world units² (the parameter ``s`` times h²).
+    solver : {'auto', 'direct', 'amg', 'cg'}
+        How the H¹ system is solved.
+    relax : float
+        Tangential relaxation weight per iteration.
+    max_iter : int
+        Iteration limit.
+    tol : float
+        Relative energy change below which an iteration counts as calm (0 = off).
+    move_tol : float
+        Largest normal move, in voxels, below which an iteration counts as still (0 = off).
+    remesh_every : int
+        Remesh every this many iterations (0 = fixed connectivity).
+    remesh_iterations : int
+        Rounds of the start's remesh.
+    remesh_start : bool
+        The start is a marching-cubes mesh (the genus-0 start): remesh it before the first iteration.
+    guard : bool
+        The self-intersection guard is on.
+    sign_guard : bool
+        The sign guard runs (the parameter on, a clean volume and the genus-0 start).
+    polish : bool
+        The crease polish runs on the final mesh.
+    polish_angle, polish_weight : float
+        The crease polish's angle (degrees) and quadric weight.
+    projection : bool
+        The final Newton projection onto φ = 0 runs.
+    noise_variance : float
+        The noise variance subtracted from φ² in the data term (0 on clean volumes or with ``unbias=False``).
+    stages : tuple of Stage
+        The stages, first first (one, or two with ``coarse_to_fine``).
+    snapshots : tuple of int
+        Iterations whose vertices are kept.
+    presmooth, start_smooth : float
+        The Gaussian σ (voxels) of the derivative grids and of the start's values, as decided (reported).
+    parameters : Mapping
+        The parameters as the run reports them (``info['parameters']``): every parameter with ``'auto'``
+        decided, plus the values derived from them.
+    """
+
+    alpha: float
+    beta: float
+    gradient: str
+    curvature: str
+    step: str
+    max_move: float
+    tau: float
+    precondition: str
+    s_world: float
+    solver: str
+    relax: float
+    max_iter: int
+    tol: float
+    move_tol: float
+    remesh_every: int
+    remesh_iterations: int
+    remesh_start: bool
+    guard: bool
+    sign_guard: bool
+    polish: bool
+    polish_angle: float
+    polish_weight: float
+    projection: bool
+    noise_variance: float
+    stages: tuple[Stage, ...]
+    snapshots: tuple[int, ...]
+    presmooth: float
+    start_smooth: float
+    parameters: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def resolve(cls, config: Mapping[str, Any], *, h: float, clean: bool, noise: float, presmooth: float,
+                start_smooth: float, join_below: float, remesh_start: bool) -> "FlowSettings":
+        """The settings of one run.
+
+        Parameters
+        ----------
+        config : Mapping
+            The method's parameters (``ShapeGradient.config``: every parameter, presets applied).
+        h : float
+            The grid spacing.
+        clean : bool
+            The volume counts as clean (estimated noise below 0.05 voxel): decides ``beta``, ``polish``,
+            ``projection`` and ``sign_guard`` where they are ``'auto'``.
+        noise : float
+            The estimated noise std (world units), for the noise-variance term.
+        presmooth, start_smooth : float
+            The σ (voxels) the method used for the derivative grids and for the start's values.
+        join_below : float
+            The saddle depth (voxels) below which the genus-0 start joined pieces.
+        remesh_start : bool
+            The start is the genus-0 (marching-cubes) surface.
+
+        Returns
+        -------
+        settings : FlowSettings
+        """
+        beta = config["beta"]
+        if beta == "auto":
+            beta = _AUTO_BETA[0] if clean else _AUTO_BETA[1]
+        stages = [{"beta": beta, "edge_length": config["edge_length"]}]
+        if config["coarse_to_fine"] and config["remesh_every"] > 0 and beta > 0:
+            stages.insert(0, {"beta": 0.0, "edge_length": config["edge_length"]})
+        # the noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise has variance
+        # σ²Σwᵢ², on average (∫₀¹ t² + (1 − t)² dt)³ = (2/3)³ of σ² over positions in a cell
+        derived = {
+            "stages": stages,
+            "s_world": config["s"] * h ** 2,
+            "join_below_used": join_below,
+            "remesh_start": remesh_start,
+            "presmooth_used": float(presmooth),
+            "noise_variance": _INTERP_NOISE_GAIN * float(noise) ** 2 if (config["unbias"] and not clean) else 0.0,
+            "start_smooth_used": float(start_smooth),
+            "polish_used": config["polish"] == "on" or (config["polish"] == "auto" and clean),
+            "projection_used": config["projection"] == "on" or (config["projection"] == "auto" and clean),
+            "sign_guard_used": bool(config["sign_guard"]) and clean and remesh_start,
+        }
+        c = {**config, "beta": beta, **derived}
+        return cls(
+            alpha=c["alpha"], beta=beta, gradient=c["gradient"], curvature=c["curvature"], step=c["step"],
+            max_move=c["max_move"], tau=c["tau"], precondition=c["precondition"], s_world=c["s_world"],
+            solver=c["solver"], relax=c["relax"], max_iter=c["max_iter"], tol=c["tol"], move_tol=c["move_tol"],
+            remesh_every=int(c["remesh_every"]), remesh_iterations=int(c["remesh_iterations"]),
+            remesh_start=bool(remesh_start), guard=bool(c["guard"]), sign_guard=bool(c["sign_guard_used"]),
+            polish=bool(c["polish_used"]), polish_angle=c["polish_angle"], polish_weight=c["polish_weight"],
+            projection=bool(c["projection_used"]), noise_variance=float(c["noise_variance"]),
+            stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),
+            snapshots=tuple(c["snapshots"]), presmooth=c["presmooth_used"], start_smooth=c["start_smooth_used"],
+            parameters=_reported(c))
+
+    def reported_parameters(self) -> dict[str, Any]:
+        """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""
+        return copy.deepcopy(dict(self.parameters))
+
+
+def _reported(config: Mapping[str, Any]) -> dict[str, Any]:
+    """The parameters in plain values: arrays as lists, a user's mesh named, not stored."""
+    out = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in config.items()}
+    out["init_mesh"] = None if config["init_mesh"] is None else "user mesh"
+    out["snapshots"] = list(config["snapshots"])
+    return out

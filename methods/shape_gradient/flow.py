@@ -324,8 +324,8 @@ class ShapeGradientFlow:
         t0 = time.perf_counter()
         # the flow's meshes are closed (checked at every remesh); the start is checked here once more, and gets
         # all the rounds (marching cubes' slivers); a later mesh is near isotropic: one round
-        out = remesh(self.state.x, self.ops.faces, self.edge_length, self.settings.remesh_iterations if it == 0 else 1,
-                     closed=it > 0)
+        rounds = self.settings.remesh_iterations if it == 0 else 1
+        out = remesh(self.state.x, self.ops.faces, self.edge_length, rounds, closed=it > 0)
         if out is None:
             self.remesh_refused += 1
         else:

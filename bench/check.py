@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geometry.mesh import mesh_facts
 from methods import Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction, run_reconstruct
 from phantoms import InputError, Volume, add_noise
 
@@ -190,8 +191,6 @@ def _info_notes(info: dict) -> list[str]:
 
 
 def _mesh_facts(mesh) -> dict:
-    from methods.marching_cubes import mesh_facts
-
     try:
         return mesh_facts(mesh)
     except Exception:  # facts are for the reader; a broken mesh is judged by check_mesh

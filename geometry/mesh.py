@@ -194,6 +194,12 @@ class ScoredMesh:
         return connected_components(self.faces, len(self.vertices), edges=self.edges)[0]
 
     @cached_property
+    def n_face_components(self) -> int:
+        """Connected components of faces joined through the edges in exactly two faces (trimesh's face
+        adjacency: faces that meet only at a non-manifold edge stay apart)."""
+        return connected_components(self.faces, len(self.vertices), by="face", face_pairs=self.edge_face_pairs[0])[0]
+
+    @cached_property
     def euler(self) -> int:
         """Euler characteristic V − E + F."""
         return euler_characteristic(self.faces, len(self.vertices), n_edges=len(self.edges))
@@ -226,6 +232,28 @@ def scored_mesh(vertices, faces=None) -> ScoredMesh:
     if faces is None:
         raise TypeError("faces are needed with a vertex array")
     return ScoredMesh(vertices, faces)
+
+
+def mesh_facts(mesh) -> dict:
+    """The facts an adapter reports about its output mesh, as plain Python values: ``vertices``, ``faces``,
+    ``watertight``, ``euler`` (V − E + F, every vertex counted), ``signed_volume`` and ``components`` (of faces,
+    :attr:`ScoredMesh.n_face_components`).
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh or ScoredMesh
+        Anything with ``vertices`` (V, 3) and ``faces`` (F, 3); a ScoredMesh's cached quantities are used.
+
+    Returns
+    -------
+    dict
+        An empty mesh is not watertight and has Euler characteristic 0 and no components.
+    """
+    m = mesh if isinstance(mesh, ScoredMesh) else ScoredMesh(mesh.vertices, np.reshape(mesh.faces, (-1, 3)))
+    empty = len(m.faces) == 0
+    return {"vertices": int(len(m.vertices)), "faces": int(len(m.faces)), "watertight": m.watertight,
+            "euler": 0 if empty else int(m.euler), "signed_volume": m.signed_volume,
+            "components": 0 if empty else int(m.n_face_components)}
 
 
 def padded_from_pairs(i: np.ndarray, j: np.ndarray, n: int, max_width: int | None = None) -> np.ndarray:

@@ -147,14 +147,16 @@ def genus(euler: int, n_components: int = 1) -> int:
     return int((2 * n_components - euler) // 2)
 
 
-def connected_components(faces, n_vertices: int | None = None, *, by: str = "vertex", edges=None
-                         ) -> tuple[int, np.ndarray]:
+def connected_components(faces, n_vertices: int | None = None, *, by: str = "vertex", edges=None,
+                         face_pairs=None) -> tuple[int, np.ndarray]:
     """``(count, labels)`` of the connected components.
 
     ``by='vertex'``: vertices joined by face edges, labels (V,) over all ``n_vertices`` (an unreferenced
     vertex is a component of its own).  ``by='face'``: faces joined when they share an undirected edge,
     labels (F,); two surfaces touching at a single vertex are two components here, one by vertex.
-    ``edges``: with ``by='vertex'``, :func:`edges_unique` of ``faces`` when computed already.
+    ``edges``: with ``by='vertex'``, :func:`edges_unique` of ``faces`` when computed already.  ``face_pairs``:
+    with ``by='face'``, the (P, 2) pairs of faces to join instead (e.g. those of the edges in exactly two faces,
+    :func:`edge_adjacent_face_pairs`: then faces meeting only at a non-manifold edge stay apart, as in trimesh).
     """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components as _cc
@@ -164,6 +166,9 @@ def connected_components(faces, n_vertices: int | None = None, *, by: str = "ver
         nv = int(f.max()) + 1 if n_vertices is None else int(n_vertices)
         e = edges_unique(f) if edges is None else edges
         g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(nv, nv))
+    elif by == "face" and face_pairs is not None:
+        p = np.asarray(face_pairs, np.int64).reshape(-1, 2)
+        g = coo_matrix((np.ones(len(p)), (p[:, 0], p[:, 1])), shape=(len(f), len(f)))
     elif by == "face":
         nf = len(f)
         key = face_edge_keys(f, int(f.max()) + 1 if len(f) else 0)

@@ -54,11 +54,12 @@ import trimesh
 from phantoms import InputError, Volume
 
 from geometry.levelset import newton_project
+from geometry.mesh import mesh_facts
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
 from .dc_manifold import (TUNNEL_CUBES, bridge_tunnels, cell_patches, dual_quads, fan_triangles, patch_centroids,
                           split_double_edges)
-from .marching_cubes import _nudge_zeros, mesh_facts, orient_outward
+from .marching_cubes import _nudge_zeros, orient_outward
 
 __all__ = ["DualContouring", "split_quads", "band_box"]
 

@@ -23,10 +23,11 @@ import time
 import numpy as np
 import trimesh
 
+from geometry.mesh import mesh_facts
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, check_volume
-from .marching_cubes import clean_mesh, marching_cubes_mesh, mesh_facts
+from .marching_cubes import clean_mesh, marching_cubes_mesh
 
 __all__ = ["ScreenedPoisson", "zero_set_points"]
 

@@ -87,3 +87,22 @@ def test_scored_mesh_of_arrays_or_of_itself():
         scored_mesh(m, f)
     with pytest.raises(TypeError):
         scored_mesh(v)
+
+
+def test_mesh_facts_agree_with_trimesh():
+    """The facts adapters report: trimesh's watertight / Euler number / face-adjacency components."""
+    from geometry.mesh import mesh_facts
+
+    box = trimesh.creation.box()
+    v = np.vstack([box.vertices, [[0, 0, 3.0]]])
+    e = box.faces[0, :2]
+    fin = trimesh.Trimesh(v, np.vstack([box.faces, [[e[0], e[1], 8]]]), process=False)   # a non-manifold edge
+    for mesh in (box, trimesh.Trimesh(box.vertices, box.faces[2:], process=False), fin):
+        facts = mesh_facts(mesh)
+        labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(mesh.faces))
+        assert facts == {"vertices": len(mesh.vertices), "faces": len(mesh.faces), "watertight": mesh.is_watertight,
+                         "euler": mesh.euler_number, "signed_volume": signed_volume(mesh.vertices, mesh.faces),
+                         "components": int(labels.max()) + 1}
+    assert mesh_facts(ScoredMesh(box.vertices, box.faces)) == mesh_facts(box)
+    empty = mesh_facts(trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int), process=False))
+    assert empty == {"vertices": 0, "faces": 0, "watertight": False, "euler": 0, "signed_volume": 0.0, "components": 0}

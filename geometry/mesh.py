@@ -194,10 +194,15 @@ class ScoredMesh:
         return connected_components(self.faces, len(self.vertices), edges=self.edges)[0]
 
     @cached_property
-    def n_face_components(self) -> int:
-        """Connected components of faces joined through the edges in exactly two faces (trimesh's face
+    def face_components(self) -> tuple[int, np.ndarray]:
+        """``(count, labels (F,))`` of the faces joined through the edges in exactly two faces (trimesh's face
         adjacency: faces that meet only at a non-manifold edge stay apart)."""
-        return connected_components(self.faces, len(self.vertices), by="face", face_pairs=self.edge_face_pairs[0])[0]
+        return connected_components(self.faces, len(self.vertices), by="face", face_pairs=self.edge_face_pairs[0])
+
+    @property
+    def n_face_components(self) -> int:
+        """How many :attr:`face_components` there are."""
+        return self.face_components[0]
 
     @cached_property
     def euler(self) -> int:

@@ -1,7 +1,8 @@
 """``python -m bench check-method NAME``: does a method honour the contract of :class:`methods.Method`?
 
 The counterpart of ``benchopt test`` for a method author.  The method runs on a few small volumes (N ≈ 24–32,
-seconds in all) built here from exact or zero-set-exact level-set functions:
+seconds in all): the exact signed distances of the suite's phantoms (:func:`phantoms.get_phantom`), sampled on
+the cases' grids:
 
 * ``sphere``      — the unit sphere centred in a cubic grid;
 * ``anisotropic`` — an ellipsoid (1.0, 0.7, 0.5) off the grid centre, on a grid with a different spacing and
@@ -39,8 +40,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geometry.mesh import mesh_facts
 from methods import Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction, run_reconstruct
-from phantoms import InputError, Volume, add_noise
+from phantoms import InputError, Volume, add_noise, get_phantom
 
 from .metrics.validity import check_mesh
 from .run.values import error_text, plain
@@ -118,17 +120,13 @@ class CaseResult:
         return not self.violations
 
 
-def _grid(lower, spacing, shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _sampled(phantom, lower, spacing, shape, centre=(0.0, 0.0, 0.0)) -> Volume:
+    """The phantom's exact signed distance, moved to ``centre``, on the grid ``lower + ijk * spacing`` of
+    ``shape`` — for the cases whose grid a cubic :meth:`phantoms.Phantom.volume` cannot give."""
     lower, spacing = np.asarray(lower, float), np.asarray(spacing, float)
     axes = [lower[d] + np.arange(shape[d]) * spacing[d] for d in range(3)]
-    x, y, z = np.meshgrid(*axes, indexing="ij")
-    return x, y, z
-
-
-def _sphere(n: int) -> Volume:
-    lower, spacing = np.full(3, -1.45), np.full(3, 2.9 / (n - 1))
-    x, y, z = _grid(lower, spacing, (n, n, n))
-    return Volume(np.sqrt(x**2 + y**2 + z**2) - 1.0, lower, spacing)
+    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3) - np.asarray(centre, float)
+    return Volume(np.asarray(phantom.sdf(points), float).reshape(shape), lower, spacing)
 
 
 def _ellipsoid(n: int) -> Volume:
@@ -136,10 +134,7 @@ def _ellipsoid(n: int) -> Volume:
     half = axes + 0.35
     spacing = 2 * half / (n - 1) * np.array([1.0, 0.95, 0.9])
     shape = tuple(int(k) for k in np.ceil(2 * half / spacing).astype(int) + 1)
-    lower = centre - half
-    x, y, z = _grid(lower, spacing, shape)
-    q = np.sqrt(((x - centre[0]) / axes[0])**2 + ((y - centre[1]) / axes[1])**2 + ((z - centre[2]) / axes[2])**2)
-    return Volume((q - 1.0) * axes.min(), lower, spacing)      # zero set exact, |∇φ| ≈ 1 near it
+    return _sampled(get_phantom("ellipsoid", axes=tuple(axes)), centre - half, spacing, shape, centre)
 
 
 def _torus(n: int) -> Volume:
@@ -147,8 +142,7 @@ def _torus(n: int) -> Volume:
     h = 2 * (R + r + 0.25) / (n - 1)
     shape = (n, n, int(np.ceil(2 * (r + 0.25) / h)) + 1)
     lower = np.array([-(R + r + 0.25), -(R + r + 0.25), -(shape[2] - 1) * h / 2])
-    x, y, z = _grid(lower, np.full(3, h), shape)
-    return Volume(np.sqrt((np.sqrt(x**2 + y**2) - R)**2 + z**2) - r, lower, np.full(3, h))
+    return _sampled(get_phantom("torus", major=R, minor=r), lower, np.full(3, h), shape)
 
 
 def case_volumes(n: int = 24, seed: int = 0) -> dict[str, tuple[Volume, Volume]]:
@@ -166,7 +160,7 @@ def case_volumes(n: int = 24, seed: int = 0) -> dict[str, tuple[Volume, Volume]]
     dict of str to (Volume, Volume)
         ``{case: (volume given to the method, clean volume the output is checked against)}``.
     """
-    sphere = _sphere(n)
+    sphere = get_phantom("sphere").volume(n, extent=1.45)
     noisy, _ = add_noise(sphere, "gaussian", 30.0, seed=seed)
     ell, torus = _ellipsoid(n + 4), _torus(n + 4)
     empty = sphere.with_values(np.abs(sphere.values) + 0.5)
@@ -190,8 +184,6 @@ def _info_notes(info: dict) -> list[str]:
 
 
 def _mesh_facts(mesh) -> dict:
-    from methods.marching_cubes import mesh_facts
-
     try:
         return mesh_facts(mesh)
     except Exception:  # facts are for the reader; a broken mesh is judged by check_mesh

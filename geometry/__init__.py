@@ -15,6 +15,7 @@ from .mesh import (
     one_ring,
     padded_from_pairs,
     radius_neighbors,
+    sample_surface,
     vertex_normals,
 )
 from .operators import (
@@ -39,7 +40,6 @@ from .topology import (
     is_closed,
     is_manifold,
     is_oriented,
-    sample_surface,
 )
 
 __all__ = [

@@ -170,8 +170,8 @@ def paraboloid_curvature(vertices, normals, neighbors, *, linear: bool = True, r
 
 
 def radius_curvature(vertices, faces, radius: float, normals=None, *, linear: bool = True,
-                     max_width: int | None = None, block: int | None = None, compiled: bool | None = None
-                     ) -> tuple[np.ndarray, np.ndarray]:
+                     max_width: int | None = None, block: int | None = None, compiled: bool | None = None,
+                     edges=None) -> tuple[np.ndarray, np.ndarray]:
     """(H, K) per vertex by :func:`paraboloid_curvature` over :func:`geometry.mesh.radius_neighbors` (the 1-ring
     and the nearest others within ``radius``, at most ``max_width`` = :data:`geometry.mesh.MAX_NEIGHBORS` = 96),
     fitted block by block (:data:`geometry.mesh.NEIGHBOR_BLOCK` vertices): O(V · max_width) time and
@@ -182,7 +182,8 @@ def radius_curvature(vertices, faces, radius: float, normals=None, *, linear: bo
     ``normals``: unit outward vertex normals (default :func:`geometry.mesh.vertex_normals`).
     ``compiled``: fit with :func:`geometry.kernels.ring_curvature` (the same arithmetic vertex by vertex, sums
     in another order: equal to rounding) instead of :func:`paraboloid_curvature`; None: from
-    :data:`geometry.kernels.MIN_SIZE` vertices on.
+    :data:`geometry.kernels.MIN_SIZE` vertices on.  ``edges``: :func:`geometry.topology.edges_unique` of
+    ``faces``, when computed already (a :class:`geometry.mesh.ScoredMesh` keeps them).
     """
     from . import kernels
     from .mesh import MAX_NEIGHBORS, NEIGHBOR_BLOCK, radius_neighbor_blocks, vertex_normals
@@ -195,7 +196,7 @@ def radius_curvature(vertices, faces, radius: float, normals=None, *, linear: bo
     K = np.full(len(vertices), np.nan)
     for s, t, nb in radius_neighbor_blocks(vertices, faces, radius,
                                            MAX_NEIGHBORS if max_width is None else max_width,
-                                           NEIGHBOR_BLOCK if block is None else block):
+                                           NEIGHBOR_BLOCK if block is None else block, edges):
         if compiled:                              # rows are left-justified: the kernel stops at the first −1
             H[s:t], K[s:t] = kernels.ring_curvature(vertices, n_t, nb, (nb >= 0).sum(axis=1), linear, start=s)
         else:

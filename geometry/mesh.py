@@ -1,11 +1,15 @@
-"""Basic per-face and per-vertex quantities and vertex neighbourhoods of a triangle mesh."""
+"""Basic per-face and per-vertex quantities and vertex neighbourhoods of a triangle mesh, and
+:class:`ScoredMesh`, one mesh with those quantities computed once and kept for every consumer."""
 
 from __future__ import annotations
+
+from functools import cached_property
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .topology import edges_unique  # noqa: F401  (geometry.mesh.edges_unique: its old home)
+from .topology import (connected_components, edge_adjacent_face_pairs, edge_groups, edges_unique,
+                       euler_characteristic)
 
 
 def _face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -34,31 +38,38 @@ def signed_volume(vertices, faces) -> float:
     return float(np.einsum("ij,ij->i", v0, np.cross(v1, v2)).sum()) / 6.0
 
 
+def _areas(cross: np.ndarray) -> np.ndarray:
+    return 0.5 * np.linalg.norm(cross, axis=1)
+
+
+def _unit_rows(cross: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(cross, axis=1, keepdims=True)
+    return cross / np.where(n > 0, n, 1.0)
+
+
+def _vertex_normals(cross: np.ndarray, faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Σ of the incident faces' cross products (area × normal × 2: the area weighting), normalised."""
+    acc = np.zeros((n_vertices, 3))
+    for k in range(3):
+        np.add.at(acc, faces[:, k], cross)
+    return _unit_rows(acc)
+
+
 def face_areas(vertices, faces) -> np.ndarray:
     """Area of every face, shape (F,)."""
-    return 0.5 * np.linalg.norm(_face_cross(np.asarray(vertices, float), np.asarray(faces)), axis=1)
+    return _areas(_face_cross(np.asarray(vertices, float), np.asarray(faces)))
 
 
 def face_normals(vertices, faces) -> np.ndarray:
     """Unit normal of every face (right-hand rule on the vertex order), shape (F, 3)."""
-    c = _face_cross(np.asarray(vertices, float), np.asarray(faces))
-    n = np.linalg.norm(c, axis=1, keepdims=True)
-    return c / np.where(n > 0, n, 1.0)
+    return _unit_rows(_face_cross(np.asarray(vertices, float), np.asarray(faces)))
 
 
 def vertex_normals(vertices, faces) -> np.ndarray:
-    """Area-weighted average of the incident face normals, normalised, shape (V, 3).
-
-    (The un-normalised face cross product is area × normal × 2, so summing it is the area weighting.)
-    """
+    """Area-weighted average of the incident face normals, normalised, shape (V, 3)."""
     vertices = np.asarray(vertices, float)
     faces = np.asarray(faces)
-    c = _face_cross(vertices, faces)
-    acc = np.zeros_like(vertices)
-    for k in range(3):
-        np.add.at(acc, faces[:, k], c)
-    n = np.linalg.norm(acc, axis=1, keepdims=True)
-    return acc / np.where(n > 0, n, 1.0)
+    return _vertex_normals(_face_cross(vertices, faces), faces, len(vertices))
 
 
 def lumped_vertex_areas(vertices, faces) -> np.ndarray:
@@ -66,6 +77,188 @@ def lumped_vertex_areas(vertices, faces) -> np.ndarray:
     a = face_areas(vertices, faces) / 3.0
     faces = np.asarray(faces)
     return np.bincount(faces.ravel(), weights=np.repeat(a, 3), minlength=len(vertices))
+
+
+def sample_surface(vertices, faces, n: int, seed=0, areas=None) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` seeded, area-uniform i.i.d. points on a triangle mesh: (points (n, 3), face index (n,)).
+
+    Faces are drawn with probability ∝ area (inverse CDF on the cumulative areas: one uniform per point),
+    then a point uniformly inside the face by the square-root barycentric map (two more uniforms per
+    point, r₁ then r₂): x = (1 − √r₁) a + √r₁(1 − r₂) b + √r₁ r₂ c.  ``seed`` is anything
+    ``np.random.default_rng`` takes; the same seed gives the same points.  ``areas``: the faces' areas
+    (:func:`geometry.mesh.face_areas`), when computed already.  Raises ValueError for a mesh of zero area.
+    """
+    v = np.asarray(vertices, float)
+    f = np.asarray(faces, dtype=np.int64)
+    t = v[f]
+    if areas is None:
+        areas = face_areas(v, f)
+    cum = np.cumsum(areas)
+    if not (len(cum) and cum[-1] > 0):
+        raise ValueError("cannot sample a mesh of zero area")
+    rng = np.random.default_rng(seed)
+    u = rng.random(n) * cum[-1]
+    fi = np.minimum(np.searchsorted(cum, u, side="right"), len(f) - 1)
+    r1 = np.sqrt(rng.random(n))
+    r2 = rng.random(n)
+    w0, w1, w2 = 1.0 - r1, r1 * (1.0 - r2), r1 * r2
+    tf = t[fi]
+    pts = w0[:, None] * tf[:, 0] + w1[:, None] * tf[:, 1] + w2[:, None] * tf[:, 2]
+    return pts, fi
+
+
+class ScoredMesh:
+    """A triangle mesh whose derived quantities are computed on first use and kept (``functools.cached_property``,
+    as trimesh caches its own), so that every metric reads the same arrays and none recomputes them.
+
+    The arrays are shared, not copied: treat them as read-only, and build a new object for a changed mesh.
+    Orientation-dependent quantities (``face_normals``, ``vertex_normals``) point outward: they are flipped when
+    the enclosed signed volume is negative, so H > 0 on a convex surface whatever the winding.
+
+    Parameters
+    ----------
+    vertices : numpy.ndarray, shape (V, 3)
+        Vertex positions (float64).
+    faces : numpy.ndarray of int, shape (F, 3)
+        Triangles; expected compacted (every vertex referenced) and without a repeated index in a face for the
+        topology counts to mean what they say.
+    """
+
+    def __init__(self, vertices, faces):
+        self.vertices = np.asarray(vertices, dtype=np.float64)
+        self.faces = np.asarray(faces, dtype=np.int64)
+
+    @cached_property
+    def face_cross(self) -> np.ndarray:
+        """(F, 3) cross products (v1 − v0) × (v2 − v0): twice the area times the right-hand normal."""
+        return _face_cross(self.vertices, self.faces)
+
+    @cached_property
+    def face_areas(self) -> np.ndarray:
+        """(F,) face areas."""
+        return _areas(self.face_cross)
+
+    @cached_property
+    def area(self) -> float:
+        """The total surface area."""
+        return float(self.face_areas.sum())
+
+    @cached_property
+    def signed_volume(self) -> float:
+        """The enclosed volume, positive for an outward winding (:func:`signed_volume`)."""
+        return signed_volume(self.vertices, self.faces)
+
+    @property
+    def outward(self) -> bool:
+        """Whether the faces are wound outward (signed volume ≥ 0)."""
+        return self.signed_volume >= 0
+
+    @cached_property
+    def face_normals(self) -> np.ndarray:
+        """(F, 3) unit outward face normals (zero for a face of zero area)."""
+        n = _unit_rows(self.face_cross)
+        return n if self.outward else -n
+
+    @cached_property
+    def vertex_normals(self) -> np.ndarray:
+        """(V, 3) unit outward area-weighted vertex normals."""
+        n = _vertex_normals(self.face_cross, self.faces, len(self.vertices))
+        return n if self.outward else -n
+
+    @cached_property
+    def edge_groups(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The face edges grouped by undirected edge (:func:`geometry.topology.edge_groups`)."""
+        return edge_groups(self.faces, len(self.vertices))
+
+    @cached_property
+    def edges(self) -> np.ndarray:
+        """(E, 2) unique undirected edges, ``a < b``, lexicographic (the order of :func:`edges_unique`)."""
+        _, keys, start, _ = self.edge_groups
+        nv = len(self.vertices)
+        uniq = keys[start]
+        return np.column_stack([uniq // nv, uniq % nv])
+
+    @property
+    def edge_face_counts(self) -> np.ndarray:
+        """(E,) how many faces hold each edge of :attr:`edges`."""
+        return self.edge_groups[3]
+
+    @cached_property
+    def edge_face_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Edge → face adjacency of the edges in exactly two faces: their faces (P, 2) and vertices (P, 2)."""
+        return edge_adjacent_face_pairs(self.faces, len(self.vertices), self.edge_groups)
+
+    @cached_property
+    def n_components(self) -> int:
+        """Connected components through shared vertices."""
+        return connected_components(self.faces, len(self.vertices), edges=self.edges)[0]
+
+    @cached_property
+    def face_components(self) -> tuple[int, np.ndarray]:
+        """``(count, labels (F,))`` of the faces joined through the edges in exactly two faces (trimesh's face
+        adjacency: faces that meet only at a non-manifold edge stay apart)."""
+        return connected_components(self.faces, len(self.vertices), by="face", face_pairs=self.edge_face_pairs[0])
+
+    @property
+    def n_face_components(self) -> int:
+        """How many :attr:`face_components` there are."""
+        return self.face_components[0]
+
+    @cached_property
+    def euler(self) -> int:
+        """Euler characteristic V − E + F."""
+        return euler_characteristic(self.faces, len(self.vertices), n_edges=len(self.edges))
+
+    @property
+    def watertight(self) -> bool:
+        """At least one face and every edge in exactly two faces."""
+        counts = self.edge_face_counts
+        return bool(len(counts) > 0 and np.all(counts == 2))
+
+
+def scored_mesh(vertices, faces=None) -> ScoredMesh:
+    """``vertices`` itself when it is a :class:`ScoredMesh` (``faces`` then None), else a new one of the arrays.
+
+    Parameters
+    ----------
+    vertices : ScoredMesh or numpy.ndarray, shape (V, 3)
+        The mesh, or its vertex positions.
+    faces : numpy.ndarray of int, shape (F, 3), optional
+        The triangles, when ``vertices`` is an array.
+
+    Returns
+    -------
+    ScoredMesh
+    """
+    if isinstance(vertices, ScoredMesh):
+        if faces is not None:
+            raise TypeError("pass either a ScoredMesh or (vertices, faces), not both")
+        return vertices
+    if faces is None:
+        raise TypeError("faces are needed with a vertex array")
+    return ScoredMesh(vertices, faces)
+
+
+def mesh_facts(mesh) -> dict:
+    """The facts an adapter reports about its output mesh, as plain Python values: ``vertices``, ``faces``,
+    ``watertight``, ``euler`` (V − E + F, every vertex counted), ``signed_volume`` and ``components`` (of faces,
+    :attr:`ScoredMesh.n_face_components`).
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh or ScoredMesh
+        Anything with ``vertices`` (V, 3) and ``faces`` (F, 3); a ScoredMesh's cached quantities are used.
+
+    Returns
+    -------
+    dict
+        An empty mesh is not watertight and has Euler characteristic 0 and no components.
+    """
+    m = mesh if isinstance(mesh, ScoredMesh) else ScoredMesh(mesh.vertices, np.reshape(mesh.faces, (-1, 3)))
+    empty = len(m.faces) == 0
+    return {"vertices": int(len(m.vertices)), "faces": int(len(m.faces)), "watertight": m.watertight,
+            "euler": 0 if empty else int(m.euler), "signed_volume": m.signed_volume,
+            "components": 0 if empty else int(m.n_face_components)}
 
 
 def padded_from_pairs(i: np.ndarray, j: np.ndarray, n: int, max_width: int | None = None) -> np.ndarray:
@@ -119,7 +312,7 @@ def _knn(tree, points, k, bound):
 
 
 def radius_neighbor_blocks(vertices, faces, radius: float, max_width: int = MAX_NEIGHBORS,
-                           block: int = NEIGHBOR_BLOCK):
+                           block: int = NEIGHBOR_BLOCK, edges=None):
     """The rows of :func:`radius_neighbors` block by block: yields ``(start, stop, rows)``, ``rows`` the padded
     (stop − start, W) neighbour array of vertices start..stop−1 (W ≤ ``max_width``, the block's widest row).
 
@@ -128,14 +321,15 @@ def radius_neighbor_blocks(vertices, faces, radius: float, max_width: int = MAX_
     neighbours within the radius come from a k-nearest query (k = ``max_width`` + 1, the vertex itself
     included) bounded by the radius, so a block costs O(block · max_width · log V) time and memory however
     many vertices the radius holds; the whole pass O(V · max_width) — never the number of pairs within the
-    radius, which grows with the square of the mesh density.
+    radius, which grows with the square of the mesh density.  ``edges``: :func:`edges_unique` of ``faces``,
+    when computed already.
     """
     vertices = np.asarray(vertices, float)
     n = len(vertices)
     if n == 0:
         return
     r = float(radius)
-    e = edges_unique(faces).astype(np.int64, copy=False)
+    e = (edges_unique(faces) if edges is None else edges).astype(np.int64, copy=False)
     ring = padded_from_pairs(np.concatenate([e[:, 0], e[:, 1]]), np.concatenate([e[:, 1], e[:, 0]]), n,
                              max_width=max_width)
     nv = np.int64(n)

@@ -1,4 +1,4 @@
-"""Mesh topology: edges, closedness, orientation, Euler characteristic, components, surface sampling.
+"""Mesh topology: edges, closedness, orientation, Euler characteristic, components.
 
 One toolkit for every package that checks or measures a triangle mesh (the mesh phantoms validate their
 input with it, the methods their initial meshes and output, the metrics score with it).  Meshes are plain
@@ -17,10 +17,10 @@ import numpy as np
 from .arrays import count_distinct, unique_ints
 
 __all__ = [
-    "edges_unique", "face_edge_keys", "face_edges", "edge_face_counts", "directed_edge_repeats",
+    "edges_unique", "face_edge_keys", "face_edges", "edge_face_counts", "edge_groups", "edge_adjacent_face_pairs",
+    "directed_edge_repeats",
     "is_closed", "is_manifold", "is_oriented", "euler_characteristic", "genus", "connected_components",
     "is_sphere_like",
-    "sample_surface",
 ]
 
 
@@ -68,6 +68,48 @@ def edge_face_counts(faces, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
     return np.column_stack([u // n_vertices, u % n_vertices]), counts
 
 
+def edge_groups(faces, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The 3F face edges grouped by undirected edge, by one stable sort of their keys.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray of int, shape (F, 3)
+    n_vertices : int
+        The number of vertices (the key's base).
+
+    Returns
+    -------
+    order : numpy.ndarray of int, shape (3F,)
+        The face edges (slot by slot, see the module docstring) in key order, ties in slot order.
+    keys : numpy.ndarray of int64, shape (3F,)
+        Their sorted keys ``min·V + max``.
+    start, counts : numpy.ndarray of int, shape (E,)
+        Where each unique edge's run starts in ``keys`` and how many faces hold it (E unique edges, in
+        lexicographic order).
+    """
+    key = face_edge_keys(faces, n_vertices)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    if len(ks) == 0:
+        return order, ks, np.zeros(0, np.int64), np.zeros(0, np.int64)
+    start = np.flatnonzero(np.concatenate([[True], ks[1:] != ks[:-1]]))
+    counts = np.diff(np.concatenate([start, [len(ks)]]))
+    return order, ks, start, counts
+
+
+def edge_adjacent_face_pairs(faces, n_vertices: int, groups=None) -> tuple[np.ndarray, np.ndarray]:
+    """For every edge shared by exactly two faces: the two faces (P, 2) and the edge's vertices (P, 2).
+
+    ``groups``: :func:`edge_groups` of the same mesh, when computed already.
+    """
+    order, ks, start, counts = edge_groups(faces, n_vertices) if groups is None else groups
+    face_of = np.tile(np.arange(len(faces)), 3)
+    two = start[counts == 2]
+    pairs = np.column_stack([face_of[order[two]], face_of[order[two + 1]]])
+    k = ks[two]
+    return pairs, np.column_stack([k // n_vertices, k % n_vertices])
+
+
 def directed_edge_repeats(faces, n_vertices: int) -> int:
     """How many directed edges occur in more than one face (0 for a consistently oriented mesh)."""
     d = _directed(faces).astype(np.int64, copy=False)
@@ -93,10 +135,11 @@ def is_oriented(faces, n_vertices: int) -> bool:
     return directed_edge_repeats(faces, n_vertices) == 0
 
 
-def euler_characteristic(faces, n_vertices: int) -> int:
-    """χ = V − E + F (V counts every vertex, referenced or not)."""
-    edges, _ = edge_face_counts(faces, n_vertices)
-    return int(n_vertices - len(edges) + len(faces))
+def euler_characteristic(faces, n_vertices: int, n_edges: int | None = None) -> int:
+    """χ = V − E + F (V counts every vertex, referenced or not); ``n_edges``: E, when counted already."""
+    if n_edges is None:
+        n_edges = len(edge_face_counts(faces, n_vertices)[0])
+    return int(n_vertices - n_edges + len(faces))
 
 
 def genus(euler: int, n_components: int = 1) -> int:
@@ -104,12 +147,16 @@ def genus(euler: int, n_components: int = 1) -> int:
     return int((2 * n_components - euler) // 2)
 
 
-def connected_components(faces, n_vertices: int | None = None, *, by: str = "vertex") -> tuple[int, np.ndarray]:
+def connected_components(faces, n_vertices: int | None = None, *, by: str = "vertex", edges=None,
+                         face_pairs=None) -> tuple[int, np.ndarray]:
     """``(count, labels)`` of the connected components.
 
     ``by='vertex'``: vertices joined by face edges, labels (V,) over all ``n_vertices`` (an unreferenced
     vertex is a component of its own).  ``by='face'``: faces joined when they share an undirected edge,
     labels (F,); two surfaces touching at a single vertex are two components here, one by vertex.
+    ``edges``: with ``by='vertex'``, :func:`edges_unique` of ``faces`` when computed already.  ``face_pairs``:
+    with ``by='face'``, the (P, 2) pairs of faces to join instead (e.g. those of the edges in exactly two faces,
+    :func:`edge_adjacent_face_pairs`: then faces meeting only at a non-manifold edge stay apart, as in trimesh).
     """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components as _cc
@@ -117,8 +164,11 @@ def connected_components(faces, n_vertices: int | None = None, *, by: str = "ver
     f = np.asarray(faces, np.int64)
     if by == "vertex":
         nv = int(f.max()) + 1 if n_vertices is None else int(n_vertices)
-        e = edges_unique(f)
+        e = edges_unique(f) if edges is None else edges
         g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(nv, nv))
+    elif by == "face" and face_pairs is not None:
+        p = np.asarray(face_pairs, np.int64).reshape(-1, 2)
+        g = coo_matrix((np.ones(len(p)), (p[:, 0], p[:, 1])), shape=(len(f), len(f)))
     elif by == "face":
         nf = len(f)
         key = face_edge_keys(f, int(f.max()) + 1 if len(f) else 0)
@@ -141,30 +191,3 @@ def is_sphere_like(faces, n_vertices: int) -> bool:
     return (is_closed(f, n_vertices) and is_oriented(f, n_vertices)
             and euler_characteristic(f, n_vertices) == 2
             and connected_components(f, n_vertices, by="face")[0] == 1)
-
-
-def sample_surface(vertices, faces, n: int, seed=0) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` seeded, area-uniform i.i.d. points on a triangle mesh: (points (n, 3), face index (n,)).
-
-    Faces are drawn with probability ∝ area (inverse CDF on the cumulative areas: one uniform per point),
-    then a point uniformly inside the face by the square-root barycentric map (two more uniforms per
-    point, r₁ then r₂): x = (1 − √r₁) a + √r₁(1 − r₂) b + √r₁ r₂ c.  ``seed`` is anything
-    ``np.random.default_rng`` takes; the same seed gives the same points.  Raises ValueError for a mesh
-    of zero area.
-    """
-    v = np.asarray(vertices, float)
-    f = np.asarray(faces, dtype=np.int64)
-    t = v[f]
-    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
-    cum = np.cumsum(area)
-    if not (len(cum) and cum[-1] > 0):
-        raise ValueError("cannot sample a mesh of zero area")
-    rng = np.random.default_rng(seed)
-    u = rng.random(n) * cum[-1]
-    fi = np.minimum(np.searchsorted(cum, u, side="right"), len(f) - 1)
-    r1 = np.sqrt(rng.random(n))
-    r2 = rng.random(n)
-    w0, w1, w2 = 1.0 - r1, r1 * (1.0 - r2), r1 * r2
-    tf = t[fi]
-    pts = w0[:, None] * tf[:, 0] + w1[:, None] * tf[:, 1] + w2[:, None] * tf[:, 2]
-    return pts, fi

@@ -40,13 +40,14 @@ import trimesh
 from scipy import sparse
 
 from geometry.levelset import newton_project
+from geometry.mesh import mesh_facts
 from geometry.topology import edges_unique
 
 from phantoms import InputError, Volume
 
 from . import distmesh_loop
 from .base import Method, Param, Reconstruction, check_volume
-from .marching_cubes import marching_cubes_mesh, mesh_facts, orient_outward
+from .marching_cubes import marching_cubes_mesh, orient_outward
 
 __all__ = ["DistMesh", "flip_edges", "triangle_quality"]
 

@@ -15,12 +15,12 @@ import time
 import numpy as np
 import trimesh
 
-from geometry.mesh import signed_volume
+from geometry.mesh import mesh_facts, signed_volume
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, check_volume
 
-__all__ = ["MarchingCubes", "marching_cubes_mesh", "clean_mesh", "mesh_facts"]
+__all__ = ["MarchingCubes", "marching_cubes_mesh", "clean_mesh"]
 
 
 def _nudge_zeros(values: np.ndarray) -> np.ndarray:
@@ -60,23 +60,6 @@ def orient_outward(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     if len(mesh.faces) and signed_volume(mesh.vertices, mesh.faces) < 0:
         mesh.faces = mesh.faces[:, ::-1].copy()
     return mesh
-
-
-def mesh_facts(mesh: trimesh.Trimesh) -> dict:
-    """Vertices, faces, watertight, Euler characteristic, signed volume, components (plain Python values)."""
-    facts = {
-        "vertices": int(len(mesh.vertices)),
-        "faces": int(len(mesh.faces)),
-        "watertight": bool(mesh.is_watertight) if len(mesh.faces) else False,
-        "euler": int(mesh.euler_number) if len(mesh.faces) else 0,
-        "signed_volume": signed_volume(mesh.vertices, mesh.faces),
-    }
-    if len(mesh.faces):
-        labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(mesh.faces))
-        facts["components"] = int(labels.max()) + 1
-    else:
-        facts["components"] = 0
-    return facts
 
 
 def marching_cubes_mesh(volume: Volume, *, method: str = "lewiner", step_size: int = 1,

@@ -21,12 +21,12 @@ import math
 import time
 
 import numpy as np
-import trimesh
 
+from geometry.mesh import ScoredMesh, mesh_facts
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, check_volume
-from .marching_cubes import clean_mesh, marching_cubes_mesh, mesh_facts
+from .marching_cubes import clean_mesh, marching_cubes_mesh
 
 __all__ = ["ScreenedPoisson", "zero_set_points"]
 
@@ -96,10 +96,9 @@ class ScreenedPoisson(Method):
             raise InputError(f"method {self.name!r}: Poisson produced no surface (parameter 'depth'={depth})")
 
         # components, their median density and area
-        raw = trimesh.Trimesh(verts, faces, process=False)
-        labels = trimesh.graph.connected_component_labels(raw.face_adjacency, node_count=len(faces))
-        n_comp = int(labels.max()) + 1
-        areas = np.bincount(labels, weights=raw.area_faces, minlength=n_comp)
+        raw = ScoredMesh(verts, faces)
+        n_comp, labels = raw.face_components
+        areas = np.bincount(labels, weights=raw.face_areas, minlength=n_comp)
         keep = np.ones(n_comp, dtype=bool)
         comp_density = None
         if density is not None and cfg["trim"] > 0 and n_comp > 1:

@@ -69,10 +69,11 @@ import time
 import numpy as np
 import trimesh
 
+from geometry.mesh import mesh_facts
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
-from .marching_cubes import marching_cubes_mesh, mesh_facts, orient_outward
+from .marching_cubes import marching_cubes_mesh, orient_outward
 
 __all__ = ["ReachForTheSpheres", "grid_samples", "distance_reading", "zero_set_distance", "initial_ellipsoid"]
 

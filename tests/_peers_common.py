@@ -18,7 +18,7 @@ from functools import lru_cache
 import numpy as np
 
 from bench.metrics import point_mesh_distance, sample_mesh_surface
-from methods.marching_cubes import mesh_facts
+from geometry.mesh import mesh_facts
 from phantoms import Volume, get_phantom
 
 PAPER_PHANTOMS = ["sphere", "ellipsoid", "fused_spheres", "cylinder"]

@@ -292,3 +292,29 @@ def test_worker_thread_same_result_and_errors_propagate(sphere, monkeypatch):
     monkeypatch.setattr(bm, "point_mesh_distance", broken)
     with pytest.raises(RuntimeError, match="distance backend failed"):
         evaluate(m, sphere, 0.1, n_samples=5000)
+
+
+@pytest.mark.parametrize("with_truth", [True, False])
+def test_evaluate_derives_each_mesh_quantity_once(monkeypatch, sphere, with_truth):
+    """One ScoredMesh per evaluation: the face cross products (→ normals, areas), the signed volume, the edge
+    grouping (→ edges, counts, adjacency) and the vertex normals are computed once and shared by every metric."""
+    import geometry.mesh as gm
+    import geometry.topology as gt
+
+    calls: dict[str, int] = {}
+
+    def counted(module, name):
+        real = getattr(module, name)
+
+        def wrapper(*a, **k):
+            calls[name] = calls.get(name, 0) + 1
+            return real(*a, **k)
+        monkeypatch.setattr(module, name, wrapper)
+
+    for module, name in ((gm, "_face_cross"), (gm, "signed_volume"), (gm, "_vertex_normals"),
+                         (gt, "face_edge_keys"), (gt, "edges_unique"), (gm, "edges_unique")):
+        counted(module, name)
+    mesh = icosphere(3)
+    vol = sphere.volume(24)
+    evaluate(mesh, sphere if with_truth else None, 0.05, volume=vol, n_samples=2000)
+    assert calls == {"_face_cross": 1, "signed_volume": 1, "_vertex_normals": 1, "face_edge_keys": 1}, calls

@@ -1,5 +1,5 @@
-"""geometry/topology.py: edges, closed/manifold/oriented checks, Euler characteristic, genus, components and
-area-uniform sampling, on hand-built meshes with known answers."""
+"""geometry/topology.py: edges, closed/manifold/oriented checks, Euler characteristic, genus, components, on
+hand-built meshes with known answers."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import trimesh
 
 from geometry.topology import (connected_components, directed_edge_repeats, edge_face_counts, edges_unique,
                                euler_characteristic, face_edge_keys, face_edges, genus, is_closed, is_manifold,
-                               is_oriented, sample_surface)
+                               is_oriented)
 
 TET_V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
 TET_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])      # outward
@@ -100,30 +100,3 @@ def test_face_edges_and_keys_agree():
         assert np.array_equal(e, np.sort(f[:, [a, b]], axis=1))
     keys = face_edge_keys(f, nv)
     assert np.array_equal(np.unique(keys), edges[:, 0] * nv + edges[:, 1])
-
-
-def test_sample_surface_is_seeded_area_uniform_and_on_the_faces():
-    # two triangles of areas 1/2 and 3/2 in the plane z = 0
-    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [3, 0, 0], [3, 1, 0], [0, 2, 0]])
-    f = np.array([[0, 1, 2], [3, 4, 5]])
-    p1, fi1 = sample_surface(v, f, 40000, 7)
-    p2, fi2 = sample_surface(v, f, 40000, np.random.default_rng(7))
-    assert np.array_equal(p1, p2) and np.array_equal(fi1, fi2)
-    assert abs(np.mean(fi1 == 1) - 0.75) < 0.01
-    assert np.all(p1[:, 2] == 0)
-    # inside the first triangle: x, y >= 0 and x + y <= 1
-    q = p1[fi1 == 0]
-    assert (q[:, :2] >= 0).all() and (q.sum(1) <= 1 + 1e-12).all()
-    # the same random numbers in the same order as a hand-written draw
-    rng = np.random.default_rng(3)
-    u, r1, r2 = rng.random(5), rng.random(5), rng.random(5)
-    p, fi = sample_surface(v, f, 5, 3)
-    assert np.array_equal(fi, np.minimum(np.searchsorted(np.cumsum([0.5, 1.5]), u * 2.0, side="right"), 1))
-    s = np.sqrt(r1)
-    t = v[f[fi]]
-    assert np.allclose(p, (1 - s)[:, None] * t[:, 0] + (s * (1 - r2))[:, None] * t[:, 1] + (s * r2)[:, None] * t[:, 2])
-
-
-def test_sample_surface_of_zero_area_raises():
-    with pytest.raises(ValueError):
-        sample_surface(np.zeros((3, 3)), np.array([[0, 1, 2]]), 10, 0)

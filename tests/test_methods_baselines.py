@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from geometry.mesh import mesh_facts
 from methods import Reconstruction, get_method
-from methods.marching_cubes import mesh_facts
 from phantoms import get_phantom
 
 N = 96

@@ -9,9 +9,9 @@ import time
 import numpy as np
 import pytest
 
+from geometry.mesh import mesh_facts
 from methods import get_method
 from methods.distmesh import DistMesh, flip_edges, triangle_quality
-from methods.marching_cubes import mesh_facts
 from phantoms import InputError, add_noise, get_phantom
 
 

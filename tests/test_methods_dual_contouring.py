@@ -1,5 +1,5 @@
 """Dual contouring of signed distance data (gpytoolbox) made manifold (one vertex per marching-cubes patch,
-``methods/dc_manifold.py``): closed, outward, χ = 2 and within 1.5 h (symmetric Hausdorff, the suite's metric
+``geometry/dc_manifold.py``): closed, outward, χ = 2 and within 1.5 h (symmetric Hausdorff, the suite's metric
 code) on the four paper phantoms at N = 24 (the library is slow: ≈ 0.5 s per outer iteration at this size) and
 on the bunny at N = 24, 32 and 48, whose ears put two sheets in some cells; the library's own mesh wherever
 every cell has one patch; what the iterations do to split cells; world coordinates on an anisotropic,

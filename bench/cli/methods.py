@@ -110,7 +110,7 @@ def _fmt(value) -> str:
 
 def _cmd_reconstruct(args) -> int:
     from methods import as_reconstruction, get_method, run_reconstruct
-    from methods.marching_cubes import mesh_facts
+    from geometry.mesh import mesh_facts
 
     out = Path(args.output)
     suffix = out.suffix.lower()

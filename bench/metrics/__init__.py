@@ -18,7 +18,9 @@ phantom's exact ground truth:
   (``fidelity.py``) — truth-free, so also for user scans.
 
 The mesh is evaluated as given except that faces with a repeated vertex index (no area, no real edges)
-and unreferenced vertices are dropped first (``n_vertices`` / ``n_faces`` report the mesh as given).
+and unreferenced vertices are dropped first (``n_vertices`` / ``n_faces`` report the mesh as given).  The
+cleaned mesh becomes one :class:`geometry.mesh.ScoredMesh` that every metric family reads, so its face normals
+and areas, edges, edge → face adjacency, vertex normals and signed volume are each computed once.
 ``iterations``, ``energy_final``, ``wall_s``, ``peak_mem_mb`` are in :data:`METRIC_NAMES` for the
 runner's columns but are filled by the cell runner (:mod:`bench.run.cell`, :func:`bench.run.cost.measure`),
 not here.
@@ -36,8 +38,7 @@ import time
 
 import numpy as np
 
-from geometry import face_normals
-from geometry.mesh import signed_volume
+from geometry.mesh import ScoredMesh
 from phantoms import InputError
 
 from .curvature import (
@@ -195,12 +196,12 @@ def _start(fn, *args):
     return wait
 
 
-def _distances(true_pts, band_pts, V, F):
+def _distances(true_pts, band_pts, mesh):
     """(truth → mesh distances or None, band samples → mesh distances or None): the worker thread's share."""
     parts = [p for p in (true_pts, band_pts) if p is not None]
     if not parts:
         return None, None
-    d = point_mesh_distance(np.concatenate(parts) if len(parts) > 1 else parts[0], V, F)   # one mesh index
+    d = point_mesh_distance(np.concatenate(parts) if len(parts) > 1 else parts[0], mesh.vertices, mesh.faces)
     n_true = len(true_pts) if true_pts is not None else 0
     return (d[:n_true] if true_pts is not None else None), (d[n_true:] if band_pts is not None else None)
 
@@ -224,12 +225,7 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     if len(f_all) == 0:
         raise InputError("mesh has no (non-degenerate) faces")
     V, F, kept = compact(vertices, f_all)
-    fn = face_normals(V, F)
-    tri = V[F]
-    area = float(0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
-    outward = signed_volume(V, F) >= 0
-    if not outward:
-        fn = -fn
+    scored = ScoredMesh(V, F)
     lap("prepare")
 
     true_pts = band = band_pts = None
@@ -242,17 +238,17 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
         band, band_pts = band_query(volume, seed)
         lap("fidelity_band")
     # truth -> recon and band -> recon distances (compiled, GIL released) run in a worker thread while numpy does the rest
-    pending = _start(_distances, true_pts, band_pts, V, F)
+    pending = _start(_distances, true_pts, band_pts, scored)
 
-    out.update(topology_metrics(V, F))
-    out.update(quality_metrics(V, F))
+    out.update(topology_metrics(scored))
+    out.update(quality_metrics(scored))
     lap("topology_quality")
     pairs = self_intersection_pairs(V, F)
     out["self_intersections"] = int(len(pairs))
     out["sif_pct"] = sif_pct(pairs, len(F))
     lap("self_intersections")
 
-    H, K, _ = vertex_curvature(V, F, h, outward=outward)
+    H, K, _ = vertex_curvature(scored, None, h, outward=scored.outward)
     if vertex_H is not None:
         for key, values in (("H", H), ("K", K)):
             vertex_H[key] = np.full(len(vertices), np.nan)
@@ -265,34 +261,34 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
         if volume is None:
             out.update({k: math.nan for k in FIDELITY_NAMES})
         else:
-            out.update(fidelity_metrics(V, F, volume, pts, band, d_band))
+            out.update(fidelity_metrics(scored, None, volume, pts, band, d_band))
         lap("fidelity")
 
     if truth is None:
         out.update(curvature_metrics(H, K))
-        out["roughness_deg"] = roughness_deg(V, F, fn)
+        out["roughness_deg"] = roughness_deg(scored)
         lap("roughness")
-        fidelity(sample_mesh_surface(V, F, n_samples, seed)[0])
+        fidelity(sample_mesh_surface(scored, None, n_samples, seed)[0])
         return {k: out[k] for k in TRUTH_FREE_NAMES}
 
     tv = truth.truth(V)
     lap("truth_vertices")
     out.update(curvature_metrics(H, K, tv, truth, crease_band))
-    out["roughness_deg"] = roughness_deg(V, F, fn, vertex_ok=tv.crease_distance >= crease_band)
+    out["roughness_deg"] = roughness_deg(scored, vertex_ok=tv.crease_distance >= crease_band)
     lap("curvature_metrics_roughness")
 
-    pts, fi = sample_mesh_surface(V, F, n_samples, seed)
+    pts, fi = sample_mesh_surface(scored, None, n_samples, seed)
     ts = truth.truth(pts)
     lap("recon_to_truth")
     d_tr = pending()[0][0]
     fidelity(pts)
+    fn = scored.face_normals
     out.update(distance_metrics(ts.distance, float(max(tv.distance.max(), ts.distance.max())), d_tr, h,
                                 fn[fi], ts.normal))
     lap("distance_stats")
-    out.update(edge_metrics(pts, fn[fi], area, truth, h))
+    out.update(edge_metrics(pts, fn[fi], scored.area, truth, h))
     out["edge_chamfer_h"] = out["edge_chamfer"] / h
     lap("edges")
-    out["iou"] = iou(V, F, truth, h, true_pts, seed=seed,
-                     closed=out["watertight"])
+    out["iou"] = iou(scored, None, truth, h, true_pts, seed=seed)
     lap("iou")
     return {k: out[k] for k in METRIC_NAMES if k in out}

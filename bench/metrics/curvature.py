@@ -33,7 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from geometry import radius_curvature, vertex_normals
+from geometry import radius_curvature
+from geometry.mesh import scored_mesh
 
 __all__ = ["vertex_curvature", "constant_curvature_value", "curvature_metrics", "roughness_deg",
            "CONSTANT_CURVATURE"]
@@ -48,7 +49,7 @@ CONSTANT_CURVATURE = {
 _NO_CONSTANT = {"ellipsoid", "torus"}
 
 
-def vertex_curvature(vertices: np.ndarray, faces: np.ndarray, spacing: float, outward: bool = True
+def vertex_curvature(vertices, faces: np.ndarray | None, spacing: float, outward: bool = True
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean and Gaussian curvature and unit normal per vertex, by the shared estimator over the 2h neighbourhood.
 
@@ -57,25 +58,27 @@ def vertex_curvature(vertices: np.ndarray, faces: np.ndarray, spacing: float, ou
 
     Parameters
     ----------
-    vertices : numpy.ndarray, shape (V, 3)
-    faces : numpy.ndarray of int, shape (F, 3)
-        The mesh.
+    vertices : geometry.mesh.ScoredMesh or numpy.ndarray, shape (V, 3)
+        The mesh (its cached vertex normals and edges are used), or its vertices.
+    faces : numpy.ndarray of int, shape (F, 3) or None
+        The triangles, with a vertex array; None with a ScoredMesh.
     spacing : float
         The grid spacing h; the neighbourhood radius is 2h.
     outward : bool
-        False flips the normals (for a mesh wound inward), which flips the sign of H.
+        Whether the winding faces outward: True takes the normals as wound, False flips them (for a mesh wound
+        inward), which flips the sign of H.  Pass ``mesh.outward`` to orient by the enclosed volume.
 
     Returns
     -------
     H, K : numpy.ndarray, shape (V,)
     normals : numpy.ndarray, shape (V, 3)
     """
-    normals = vertex_normals(vertices, faces)
-    if not outward:
-        normals = -normals
+    m = scored_mesh(vertices, faces)
+    # the cached normals face outward by the signed volume; as wound they differ in sign when that is negative
+    normals = m.vertex_normals if m.outward == bool(outward) else -m.vertex_normals
     # a vertex whose faces all have zero area has no normal: its H, K come out NaN (by design, quietly)
     with np.errstate(invalid="ignore", divide="ignore"):
-        H, K = radius_curvature(vertices, faces, 2.0 * float(spacing), normals, linear=True)
+        H, K = radius_curvature(m.vertices, m.faces, 2.0 * float(spacing), normals, linear=True, edges=m.edges)
     return H, K, normals
 
 
@@ -140,14 +143,31 @@ def curvature_metrics(H: np.ndarray, K: np.ndarray, truth=None, phantom=None,
     return out
 
 
-def roughness_deg(vertices: np.ndarray, faces: np.ndarray, face_normals: np.ndarray,
+def roughness_deg(vertices, faces: np.ndarray | None = None, face_normals: np.ndarray | None = None,
                   vertex_ok: np.ndarray | None = None) -> float:
     """Mean angle (degrees) between the normals of the two faces of every edge shared by exactly two
     faces; edges touching a vertex with ``vertex_ok`` False (near a crease) and faces of zero area are
-    left out."""
-    from .topology import edge_adjacent_face_pairs
+    left out.
 
-    pairs, ev = edge_adjacent_face_pairs(faces, len(vertices))
+    Parameters
+    ----------
+    vertices : geometry.mesh.ScoredMesh or numpy.ndarray, shape (V, 3)
+        The mesh (its cached edge → face adjacency is used), or its vertices.
+    faces : numpy.ndarray of int, shape (F, 3), optional
+        The triangles, with a vertex array.
+    face_normals : numpy.ndarray, shape (F, 3), optional
+        Unit face normals; default the mesh's outward ones.
+    vertex_ok : numpy.ndarray of bool, shape (V,), optional
+        The vertices whose edges count; default all.
+
+    Returns
+    -------
+    float
+        NaN when no edge counts.
+    """
+    m = scored_mesh(vertices, faces)
+    face_normals = m.face_normals if face_normals is None else face_normals
+    pairs, ev = m.edge_face_pairs
     nonzero = np.linalg.norm(face_normals, axis=1) > 0
     keep = nonzero[pairs[:, 0]] & nonzero[pairs[:, 1]]
     if vertex_ok is not None:

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import closest
-from geometry.topology import sample_surface
+from geometry.mesh import sample_surface, scored_mesh
 
 __all__ = ["sample_mesh_surface", "point_mesh_distance", "distance_metrics", "DISTANCE_LIBRARY", "COVERAGE_RADIUS"]
 
@@ -35,7 +35,7 @@ COVERAGE_RADIUS = 2.0
 DISTANCE_LIBRARY = "geometry.closest.point_mesh_distance (uniform grid of triangle boxes, float64)"
 
 
-def sample_mesh_surface(vertices: np.ndarray, faces: np.ndarray, n: int, seed: int = 0
+def sample_mesh_surface(vertices, faces: np.ndarray | None, n: int, seed: int = 0
                         ) -> tuple[np.ndarray, np.ndarray]:
     """``n`` seeded, area-uniform i.i.d. samples on a triangle mesh.
 
@@ -44,9 +44,10 @@ def sample_mesh_surface(vertices: np.ndarray, faces: np.ndarray, n: int, seed: i
 
     Parameters
     ----------
-    vertices : numpy.ndarray, shape (V, 3)
-    faces : numpy.ndarray of int, shape (F, 3)
-        The mesh.
+    vertices : geometry.mesh.ScoredMesh or numpy.ndarray, shape (V, 3)
+        The mesh (its cached face areas are used), or its vertices.
+    faces : numpy.ndarray of int, shape (F, 3) or None
+        The triangles, with a vertex array; None with a ScoredMesh.
     n : int
         The number of samples.
     seed : int
@@ -58,7 +59,8 @@ def sample_mesh_surface(vertices: np.ndarray, faces: np.ndarray, n: int, seed: i
     face_index : numpy.ndarray of int, shape (n,)
         The face each point lies in.
     """
-    return sample_surface(vertices, faces, n, seed)
+    m = scored_mesh(vertices, faces)
+    return sample_surface(m.vertices, m.faces, n, seed, areas=m.face_areas)
 
 
 def point_mesh_distance(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from geometry.mesh import scored_mesh
 from geometry.raster import grid_winding
 
 __all__ = ["fidelity_metrics", "band_query", "BAND_SAMPLES", "FIDELITY_NAMES"]
@@ -42,13 +43,13 @@ def band_query(volume, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return band, volume.index_to_world(ijk)
 
 
-def fidelity_metrics(V: np.ndarray, F: np.ndarray, volume, mesh_samples: np.ndarray, band: np.ndarray,
+def fidelity_metrics(V, F: np.ndarray | None, volume, mesh_samples: np.ndarray, band: np.ndarray,
                      band_distance: np.ndarray) -> dict:
     """The fidelity block (see the module docstring).
 
     Parameters
     ----------
-    V, F : the mesh (compacted), world coordinates.
+    V, F : the mesh (compacted), world coordinates: a :class:`geometry.mesh.ScoredMesh` and None, or the arrays.
     volume : phantoms.Volume — the φ the method was given.
     mesh_samples : (S, 3) area-uniform samples on the mesh.
     band, band_distance : the band samples' flat grid indices (:func:`band_query`) and their unsigned distances
@@ -57,7 +58,8 @@ def fidelity_metrics(V: np.ndarray, F: np.ndarray, volume, mesh_samples: np.ndar
     h = volume.h
     phi = volume.values
     at_mesh = np.abs(volume.sample(mesh_samples, clamp=True).phi) / h
-    inside = grid_winding(V, F, volume.origin, volume.spacing, volume.shape).reshape(-1) != 0
+    m = scored_mesh(V, F)
+    inside = grid_winding(m.vertices, m.faces, volume.origin, volume.spacing, volume.shape).reshape(-1) != 0
     flat = phi.reshape(-1)
     far = np.abs(flat) > 0.5 * h
     n_far = int(far.sum())

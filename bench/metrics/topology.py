@@ -1,6 +1,7 @@
 """Mesh topology, triangle quality and self-intersections (docs/METRICS.md).
 
-All functions take plain arrays (vertices (V, 3) float, faces (F, 3) int) and are vectorised.
+The metric functions take a :class:`geometry.mesh.ScoredMesh` (``faces`` None), whose edges and counts they
+read, or plain arrays (vertices (V, 3) float, faces (F, 3) int); all are vectorised.
 
 Self-intersections are counted by :func:`geometry.intersections.self_intersection_pairs`.
 """
@@ -11,10 +12,12 @@ import numpy as np
 
 from geometry.arrays import unique_ints
 from geometry.intersections import self_intersection_pairs
-from geometry.topology import edge_face_counts, face_edge_keys
+from geometry.mesh import scored_mesh
+from geometry.topology import edge_adjacent_face_pairs, edge_face_counts
 
 __all__ = [
-    "drop_degenerate_index_faces", "compact", "edge_face_counts", "topology_metrics", "sif_pct",
+    "drop_degenerate_index_faces", "compact", "edge_face_counts", "edge_adjacent_face_pairs", "topology_metrics",
+    "sif_pct",
     "triangle_angles", "quality_metrics", "self_intersection_pairs",
 ]
 
@@ -38,42 +41,28 @@ def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nda
 
 # --------------------------------------------------------------------------- topology
 
-def edge_adjacent_face_pairs(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
-    """For every edge shared by exactly two faces: the two faces (P, 2) and the edge's vertices (P, 2)."""
-    key = face_edge_keys(faces, n_vertices)
-    face_of = np.tile(np.arange(len(faces)), 3)
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    start = np.flatnonzero(np.concatenate([[True], ks[1:] != ks[:-1]]))
-    counts = np.diff(np.concatenate([start, [len(ks)]]))
-    two = start[counts == 2]
-    pairs = np.column_stack([face_of[order[two]], face_of[order[two + 1]]])
-    k = ks[two]
-    return pairs, np.column_stack([k // n_vertices, k % n_vertices])
-
-
-def topology_metrics(vertices: np.ndarray, faces: np.ndarray) -> dict:
+def topology_metrics(vertices, faces: np.ndarray | None = None) -> dict:
     """``watertight`` (every edge in exactly two faces), ``boundary_edges`` (edges in one face),
     ``nonmanifold_edges`` (edges in three or more), ``euler`` (V − E + F), ``components``.
 
-    Expects a compacted mesh (every vertex referenced) without index-degenerate faces; components are
-    connected through shared vertices.  One sort of the edge keys serves every count.
-    """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components as _cc
+    Parameters
+    ----------
+    vertices : geometry.mesh.ScoredMesh or numpy.ndarray, shape (V, 3)
+        The mesh (its cached edge counts are used), or its vertices.
+    faces : numpy.ndarray of int, shape (F, 3), optional
+        The triangles, with a vertex array.  The mesh is expected compacted (every vertex referenced) and
+        without index-degenerate faces; components are connected through shared vertices.
 
-    nv = len(vertices)
-    if nv == 0 or len(faces) == 0:
+    Returns
+    -------
+    dict
+    """
+    m = scored_mesh(vertices, faces)
+    if len(m.vertices) == 0 or len(m.faces) == 0:
         return {"watertight": False, "boundary_edges": 0, "nonmanifold_edges": 0, "euler": 0, "components": 0}
-    key = np.sort(face_edge_keys(faces, nv))
-    first = np.concatenate([[True], key[1:] != key[:-1]])
-    uniq = key[first]
-    counts = np.diff(np.append(np.flatnonzero(first), len(key)))
-    g = coo_matrix((np.ones(len(uniq)), (uniq // nv, uniq % nv)), shape=(nv, nv))
-    n_comp, _ = _cc(g, directed=False)
-    return {"watertight": bool(np.all(counts == 2)), "boundary_edges": int((counts == 1).sum()),
-            "nonmanifold_edges": int((counts > 2).sum()), "euler": int(nv - len(uniq) + len(faces)),
-            "components": int(n_comp)}
+    counts = m.edge_face_counts
+    return {"watertight": m.watertight, "boundary_edges": int((counts == 1).sum()),
+            "nonmanifold_edges": int((counts > 2).sum()), "euler": m.euler, "components": int(m.n_components)}
 
 
 def sif_pct(pairs: np.ndarray, n_faces: int) -> float:
@@ -84,22 +73,24 @@ def sif_pct(pairs: np.ndarray, n_faces: int) -> float:
 
 # --------------------------------------------------------------------------- quality
 
-def triangle_angles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def triangle_angles(vertices, faces: np.ndarray | None = None) -> np.ndarray:
     """The interior angles of every triangle, in degrees.
 
     Parameters
     ----------
-    vertices : numpy.ndarray, shape (V, 3)
-    faces : numpy.ndarray of int, shape (F, 3)
-        The mesh.
+    vertices : geometry.mesh.ScoredMesh or numpy.ndarray, shape (V, 3)
+        The mesh, or its vertices.
+    faces : numpy.ndarray of int, shape (F, 3), optional
+        The triangles, with a vertex array.
 
     Returns
     -------
     numpy.ndarray, shape (F, 3)
         The angle at each face's corners; a face with a zero-length edge gets 0° at the affected corners.
     """
-    t = np.asarray(vertices, float)[faces]
-    out = np.empty((len(faces), 3))
+    m = scored_mesh(vertices, faces)
+    t = m.vertices[m.faces]
+    out = np.empty((len(t), 3))
     for k in range(3):
         a = t[:, (k + 1) % 3] - t[:, k]
         b = t[:, (k + 2) % 3] - t[:, k]
@@ -111,11 +102,12 @@ def triangle_angles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return out
 
 
-def quality_metrics(vertices: np.ndarray, faces: np.ndarray) -> dict:
+def quality_metrics(vertices, faces: np.ndarray | None = None) -> dict:
     """``min_angle_deg`` (smallest angle of any triangle) and ``pct_angle_lt_10`` (% of triangles with an
-    angle below 10°)."""
-    if len(faces) == 0:
+    angle below 10°) of a :class:`geometry.mesh.ScoredMesh` or of (vertices, faces)."""
+    m = scored_mesh(vertices, faces)
+    if len(m.faces) == 0:
         return {"min_angle_deg": float("nan"), "pct_angle_lt_10": float("nan")}
-    ang = triangle_angles(vertices, faces)
+    ang = triangle_angles(m)
     mn = ang.min(axis=1)
     return {"min_angle_deg": float(mn.min()), "pct_angle_lt_10": float(100.0 * np.mean(mn < 10.0))}

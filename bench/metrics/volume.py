@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from geometry.mesh import scored_mesh
 from geometry.raster import column_winding
-from geometry.topology import is_closed
 
 __all__ = ["iou", "IOU_CELLS"]
 
@@ -50,32 +50,32 @@ def _mesh_of(truth):
     return None
 
 
-def iou(vertices: np.ndarray, faces: np.ndarray, truth, h: float, truth_points: np.ndarray, *,
+def iou(vertices, faces: np.ndarray | None, truth, h: float, truth_points: np.ndarray, *,
         seed=0, cells: int = IOU_CELLS, closed: bool | None = None) -> float:
     """Volumetric IoU of the mesh's and the phantom's inside regions (see the module docstring).
 
     Parameters
     ----------
-    vertices, faces : the reconstructed mesh.
+    vertices, faces : the reconstructed mesh: a :class:`geometry.mesh.ScoredMesh` and None, or the arrays.
     truth : the phantom (its ``inside``, or its mesh for a mesh phantom).
     h : grid step; the sample box is padded by 2h.
     truth_points : samples of the true surface (they bound the box with the mesh's vertices).
     seed : the sample points' seed.
     cells : cells per axis of the stratified sample.
-    closed : whether the mesh is closed (no boundary or non-manifold edge); None = find out.
+    closed : whether the mesh is closed (no boundary or non-manifold edge); None = the mesh's ``watertight``.
 
     Returns
     -------
     float: IoU in [0, 1], NaN when neither solid holds a sample point.
     """
-    vertices = np.asarray(vertices, float)
-    faces = np.asarray(faces, np.int64)
+    m = scored_mesh(vertices, faces)
+    vertices, faces = m.vertices, m.faces
     lo = np.minimum(vertices.min(0), truth_points.min(0)) - 2 * h
     hi = np.maximum(vertices.max(0), truth_points.max(0)) + 2 * h
     step = (hi - lo) / cells
     columns, z = _jittered_columns(lo, hi, cells, seed)
     if closed is None:
-        closed = len(faces) > 0 and is_closed(faces, len(vertices))
+        closed = m.watertight
     if closed:
         a = np.abs(column_winding(vertices, faces, lo, step, columns, z)) >= 1
     else:

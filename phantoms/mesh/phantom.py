@@ -37,9 +37,9 @@ from pathlib import Path
 import numpy as np
 
 from geometry.errors import InputError
-from geometry.mesh import signed_volume
+from geometry.mesh import sample_surface, signed_volume
 from geometry.topology import (connected_components, directed_edge_repeats, edge_face_counts, euler_characteristic,
-                               genus, sample_surface)
+                               genus)
 
 from ..base import DEFAULT_EXTENT, DEFAULT_N, Phantom, Truth, arc_positions, as_points, check_extent, check_n, check_sample_count
 from ..volume import Volume, check_memory

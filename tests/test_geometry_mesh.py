@@ -1,0 +1,108 @@
+"""geometry/mesh.py: area-uniform surface sampling and the scored mesh's cached quantities against the direct
+computations, on small hand-built meshes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geometry.mesh import sample_surface
+
+
+def test_sample_surface_is_seeded_area_uniform_and_on_the_faces():
+    # two triangles of areas 1/2 and 3/2 in the plane z = 0
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [3, 0, 0], [3, 1, 0], [0, 2, 0]])
+    f = np.array([[0, 1, 2], [3, 4, 5]])
+    p1, fi1 = sample_surface(v, f, 40000, 7)
+    p2, fi2 = sample_surface(v, f, 40000, np.random.default_rng(7))
+    assert np.array_equal(p1, p2) and np.array_equal(fi1, fi2)
+    assert abs(np.mean(fi1 == 1) - 0.75) < 0.01
+    assert np.all(p1[:, 2] == 0)
+    # inside the first triangle: x, y >= 0 and x + y <= 1
+    q = p1[fi1 == 0]
+    assert (q[:, :2] >= 0).all() and (q.sum(1) <= 1 + 1e-12).all()
+    # the same random numbers in the same order as a hand-written draw
+    rng = np.random.default_rng(3)
+    u, r1, r2 = rng.random(5), rng.random(5), rng.random(5)
+    p, fi = sample_surface(v, f, 5, 3)
+    assert np.array_equal(fi, np.minimum(np.searchsorted(np.cumsum([0.5, 1.5]), u * 2.0, side="right"), 1))
+    s = np.sqrt(r1)
+    t = v[f[fi]]
+    assert np.allclose(p, (1 - s)[:, None] * t[:, 0] + (s * (1 - r2))[:, None] * t[:, 1] + (s * r2)[:, None] * t[:, 2])
+
+
+def test_sample_surface_of_zero_area_raises():
+    with pytest.raises(ValueError):
+        sample_surface(np.zeros((3, 3)), np.array([[0, 1, 2]]), 10, 0)
+
+
+# ------------------------------------------------------------------------------------------------ the scored mesh
+import trimesh  # noqa: E402
+
+from geometry.mesh import ScoredMesh, face_areas, face_normals, scored_mesh, signed_volume, vertex_normals  # noqa: E402
+from geometry.topology import (connected_components, edge_adjacent_face_pairs, edge_face_counts,  # noqa: E402
+                               edges_unique, euler_characteristic)
+
+
+def _small_meshes():
+    box = trimesh.creation.box()
+    open_box = (box.vertices, box.faces[2:])                    # two faces gone: boundary edges
+    two = trimesh.util.concatenate([box, trimesh.creation.icosphere(1).apply_translation([3, 0, 0])])
+    return [(box.vertices, box.faces), (box.vertices, box.faces[:, ::-1]), open_box, (two.vertices, two.faces)]
+
+
+@pytest.mark.parametrize("k", range(4))
+def test_scored_mesh_caches_what_the_direct_computations_give(k):
+    v, f = _small_meshes()[k]
+    v, f = np.asarray(v, float), np.asarray(f, np.int64)
+    m = ScoredMesh(v, f)
+    vol = signed_volume(v, f)
+    sign = 1.0 if vol >= 0 else -1.0
+    assert m.signed_volume == vol and m.outward == (vol >= 0)
+    assert np.array_equal(m.face_areas, face_areas(v, f)) and m.area == float(face_areas(v, f).sum())
+    assert np.array_equal(m.face_normals, sign * face_normals(v, f))
+    assert np.array_equal(m.vertex_normals, sign * vertex_normals(v, f))
+    edges, counts = edge_face_counts(f, len(v))
+    assert np.array_equal(m.edges, edges_unique(f)) and np.array_equal(m.edges, edges)
+    assert np.array_equal(m.edge_face_counts, counts)
+    for a, b in zip(m.edge_face_pairs, edge_adjacent_face_pairs(f, len(v))):
+        assert np.array_equal(a, b)
+    assert m.euler == euler_characteristic(f, len(v))
+    assert m.n_components == connected_components(f, len(v))[0]
+    assert m.watertight == bool(np.all(counts == 2))
+    assert m.watertight == trimesh.Trimesh(v, f, process=False).is_watertight
+
+
+def test_scored_mesh_computes_each_quantity_once():
+    m = ScoredMesh(trimesh.creation.icosphere(2).vertices, trimesh.creation.icosphere(2).faces)
+    assert m.face_normals is m.face_normals and m.edges is m.edges and m.vertex_normals is m.vertex_normals
+    assert m.edge_face_pairs is m.edge_face_pairs and m.face_areas is m.face_areas
+
+
+def test_scored_mesh_of_arrays_or_of_itself():
+    v, f = _small_meshes()[0]
+    m = scored_mesh(v, f)
+    assert scored_mesh(m) is m
+    with pytest.raises(TypeError):
+        scored_mesh(m, f)
+    with pytest.raises(TypeError):
+        scored_mesh(v)
+
+
+def test_mesh_facts_agree_with_trimesh():
+    """The facts adapters report: trimesh's watertight / Euler number / face-adjacency components."""
+    from geometry.mesh import mesh_facts
+
+    box = trimesh.creation.box()
+    v = np.vstack([box.vertices, [[0, 0, 3.0]]])
+    e = box.faces[0, :2]
+    fin = trimesh.Trimesh(v, np.vstack([box.faces, [[e[0], e[1], 8]]]), process=False)   # a non-manifold edge
+    for mesh in (box, trimesh.Trimesh(box.vertices, box.faces[2:], process=False), fin):
+        facts = mesh_facts(mesh)
+        labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(mesh.faces))
+        assert facts == {"vertices": len(mesh.vertices), "faces": len(mesh.faces), "watertight": mesh.is_watertight,
+                         "euler": mesh.euler_number, "signed_volume": signed_volume(mesh.vertices, mesh.faces),
+                         "components": int(labels.max()) + 1}
+    assert mesh_facts(ScoredMesh(box.vertices, box.faces)) == mesh_facts(box)
+    empty = mesh_facts(trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int), process=False))
+    assert empty == {"vertices": 0, "faces": 0, "watertight": False, "euler": 0, "signed_volume": 0.0, "components": 0}

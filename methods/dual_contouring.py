@@ -56,6 +56,7 @@ from phantoms import InputError, Volume
 from geometry.levelset import newton_project
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .cost import PowerLaw
 from .dc_manifold import (TUNNEL_CUBES, bridge_tunnels, cell_patches, dual_quads, fan_triangles, patch_centroids,
                           split_double_edges)
 from .marching_cubes import _nudge_zeros, mesh_facts, orient_outward
@@ -106,6 +107,16 @@ class DualContouring(Method):
         "band": Param(3.0, "half-width of the band in grid spacings h (with samples = 'band')", type=float,
                       min=1.0, max=100.0),
     }
+
+    #: the cost model (docs/NOTES.md, "Cost models"): fitted to the clean sphere and bunny at N = 24–64
+    COST = PowerLaw(a=150.0, p=3.0, q=0.0)
+
+    def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:
+        """The fit of the default 10 iterations, scaled by (iterations + 1) / 11 (the initial mesh and each
+        outer iteration cost alike); None with ``samples = 'all'``, which was not measured."""
+        if self.config["samples"] != "band":
+            return None
+        return self.COST.seconds(shape, n_crossing_cells) * (self.config["iterations"] + 1) / 11.0
 
     def reconstruct(self, volume: Volume) -> Reconstruction:
         from gpytoolbox import dual_contouring_of_signed_distance_data

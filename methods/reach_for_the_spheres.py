@@ -90,6 +90,7 @@ import trimesh
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .cost import PowerLaw
 from .marching_cubes import marching_cubes_mesh, mesh_facts, orient_outward
 
 __all__ = ["ReachForTheSpheres", "grid_samples", "distance_reading", "zero_set_distance", "initial_ellipsoid"]
@@ -193,6 +194,14 @@ class ReachForTheSpheres(Method):
                                "library's fixed rule is 100; fewer stops noisy volumes sooner, see the module "
                                "docstring)", type=int, min=1, max=100),
     }
+
+    #: the cost model (docs/NOTES.md, "Cost models"): fitted to the clean sphere and bunny at N = 24–64
+    COST = PowerLaw(a=40.0, p=3.0, q=0.0)
+
+    def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:
+        """The fit of the default settings on clean volumes (noisy ones pay up to 100 stalled steps more:
+        2–4× longer); None with ``samples = 'band'``, which was not measured."""
+        return None if self.config["samples"] != "all" else self.COST.seconds(shape, n_crossing_cells)
 
     def _radii(self, volume: Volume, S: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, dict]:
         mode = self.config["redistance"]

@@ -78,6 +78,9 @@ def register(subparsers) -> None:
                    help="address space per cell process in GB (2**30 bytes); a cell over it is a failed row "
                         "('memory limit ... exceeded in the method / in scoring') and the run goes on (0 = none; "
                         "default: the config's run.memory_limit, else 75%% of the physical memory / --jobs)")
+    p.add_argument("--force", action="store_true",
+                   help="run the cells whose method's cost estimate exceeds their time limit (otherwise each is a "
+                        "failed row at once: 'estimated X min > timeout Y min'; default: the config's run.force)")
     p.add_argument("--save-meshes", action="store_true", help="write each cell's mesh to DIR/meshes/<cell_id>.ply")
     p.add_argument("--no-report", action="store_true", help="skip index.html")
     p.add_argument("--dry-run", action="store_true", help="validate, list the cells and exit")
@@ -239,7 +242,7 @@ def _cmd_run(args) -> int:
                            timeout=args.timeout, save_meshes=args.save_meshes, argv=sys.argv[1:],
                            executor=executor, method_timeout=args.method_timeout,
                            score_timeout=args.score_timeout, allow_mixed_code=args.allow_mixed_code,
-                           memory_gb=args.memory_limit)
+                           memory_gb=args.memory_limit, force=args.force)
     except WriteError as exc:
         raise InputError(f"{exc}; the finished cells are saved in {str(out)!r}; free space (or fix the "
                          f"permissions) and complete the run with `python -m bench run --resume --out {out}`") \

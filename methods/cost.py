@@ -41,9 +41,10 @@ def crossing_cells(volume) -> int:
 
 @dataclass(frozen=True)
 class PowerLaw:
-    """``seconds = a · (M / 64³)^(p/3) · (C / C₀(M))^q``: M grid samples, C crossing cells.
+    """``seconds = floor + a · (M / 64³)^(p/3) · (C / C₀(M))^q``: M grid samples, C crossing cells.
 
-    ``a`` is the time at 64³ on the reference phantom, ``p`` the exponent in N (M = N³), ``q`` the exponent in
+    ``a`` is the time at 64³ on the reference phantom above a constant ``floor`` (the part that does not grow
+    with the grid), ``p`` the exponent in N (M = N³), ``q`` the exponent in
     the surface's size relative to the reference phantom's, whose crossing cells are ``C₀ = c0 · (M / 64³)^(2/3)``
     (the sphere of radius 1 in the suite's [-2.5, 2.5]³ grid: c0 ≈ 3.0k; the bunny 2.9k).  Without C (the grid runner estimates
     before any volume exists) the reference surface is assumed."""
@@ -52,10 +53,11 @@ class PowerLaw:
     p: float
     q: float = 0.0
     c0: float = 3000.0
+    floor: float = 0.0
 
     def seconds(self, shape, n_crossing_cells: int | None = None) -> float:
         m = grid_points(shape) / 64.0 ** 3
         t = self.a * m ** (self.p / 3.0)
         if n_crossing_cells and self.q:
             t *= (n_crossing_cells / (self.c0 * m ** (2.0 / 3.0))) ** self.q
-        return float(t)
+        return float(self.floor + t)

@@ -108,8 +108,9 @@ class DualContouring(Method):
                       min=1.0, max=100.0),
     }
 
-    #: the cost model (docs/NOTES.md, "Cost models"): fitted to the clean sphere and bunny at N = 24–64
-    COST = PowerLaw(a=150.0, p=3.0, q=0.0)
+    #: the cost model (docs/NOTES.md, "Cost models"): CPU seconds, fitted to the clean sphere and bunny at
+    #: N = 24–64 (the vertices, and the global solve, grow with the crossed cells: q = 1 is assumed, not fitted)
+    COST = PowerLaw(a=52.6, p=2.67, q=1.0)
 
     def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:
         """The fit of the default 10 iterations, scaled by (iterations + 1) / 11 (the initial mesh and each

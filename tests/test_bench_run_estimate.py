@@ -174,21 +174,25 @@ def test_force_on_the_command_line_attempts_the_cell(tmp_path):
 
 # ---------------------------------------------------------------------------------------------- the fits
 def _measured_vs_estimate(method: str, phantom: str, n: int) -> tuple[float, float]:
+    """The CPU seconds of one run (what the models estimate: a quiet machine's wall time, which the load of a
+    shared machine does not inflate) and the model's estimate for the same volume."""
     m = get_method(method)
     m.reconstruct(get_phantom("sphere").volume(n=16))         # the one-time costs (compilation, imports)
     vol = get_phantom(phantom).volume(n=n)
-    t0 = time.perf_counter()
+    c0 = time.process_time()
     m.reconstruct(vol)
-    return time.perf_counter() - t0, m.estimate_seconds(vol.shape, crossing_cells(vol))
+    return time.process_time() - c0, m.estimate_seconds(vol.shape, crossing_cells(vol))
 
 
 def test_distmesh_estimate_is_within_a_factor_3_of_a_measured_run():
-    wall, estimate = _measured_vs_estimate("distmesh", "sphere", 64)
-    assert estimate / 3 <= wall <= estimate * 3, (wall, estimate, os.getloadavg())
+    cpu, estimate = _measured_vs_estimate("distmesh", "sphere", 64)
+    assert estimate / 3 <= cpu <= estimate * 3, (cpu, estimate, os.getloadavg())
 
 
 @pytest.mark.heavy
 @pytest.mark.parametrize("method", ["reach_for_the_spheres", "dual_contouring"])
 def test_peer_estimates_are_within_a_factor_3_of_a_measured_run(method):
-    wall, estimate = _measured_vs_estimate(method, "bunny", 32)
-    assert estimate / 3 <= wall <= estimate * 3, (wall, estimate, os.getloadavg())
+    # the bunny: Reach for the Spheres' model is that of a surface not tangent to every sphere (the clean sphere
+    # converges by tangency in ≈ 15 steps, 6-10x under its estimate; docs/NOTES.md, "Cost models")
+    cpu, estimate = _measured_vs_estimate(method, "bunny", 32)
+    assert estimate / 3 <= cpu <= estimate * 3, (cpu, estimate, os.getloadavg())

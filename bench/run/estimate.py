@@ -9,6 +9,10 @@ whose ``estimate_s`` column holds the estimate (the report's failed-cells list s
 (or ``run.force = true``) skips the check; a method without a model, a run without a time limit and a user
 volume on its native grid (N unknown before the file is read) are never refused.  The check runs in the
 runner, before any volume is built, so it works the same for every executor.
+
+The built-in models estimate a quiet machine's seconds (fitted to CPU time): on a loaded machine a cell takes
+longer than its estimate, so the check refuses only cells that would not finish even there — it never replaces
+the time limit, which still kills a cell that runs out of it.
 """
 
 from __future__ import annotations

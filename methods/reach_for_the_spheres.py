@@ -204,7 +204,7 @@ class ReachForTheSpheres(Method):
         """Steps × seconds per step, the steps those of a surface that is not tangent to every sphere (a noisy
         volume, a real shape: the flow stops after ``patience`` stalled steps; measured 117–138 with the default
         100) — the clean sphere and ellipsoid converge by tangency in ≈ 15 steps, several times sooner.  None
-        with ``samples = 'band'`` or ``batch_size = 0``, which were not measured."""
+        with ``samples = 'band'`` or a ``batch_size`` other than 20000, which were not measured."""
         if self.config["samples"] != "all" or self.config["batch_size"] != 20000:
             return None
         steps = self.config["patience"] + self.STEPS_OVER_PATIENCE

@@ -8,6 +8,7 @@ never refused; the built-in models are within a factor of 3 of a measured small 
 from __future__ import annotations
 
 import csv
+import json
 import os
 import re
 import subprocess
@@ -141,6 +142,17 @@ def test_force_runs_the_cell_and_a_model_less_method_runs_anyway(tmp_path):
         (row,) = _rows(out)
         assert len(ex.given) == 1 and row["status"] == "ok", (out.name, row["error"])
         assert not row.get("estimate_s"), out.name
+
+
+def test_a_refused_cell_is_completed_by_resume_retry_failed_force(tmp_path):
+    out, cfg = tmp_path / "run", _cfg("costly", 16, 600)
+    run_grid(cfg, out, executor=_InlineExecutor(), progress=False)
+    ex = _InlineExecutor()
+    summary = run_grid(cfg, out, executor=ex, progress=False, resume=True, retry_failed=True, force=True)
+    (row,) = _rows(out)
+    assert summary.ok == 1 and len(ex.given) == 1 and row["status"] == "ok", row["error"]
+    run_json = json.loads((out / "run.json").read_text())
+    assert [s["force"] for s in run_json["sessions"]] == [False, True]
 
 
 def test_run_force_is_a_config_key_that_round_trips_and_rejects_non_booleans():

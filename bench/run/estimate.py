@@ -17,6 +17,7 @@ the time limit, which still kills a cell that runs out of it.
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 from phantoms import InputError
@@ -37,8 +38,9 @@ def format_duration(seconds: float) -> str:
 
 
 def method_estimate(cell: dict) -> float | None:
-    """The cell's method's estimate in seconds at the cell's N (None: no model, no N, or the method cannot
-    even be built — that cell fails on its own when it runs)."""
+    """The cell's method's estimate in seconds at the cell's N (None: no model, no N, a model that raises or
+    returns no finite number ≥ 0, or a method that cannot even be built — that cell fails on its own when it
+    runs)."""
     if not cell.get("n"):
         return None
     from methods import get_method
@@ -47,7 +49,11 @@ def method_estimate(cell: dict) -> float | None:
         estimate = get_method(cell["method"], **cell["params"]).estimate_seconds((cell["n"],) * 3)
     except Exception:  # noqa: BLE001 - a broken method or model must not stop the run: it is not refused
         return None
-    return float(estimate) if estimate is not None and estimate == estimate else None
+    try:
+        estimate = None if estimate is None else float(estimate)
+    except (TypeError, ValueError):  # not a number: no usable model
+        return None
+    return estimate if estimate is not None and math.isfinite(estimate) and estimate >= 0 else None
 
 
 def method_budget(limits: TimeLimits) -> tuple[float, str] | None:

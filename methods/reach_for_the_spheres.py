@@ -196,8 +196,8 @@ class ReachForTheSpheres(Method):
     }
 
     #: the cost model (docs/NOTES.md, "Cost models"): CPU seconds per flow step, fitted to the runs of the clean
-    #: sphere and bunny at N = 32–64 and the noisy sphere at N = 64 and 128; the flow takes ≈ patience + 30 steps
-    COST = PowerLaw(a=0.0926, p=3.71, q=0.0, floor=0.0966)
+    #: sphere and bunny at N = 32–64 and the noisy sphere at N = 64–192; the flow takes ≈ patience + 30 steps
+    COST = PowerLaw(a=0.099, p=3.5, q=0.0, floor=0.0933)
     STEPS_OVER_PATIENCE = 30
 
     def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:

@@ -31,6 +31,7 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
     timeout = 3600                          # seconds per cell (0 or absent: none)
     method_timeout = 600                    # seconds for method.reconstruct alone; score_timeout: for scoring
     memory_limit = 8                        # GB of address space per cell (0: none; absent: 75 % of RAM / jobs)
+    force = false                           # true: run cells whose cost estimate exceeds their time limit
     imports = ["my_package.my_methods"]     # modules imported first (e.g. to register_method plug-ins)
     [report]                                # optional: paper_columns = [{ title, label, noise }, ...] (the
     uniform_label = "shape_gradient"        # paper-style tables: a column per entry), the uniform-noise label(s)
@@ -54,6 +55,7 @@ from phantoms import (NOISE_KINDS, VARIANTS, InputError, expand_phantoms, get_ph
                       is_phantom_name, phantom_names, phantom_path)
 from phantoms.user import spec_from_table
 
+from .run.estimate import check_force
 from .run.limits import check_gb, check_seconds
 from .textspec import parse_value as _parse_value
 from .textspec import split_top as _split_top
@@ -74,7 +76,7 @@ VARY = ("all", "one_at_a_time")
 _NOISE_KEYS = {"kind", "snr"}
 _METHOD_KEYS = {"name", "label", "params", "sweep", "phantom_params", "noise"}
 _METRICS_KEYS = {"n_samples"}
-_RUN_KEYS = {"timeout", "method_timeout", "score_timeout", "memory_limit", "imports"}
+_RUN_KEYS = {"timeout", "method_timeout", "score_timeout", "memory_limit", "imports", "force"}
 _REPORT_KEYS = {"paper_columns", "uniform_label"}
 _COLUMN_KEYS = {"title", "label", "noise"}
 
@@ -89,11 +91,9 @@ def _check_keys(table: Any, allowed: set[str], where: str) -> dict:
 
 
 def _as_list(value: Any, where: str) -> list:
-    if isinstance(value, list):
-        if not value:
-            raise InputError(f"{where}: must not be empty")
-        return value
-    return [value]
+    if isinstance(value, list) and not value:
+        raise InputError(f"{where}: must not be empty")
+    return value if isinstance(value, list) else [value]
 
 
 def _int(value: Any, where: str, minimum: int | None = None) -> int:
@@ -178,9 +178,7 @@ class MethodSpec:
 
 
 def _fmt_value(v: Any) -> str:
-    if isinstance(v, float):
-        return f"{v:g}"
-    return str(v)
+    return f"{v:g}" if isinstance(v, float) else str(v)
 
 
 @dataclass
@@ -202,6 +200,7 @@ class RunConfig:
     method_timeout: float | None = None
     score_timeout: float | None = None
     memory_limit: float | None = None      # GB per cell; None: the default (bench.run.limits), 0: no limit
+    force: bool = False                    # run cells over their estimated time (bench.run.estimate)
     imports: list[str] = field(default_factory=list)
     report: dict = field(default_factory=dict)
     source: str = ""
@@ -223,6 +222,7 @@ class RunConfig:
         }
         d["run"].update({k: getattr(self, k) for k in ("method_timeout", "score_timeout") if getattr(self, k)})
         d["run"].update({} if self.memory_limit is None else {"memory_limit": self.memory_limit})
+        d["run"].update({"force": True} if self.force else {})
         if self.report:
             d["report"] = copy.deepcopy(self.report)
         return d
@@ -354,6 +354,7 @@ def config_from_dict(data: dict, source: str = "") -> RunConfig:
                 raise InputError(f"run.{key}: must be >= 0 (0 = no timeout)")
             setattr(cfg, key, check_seconds(t, f"run.{key}") or None)
     cfg.memory_limit = check_gb(run.get("memory_limit"), "run.memory_limit")
+    cfg.force = check_force(run.get("force", False))
     if "imports" in run:
         imports = run["imports"]
         if not isinstance(imports, list) or not all(isinstance(s, str) for s in imports):

@@ -19,9 +19,10 @@ from .base import (
     register_method,
     run_reconstruct,
 )
+from .cost import PowerLaw, crossing_cells
 
 __all__ = [
     "Method", "Param", "Reconstruction", "ReconstructionFailed", "available_methods", "get_method", "method_names",
     "register_method", "import_plugins", "as_reconstruction", "WrongReturnType", "check_volume", "check_info", "run_reconstruct",
-    "ENTRY_POINT_GROUP", "BUILTIN_METHODS", "INFO_KEYS",
+    "ENTRY_POINT_GROUP", "BUILTIN_METHODS", "INFO_KEYS", "PowerLaw", "crossing_cells",
 ]

@@ -47,6 +47,7 @@ from phantoms import InputError, Volume
 
 from . import distmesh_loop
 from .base import Method, Param, Reconstruction, check_volume
+from .cost import PowerLaw
 from .marching_cubes import marching_cubes_mesh, orient_outward
 
 __all__ = ["DistMesh", "flip_edges", "triangle_quality"]
@@ -190,6 +191,17 @@ class DistMesh(Method):
                                 "False: the numpy form, the reference (the same steps; nodes equal to rounding)",
                           type=bool),
     }
+
+    #: the cost model (docs/NOTES.md, "Cost models"): CPU seconds, fitted to the clean sphere and bunny at
+    #: N = 24–128 (the nodes grow with the surface: q = 1 is assumed, not fitted)
+    COST = PowerLaw(a=0.514, p=2.5, q=1.0)
+
+    def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:
+        """The fit of the default settings (h0 = 2 h, compiled), × 40 for the numpy form; None with an h0 of
+        one's own, which sets the number of nodes and was not measured."""
+        if self.config["h0"] is not None:
+            return None
+        return self.COST.seconds(shape, n_crossing_cells) * (1.0 if self.config["compiled"] else 40.0)
 
     # ------------------------------------------------------------------
     def _h0(self, volume: Volume) -> float:

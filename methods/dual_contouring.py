@@ -59,6 +59,7 @@ from geometry.levelset import newton_project
 from geometry.mesh import mesh_facts
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .cost import PowerLaw
 from .marching_cubes import _nudge_zeros, orient_outward
 
 __all__ = ["DualContouring", "split_quads", "band_box"]
@@ -107,6 +108,17 @@ class DualContouring(Method):
         "band": Param(3.0, "half-width of the band in grid spacings h (with samples = 'band')", type=float,
                       min=1.0, max=100.0),
     }
+
+    #: the cost model (docs/NOTES.md, "Cost models"): CPU seconds, fitted to the clean sphere and bunny at
+    #: N = 24–64 (the vertices, and the global solve, grow with the crossed cells: q = 1 is assumed, not fitted)
+    COST = PowerLaw(a=52.6, p=2.67, q=1.0)
+
+    def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:
+        """The fit of the default 10 iterations, scaled by (iterations + 1) / 11 (the initial mesh and each
+        outer iteration cost alike); None with ``samples = 'all'``, which was not measured."""
+        if self.config["samples"] != "band":
+            return None
+        return self.COST.seconds(shape, n_crossing_cells) * (self.config["iterations"] + 1) / 11.0
 
     def reconstruct(self, volume: Volume) -> Reconstruction:
         from gpytoolbox import dual_contouring_of_signed_distance_data

@@ -73,6 +73,7 @@ from geometry.mesh import mesh_facts
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .cost import PowerLaw
 from .marching_cubes import marching_cubes_mesh, orient_outward
 
 __all__ = ["ReachForTheSpheres", "grid_samples", "distance_reading", "zero_set_distance", "initial_ellipsoid"]
@@ -176,6 +177,21 @@ class ReachForTheSpheres(Method):
                                "library's fixed rule is 100; fewer stops noisy volumes sooner, see the module "
                                "docstring)", type=int, min=1, max=100),
     }
+
+    #: the cost model (docs/NOTES.md, "Cost models"): CPU seconds per flow step, fitted to the runs of the clean
+    #: sphere and bunny at N = 32–64 and the noisy sphere at N = 64–192; the flow takes ≈ patience + 30 steps
+    COST = PowerLaw(a=0.099, p=3.5, q=0.0, floor=0.0933)
+    STEPS_OVER_PATIENCE = 30
+
+    def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:
+        """Steps × seconds per step, the steps those of a surface that is not tangent to every sphere (a noisy
+        volume, a real shape: the flow stops after ``patience`` stalled steps; measured 117–138 with the default
+        100) — the clean sphere and ellipsoid converge by tangency in ≈ 15 steps, several times sooner.  None
+        with ``samples = 'band'`` or a ``batch_size`` other than 20000, which were not measured."""
+        if self.config["samples"] != "all" or self.config["batch_size"] != 20000:
+            return None
+        steps = self.config["patience"] + self.STEPS_OVER_PATIENCE
+        return steps * self.COST.seconds(shape, n_crossing_cells)
 
     def _radii(self, volume: Volume, S: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, dict]:
         mode = self.config["redistance"]

@@ -77,6 +77,9 @@ def register(subparsers) -> None:
                    help="address space per cell process in GB (2**30 bytes); a cell over it is a failed row "
                         "('memory limit ... exceeded in the method / in scoring') and the run goes on (0 = none; "
                         "default: the config's run.memory_limit, else 75%% of the physical memory / --jobs)")
+    p.add_argument("--force", action="store_true",
+                   help="run the cells whose method's cost estimate exceeds their time limit (otherwise each is a "
+                        "failed row at once: 'estimated X min > timeout Y min'; default: the config's run.force)")
     p.add_argument("--save-meshes", action="store_true", help="write each cell's mesh to DIR/meshes/<cell_id>.ply")
     p.add_argument("--no-report", action="store_true", help="skip index.html")
     p.add_argument("--dry-run", action="store_true", help="validate, list the cells and exit")
@@ -187,7 +190,7 @@ def _cmd_run(args) -> int:
         return 0
     out = Path(args.out) if args.out else Path("reports") / _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     try:
-        summary = run_grid(cfg, out, save_meshes=args.save_meshes, argv=sys.argv[1:], **options)
+        summary = run_grid(cfg, out, save_meshes=args.save_meshes, argv=sys.argv[1:], force=args.force, **options)
     except WriteError as exc:
         raise InputError(f"{exc}; the finished cells are saved in {str(out)!r}; free space (or fix the "
                          f"permissions) and complete the run with `python -m bench run --resume --out {out}`") \

@@ -22,6 +22,7 @@ import numpy as np
 from geometry.files import WriteError
 
 from ..terminal import printable
+from .estimate import screen_cells
 from .executors.local import LocalExecutor
 from .grid import expand_grid
 from .limits import TimeLimits, default_memory_gb
@@ -195,7 +196,7 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
              timeout: float | None = None, save_meshes: bool = False, progress: bool | None = None,
              argv: list[str] | None = None, executor=None, method_timeout: float | None = None,
              score_timeout: float | None = None, allow_mixed_code: bool = False,
-             memory_gb: float | None = None) -> RunSummary:
+             memory_gb: float | None = None, force: bool = False) -> RunSummary:
     """Run every cell of the validated config ``cfg`` into the folder ``out``.
 
     ``resume`` skips the cells already finished there (``retry_failed``: except failed / timed-out ones); the
@@ -203,7 +204,9 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
     ``allow_mixed_code``); ``timeout`` is per cell, ``method_timeout`` per method run and ``score_timeout`` per
     scoring, in seconds (None: the config's, 0: none; see :mod:`bench.run.limits`); ``memory_gb`` is the
     address space of each cell's process with the local executor, in GB (None: the config's
-    ``run.memory_limit``, else 75 % of the physical memory divided by ``jobs``; 0: none); ``executor`` is an
+    ``run.memory_limit``, else 75 % of the physical memory divided by ``jobs``; 0: none); ``force`` (or the
+    config's ``run.force``) runs the cells whose method's cost estimate exceeds their time limit, which are
+    otherwise failed rows at once (:mod:`bench.run.estimate`); ``executor`` is an
     :class:`~bench.run.inputs.ExecutorSpec` (``dask``: the runner starts the Dask cluster, after the checks, and
     closes it), or any object with ``run(cells, on_start, on_result)`` (default: a :class:`LocalExecutor` of
     ``jobs`` processes).  Every input is checked first (:func:`~bench.run.inputs.check_run_inputs`: an
@@ -219,7 +222,7 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
         return _run_locked(cfg, out, jobs=jobs, resume=resume, retry_failed=retry_failed, timeout=timeout,
                            save_meshes=save_meshes, progress=progress, argv=argv, executor=ex,
                            allow_mixed_code=allow_mixed_code, method_timeout=method_timeout,
-                           score_timeout=score_timeout, memory_gb=memory_gb)
+                           score_timeout=score_timeout, memory_gb=memory_gb, force=force)
 
 
 @contextlib.contextmanager
@@ -253,9 +256,11 @@ def _expected_cost(cell: dict) -> float:
 
 
 def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_meshes, progress, argv, executor,
-                allow_mixed_code, method_timeout=None, score_timeout=None, memory_gb=None) -> RunSummary:
+                allow_mixed_code, method_timeout=None, score_timeout=None, memory_gb=None,
+                force=False) -> RunSummary:
     cells = expand_grid(cfg)
     limits = time_limits(cfg, timeout, method_timeout, score_timeout)
+    force = bool(force or getattr(cfg, "force", False))
     jobs = jobs or os.cpu_count() or 1
     memory = memory_limit(cfg, memory_gb, jobs) if executor is None else None   # local cells only
     records, mixed, changed = _load_done(out, cells, resume, retry_failed, allow_mixed_code)
@@ -266,7 +271,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     session = {"start": _now(), "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
                **limits.to_dict(), "memory_limit_gb": memory, "cells_to_run": len(todo),
                "resumed_from": len(cells) - len(todo),
-               "code": code, "allow_mixed_code": bool(allow_mixed_code),
+               "code": code, "allow_mixed_code": bool(allow_mixed_code), "force": force,
                **({"methods_changed": changed} if changed else {}),
                "executor": (executor.describe() if hasattr(executor, "describe") else {"executor": "local"})}
     log = RunLog(out, cfg, len(cells), session, resume)
@@ -288,6 +293,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
                                  memory_gb=memory)
     error = None
     try:
+        todo = screen_cells(todo, limits, force, bar.start, on_result)   # over their cost estimate: failed rows
         executor.run(todo, bar.start, on_result)
     except BaseException as exc:
         error = exc

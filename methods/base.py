@@ -25,6 +25,8 @@ import trimesh
 
 from phantoms import InputError, Volume
 
+from .params import Param
+
 __all__ = [
     "Param", "Method", "Reconstruction", "ReconstructionFailed", "WrongReturnType", "as_reconstruction", "check_info", "run_reconstruct", "INFO_KEYS", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
     "available_methods", "get_method", "register_method", "method_names", "check_volume",
@@ -45,84 +47,6 @@ BUILTIN_METHODS: dict[str, str] = {
     "dual_contouring": "methods.dual_contouring:DualContouring",
     "flying_edges": "methods.flying_edges:FlyingEdges",
 }
-
-
-@dataclass(frozen=True)
-class Param:
-    """A documented method parameter: its default, what it does, and the values it accepts.
-
-    Parameters
-    ----------
-    default : object
-        The value used when the parameter is not given; None reads as "auto" (then None, ``'none'`` and
-        ``'auto'`` are accepted back).
-    doc : str
-        What the parameter does (``python -m bench methods`` prints it).
-    type : type
-        The Python type values are converted to: bool, int, float, str, or ``object`` for free-form values
-        such as a mesh.
-    choices : tuple, optional
-        Restricts the value to a set.
-    min, max : float, optional
-        Inclusive bounds of a number.
-    """
-
-    default: Any
-    doc: str
-    type: type = float
-    choices: tuple | None = None
-    min: float | None = None
-    max: float | None = None
-
-    def convert(self, method: str, name: str, value: Any) -> Any:
-        """``value`` of parameter ``name`` of ``method`` converted to ``type`` (command-line strings included).
-
-        :class:`InputError` for a value that does not convert, is not one of ``choices`` or lies outside
-        ``[min, max]``.
-        """
-        where = f"method {method!r}, parameter {name!r}"
-        t = self.type
-        if self.default is None and (value is None or (isinstance(value, str)
-                                                         and value.strip().lower() in ("none", "auto", ""))):
-            return None  # a parameter whose default is None ("auto") accepts None/'none'/'auto' back
-        try:
-            if t is bool:
-                if isinstance(value, str):
-                    low = value.strip().lower()
-                    if low in ("1", "true", "yes", "on"):
-                        value = True
-                    elif low in ("0", "false", "no", "off"):
-                        value = False
-                    else:
-                        raise ValueError(value)
-                elif not isinstance(value, (bool, np.bool_)):
-                    raise ValueError(value)
-                value = bool(value)
-            elif t is int:
-                if isinstance(value, bool):
-                    raise ValueError(value)
-                f = float(value)
-                if f != int(f):
-                    raise ValueError(value)
-                value = int(f)
-            elif t is float:
-                if isinstance(value, bool):
-                    raise ValueError(value)
-                value = float(value)
-                if not np.isfinite(value):
-                    raise ValueError(value)
-            elif t is str:
-                if not isinstance(value, str):
-                    raise ValueError(value)
-        except (TypeError, ValueError):
-            raise InputError(f"{where}: expected {t.__name__}, got {value!r}") from None
-        if self.choices is not None and value not in self.choices:
-            raise InputError(f"{where}: {value!r} is not one of {list(self.choices)}")
-        if self.min is not None and value < self.min:
-            raise InputError(f"{where}: {value!r} is below the minimum {self.min}")
-        if self.max is not None and value > self.max:
-            raise InputError(f"{where}: {value!r} is above the maximum {self.max}")
-        return value
 
 
 #: The ``Reconstruction.info`` keys the suite reads, and what it does with them.  Every other key is the

@@ -18,7 +18,13 @@ __all__ = ["PowerLaw", "crossing_cells", "grid_points"]
 
 
 def grid_points(shape) -> int:
-    """The number of grid samples of a volume of ``shape`` (an int N is the N³ grid)."""
+    """The number of grid samples of a volume of ``shape``.
+
+    Parameters
+    ----------
+    shape : int or tuple of int
+        The grid's shape; an int N is the N³ grid.
+    """
     if isinstance(shape, (int, np.integer)):
         return int(shape) ** 3
     return int(math.prod(int(s) for s in shape))
@@ -26,7 +32,13 @@ def grid_points(shape) -> int:
 
 def crossing_cells(volume) -> int:
     """The grid cells whose eight corners do not all have the same sign (φ < 0 or not): the cells the zero
-    level set crosses — about (surface area) / h² × 1.5 for a smooth surface."""
+    level set crosses — about (surface area) / h² × 1.5 for a smooth surface.
+
+    Parameters
+    ----------
+    volume : phantoms.Volume
+        The sampled level-set function.
+    """
     inside = np.asarray(volume.values) < 0
     lo = np.ones(tuple(s - 1 for s in inside.shape), dtype=bool)
     hi = np.zeros_like(lo)
@@ -47,7 +59,21 @@ class PowerLaw:
     with the grid), ``p`` the exponent in N (M = N³), ``q`` the exponent in
     the surface's size relative to the reference phantom's, whose crossing cells are ``C₀ = c0 · (M / 64³)^(2/3)``
     (the sphere of radius 1 in the suite's [-2.5, 2.5]³ grid: c0 ≈ 3.0k; the bunny 2.9k).  Without C (the grid runner estimates
-    before any volume exists) the reference surface is assumed."""
+    before any volume exists) the reference surface is assumed.
+
+    Parameters
+    ----------
+    a : float
+        Seconds at 64³ on the reference phantom, above ``floor``.
+    p : float
+        Exponent in N.
+    q : float
+        Exponent in the surface's size relative to the reference phantom's.
+    c0 : float
+        The reference phantom's crossing cells at 64³.
+    floor : float
+        Seconds that do not grow with the grid.
+    """
 
     a: float
     p: float

@@ -11,7 +11,7 @@ from methods.marching_cubes import mesh_facts
 from phantoms import InputError, Volume, get_phantom
 
 BASELINES = ["marching_cubes", "mc_taubin", "distmesh", "poisson", "flying_edges", "reach_for_the_spheres",
-             "dual_contouring"]
+             "dual_contouring", "reach_for_the_arcs"]
 
 
 @pytest.fixture(scope="module")

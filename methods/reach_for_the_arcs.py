@@ -10,14 +10,16 @@ sphere), and returns the screened-Poisson surface (PSR, Kazhdan & Hoppe 2013) of
 mesh, no flow: any topology.
 
 The adapter runs the library's own steps (``_sdf_to_point_cloud``, ``_fine_tune_point_cloud_iteration``,
-``point_cloud_to_mesh``) in the library's order with the library's random seeds, so that the two knobs it
-does not expose can be set: with ``clamp = 0`` and ``psr_depth = 10`` it returns exactly what
-``gpytoolbox.reach_for_the_arcs(U, S, force_cpu=True)`` returns (tests/test_methods_reach_for_the_arcs.py).
+``point_cloud_to_mesh``) in the library's order with the library's random seeds, so that the PSR depth, which
+it does not expose, can be set: with ``clamp = 0, psr_depth = 10, rasterization = 0, fine_tune_iters = 3,
+batch_size = 10000`` it returns exactly what ``gpytoolbox.reach_for_the_arcs(U, S, force_cpu=True)`` returns
+on an SDF whose cloud stays inside the grid box (tests/test_methods_reach_for_the_arcs.py; the two corrections
+below).
 
 Cost, and the defaults (measured: docs/NOTES.md, "reach_for_the_arcs: cost and defaults").  Called as it is
 on a sphere at N = 33 the library takes ≈ 5 min and returns 111k vertices.  The time goes to
 
-* the rasterisation, which marks, for every sphere, the cells of a res³ grid (res ≈ 4 per h) inside it: a
+* the rasterisation, which marks, for every sphere, the cells of a res³ grid inside it: a
   sample far from the surface has a sphere as large as the shape, so the cost grows with Σ |φ|³ ≈ N⁶.  The
   library's answer for this is the clamped SDF: ``clamp`` (in h, default 3) caps every radius at clamp·h and
   passes the same value as the library's ``clamp_value``, so those spheres still keep the cloud out of their
@@ -28,15 +30,33 @@ on a sphere at N = 33 the library takes ≈ 5 min and returns 111k vertices.  Th
   the last), i.e. about 1,000 cells across the shape, 30–70 per grid step, which is where the 111k vertices
   come from.  ``psr_depth`` (default auto: the smallest depth whose cell is at most h / 3 across the point
   cloud's bounding box, 6–7 at N = 32–64) matches the surface to the data it is drawn from;
-* the fine-tuning iterations (``fine_tune_iters``, the library's 3), each a distance query of every sample to
-  the current surface and local searches on the spheres it crosses or misses.
+* the rasterisation grid: the library's 64 · ceil(N / 16) cells across the grid box (≈ 4–6 per h) cost 3× the
+  time of ``rasterization`` = 2 cells per h (the default) for the same surface;
+* the fine-tuning iterations (``fine_tune_iters``), each a PSR solve, a distance query of every sample to the
+  current surface and local searches on the spheres it crosses or misses — each about as costly as all the
+  rest.  The default is 1, not the library's 3: on the bunny at N = 32 three are 3× the time and no more
+  accurate, none is half the time and less accurate;
+* the local searches, whose obstacles are ``batch_size`` spheres drawn at random: on a noisy volume most searches
+  fail and run all ``local_search_iters``, and with the library's 10,000 obstacles ``check-method``'s noisy
+  sphere took 118 s (3,000, the default: 12 s; the clean bunny at N = 32 and 48 2–3× faster, within 0.15 h).
+
+Radii (``redistance``).  The spheres need |φ| to be a distance; the adapter reads it and, when it is not one,
+gives the library the distance to φ's zero set instead, exactly as ``reach_for_the_spheres`` does (its module
+docstring; the same functions).  Without it a normalised implicit (``check-method``'s ellipsoid) came back as 109
+components.
+
+The grid box.  A sphere near the edge of the grid reaches past it, where no sample's sphere excludes a point:
+there the first step finds "tangency" points off the surface, and PSR closes a second shell round them (the
+``check-method`` torus, whose surface is 2 h from the grid's top and bottom).  The surface is inside the grid
+(``check_volume``), so the cloud points more than h / 2 outside the grid box are dropped before every PSR solve
+(``info["points_outside_box"]``).
 
 The rasterisation runs on the CPU (``rasterizer = "cpu"``): the library's GPU path (WebGPU) is 4× slower on a
 machine without a GPU and prints errors; ``"auto"`` lets the library choose.
 
 Reported in ``info``: ``cloud_points`` (after the first step) and ``fine_tuned_points``, ``psr_depth``,
-``rasterization_resolution``, the three phases' times (``time_cloud_s``, ``time_fine_tune_s``, ``time_psr_s``)
-and the mesh's facts.  The method has no iterations of its own to report beyond ``fine_tune_iters``.
+``rasterization_resolution``, ``points_outside_box``, ``redistanced`` and the distance reading, the three phases'
+times (``time_cloud_s``, ``time_fine_tune_s``, ``time_psr_s``) and the mesh's facts.  The method has no iterations of its own to report beyond ``fine_tune_iters``.
 
 Limits (the paper): the screened-Poisson surface interpolates the cloud, so the result is smooth but not on
 φ = 0 between the points; the far spheres' clamping makes the first step blind beyond clamp·h; noise in φ puts
@@ -111,8 +131,9 @@ class ReachForTheArcs(Method):
         "fine_tune_iters": Param(1, "fine-tuning iterations, each one screened-Poisson solve and a local search "
                                     "on every sphere the surface crosses or misses (the library's default is 3: "
                                     "twice the time again, see docs/NOTES.md)", type=int, min=0, max=50),
-        "batch_size": Param(10000, "spheres drawn at random per local search and fine-tuning step (the "
-                                   "library's batching; 0 = all)", type=int, min=0, max=10**8),
+        "batch_size": Param(3000, "spheres drawn at random as the obstacles of each local search and "
+                                  "fine-tuning step (the library's batching; its default 10000 is 2-10× the time, "
+                                  "most on noisy volumes; 0 = all)", type=int, min=0, max=10**8),
         "max_points_per_sphere": Param(3, "points a crossed sphere may hold after fine-tuning (the library's "
                                           "default; 1 = never add)", type=int, min=1, max=20),
         "local_search_iters": Param(20, "iterations of each local search for a feasible point (the library's "

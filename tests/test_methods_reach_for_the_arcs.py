@@ -57,7 +57,7 @@ def test_unclamped_depth_10_is_the_library():
 
     vol = volume("sphere", 10)
     rec = get_method("reach_for_the_arcs", clamp=0.0, psr_depth=10, rasterization=0.0,
-                     fine_tune_iters=3).reconstruct(vol)
+                     fine_tune_iters=3, batch_size=10000).reconstruct(vol)
     U, S, cap = clamped_samples(vol, 0.0)
     V, F = gpy.reach_for_the_arcs(U, S, force_cpu=True)
     assert cap == np.inf and rec.info["psr_depth"] == 10

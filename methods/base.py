@@ -44,6 +44,7 @@ BUILTIN_METHODS: dict[str, str] = {
     "distmesh": "methods.distmesh:DistMesh",
     "poisson": "methods.poisson:ScreenedPoisson",
     "reach_for_the_spheres": "methods.reach_for_the_spheres:ReachForTheSpheres",
+    "reach_for_the_arcs": "methods.reach_for_the_arcs:ReachForTheArcs",
     "dual_contouring": "methods.dual_contouring:DualContouring",
     "flying_edges": "methods.flying_edges:FlyingEdges",
 }

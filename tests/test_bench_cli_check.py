@@ -37,7 +37,7 @@ KNOWN_FAILURES: dict[str, str] = {}      # none at the moment (dual contouring a
 
 
 #: built-ins whose five cases take over 10 s (iterative peers): their check runs with the heavy tests
-SLOW_CHECKS = {"dual_contouring", "reach_for_the_spheres"}
+SLOW_CHECKS = {"dual_contouring", "reach_for_the_spheres", "reach_for_the_arcs"}
 
 
 def _check_param(n):

@@ -85,7 +85,7 @@ def test_the_paper_grid_labels_name_every_variant_and_its_non_default_settings()
         assert {c["noise"] for c in by_label[label]} == {"none"} and all(c["params"]["beta"] == 0 for c in by_label[label])
     fused = [c for c in by_label["shape_gradient[paper]"] if c["phantom"] == "fused_spheres"]
     assert all(c["params"]["max_iter"] == 150 and c["params"]["snapshots"] == [1, 75, 150] for c in fused)
-    assert not {"reach_for_the_spheres", "flying_edges", "dual_contouring"} & {c["method"] for c in cells}
+    assert not {"reach_for_the_spheres", "flying_edges", "dual_contouring", "reach_for_the_arcs"} & {c["method"] for c in cells}
     quick = expand_grid(builtin_config("quick"))
     assert all(c["params"] == {} for c in quick if c["label"] == "shape_gradient")
 

@@ -48,6 +48,6 @@ def test_every_chart_gives_a_method_the_same_colour():
 
 def test_colours_are_fixed_by_name_and_distinct_for_the_builtins():
     builtins = ["shape_gradient", "marching_cubes", "mc_taubin", "distmesh", "poisson", "flying_edges",
-                "reach_for_the_spheres", "dual_contouring"]
+                "reach_for_the_spheres", "dual_contouring", "reach_for_the_arcs"]
     assert len({method_colour(b) for b in builtins}) == len(builtins)
     assert method_colour("my_plugin") == method_colour("my_plugin") and method_colour("my_plugin") in PALETTE

@@ -11,7 +11,7 @@ from methods import BUILTIN_METHODS, Param, available_methods, get_method
 from phantoms import InputError, Volume, get_phantom
 
 BASELINES = ["marching_cubes", "mc_taubin", "distmesh", "poisson", "flying_edges", "reach_for_the_spheres",
-             "dual_contouring"]
+             "dual_contouring", "reach_for_the_arcs"]
 
 
 @pytest.fixture(scope="module")

@@ -196,14 +196,21 @@ def test_the_link_check_finds_a_broken_link(tmp_path):
 _SIGNED_VOLUME = re.compile(r"np\.cross\([^\n]*\)[^\n]*/\s*6(\.0)?\b|/\s*6(\.0)?\b[^\n]*np\.cross\(")
 
 
-def primitive_copies(sources: dict[str, Path], home: str) -> list[str]:
-    """Source lines outside ``home`` that compute a signed volume themselves."""
+#: a face's three edges taken by column pairs: faces[:, [0, 1]] with [1, 2] and [2, 0] in one statement
+_EDGES = re.compile(r"\[:, *[\[(]0, *1[\])]\].*\[:, *[\[(]1, *2[\])]\].*\[:, *[\[(]2, *0[\])]\]")
+#: the Euler characteristic V − E + F from counts
+_EULER = re.compile(r"\w*(?:n_?v|vert)\w*[)\]]?\s*-\s*\w*\(?\w*(?:n_?e|edge)\w*[)\]]?\s*\+\s*\w*\(?\w*(?:n_?f|face)",
+                    re.IGNORECASE)
+
+
+def primitive_copies(sources: dict[str, Path], home: str, pattern: re.Pattern = _SIGNED_VOLUME) -> list[str]:
+    """Source lines outside ``home`` that compute the primitive ``pattern`` matches themselves."""
     hits = []
     for name, path in sources.items():
         if name == home:
             continue
         for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
-            if _SIGNED_VOLUME.search(line):
+            if pattern.search(line):
                 hits.append(f"{path.relative_to(REPO)}:{i}: {line.strip()}")
     return hits
 
@@ -213,6 +220,13 @@ def test_signed_volume_has_one_home():
     assert primitive_copies(_sources(), "geometry.mesh") == []
 
 
+def test_edges_and_euler_characteristic_have_one_home():
+    """A mesh's edges (geometry.topology.face_edge_keys / edges_unique) and its Euler characteristic
+    (geometry.topology.euler_characteristic) are computed in geometry/topology.py only."""
+    assert primitive_copies(_sources(), "geometry.topology", _EDGES) == []
+    assert primitive_copies(_sources(), "geometry.topology", _EULER) == []
+
+
 def test_the_primitive_check_finds_a_copy(tmp_path):
     p = tmp_path / "copy.py"
     p.write_text("vol = float(np.einsum('ij,ij->i', a, np.cross(b, c)).sum()) / 6.0\n")
@@ -220,6 +234,11 @@ def test_the_primitive_check_finds_a_copy(tmp_path):
     saved, REPO = REPO, tmp_path
     try:
         assert len(primitive_copies({"copy": p}, "geometry.mesh")) == 1
+        p.write_text("e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])\n"
+                     "chi = len(vertices) - len(edges) + len(faces)\n"
+                     "chi2 = n_vertices - n_edges + n_faces\n")
+        assert len(primitive_copies({"copy": p}, "geometry.topology", _EDGES)) == 1
+        assert len(primitive_copies({"copy": p}, "geometry.topology", _EULER)) == 2
     finally:
         REPO = saved
 
@@ -228,9 +247,8 @@ def test_the_primitive_check_finds_a_copy(tmp_path):
 #: the public API: the functions and classes these modules export (``__all__``; without it, the top-level
 #: functions and classes whose names do not start with ``_``), wherever they are defined
 PUBLIC_API = ("phantoms", "methods", "methods.base", "bench.metrics", "bench.run", "bench.check")
-#: ``module.name`` of public definitions not checked yet: bench/run/runner.py is being rewritten (issue 32,
-#: typed stage contracts); its docstrings come with that change
-DOCSTRING_EXEMPT = {"bench.run.runner.run_grid", "bench.run.runner.RunSummary"}
+#: ``module.name`` of public definitions the check leaves out (none)
+DOCSTRING_EXEMPT: set[str] = set()
 _SECTION_RULE = re.compile(r"^-{3,}$")
 
 

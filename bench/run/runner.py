@@ -43,7 +43,27 @@ def _now() -> str:
 
 @dataclass
 class RunSummary:
-    """What a run did: cell counts by status, how many ran now and how many were already done."""
+    """What a run did: cell counts by status, how many ran now and how many were already done.
+
+    Parameters
+    ----------
+    out : Path
+        The run folder.
+    total : int
+        Cells in the grid.
+    ok, invalid, failed, timeout : int
+        Finished cells by status.
+    skipped : int
+        Cells already done before this run (``--resume``).
+    ran : int
+        Cells run now.
+    seconds : float
+        Wall time of the run.
+    report, report_error : Path or str, optional
+        The report written after the run, or why it could not be.
+    statuses : dict
+        Further counts by status.
+    """
 
     out: Path
     total: int
@@ -199,19 +219,53 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
              memory_gb: float | None = None, force: bool = False) -> RunSummary:
     """Run every cell of the validated config ``cfg`` into the folder ``out``.
 
-    ``resume`` skips the cells already finished there (``retry_failed``: except failed / timed-out ones); the
-    folder's config must give the same grid and its cells must come from the same code (unless
-    ``allow_mixed_code``); ``timeout`` is per cell, ``method_timeout`` per method run and ``score_timeout`` per
-    scoring, in seconds (None: the config's, 0: none; see :mod:`bench.run.limits`); ``memory_gb`` is the
-    address space of each cell's process with the local executor, in GB (None: the config's
-    ``run.memory_limit``, else 75 % of the physical memory divided by ``jobs``; 0: none); ``force`` (or the
-    config's ``run.force``) runs the cells whose method's cost estimate exceeds their time limit, which are
-    otherwise failed rows at once (:mod:`bench.run.estimate`); ``executor`` is an
-    :class:`~bench.run.inputs.ExecutorSpec` (``dask``: the runner starts the Dask cluster, after the checks, and
-    closes it), or any object with ``run(cells, on_start, on_result)`` (default: a :class:`LocalExecutor` of
-    ``jobs`` processes).  Every input is checked first (:func:`~bench.run.inputs.check_run_inputs`: an
-    :class:`~phantoms.InputError` before anything runs).  The folder is locked for the run (:mod:`bench.run.lock`);
-    a write error (disk full, ...) raises :class:`geometry.files.WriteError` after the finished cells are saved.
+    Every input is checked first (:func:`~bench.run.inputs.check_run_inputs`: an :class:`~phantoms.InputError`
+    before anything runs); the folder is locked for the run (:mod:`bench.run.lock`).
+
+    Parameters
+    ----------
+    cfg : bench.config.RunConfig
+        The validated grid configuration.
+    out : str or Path
+        The run folder (created; with ``resume``, an earlier run's folder).
+    jobs : int, optional
+        Cells at once with the local executor (default: the CPU count).
+    resume : bool
+        Skip the cells already finished in ``out``; its config must give the same grid and its cells must come
+        from the same code (unless ``allow_mixed_code``).
+    retry_failed : bool
+        With ``resume``: run the failed and timed-out cells again.
+    timeout, method_timeout, score_timeout : float, optional
+        Seconds per cell, per method run and per scoring (None: the config's, 0: none; :mod:`bench.run.limits`).
+    save_meshes : bool
+        Also write each cell's final mesh as a PLY file.
+    progress : bool, optional
+        Show a progress bar (default: when stderr is a terminal).
+    argv : list of str, optional
+        The command line recorded in run.json.
+    executor : bench.run.inputs.ExecutorSpec or object, optional
+        An :class:`~bench.run.inputs.ExecutorSpec` (``dask``: the runner starts the cluster after the checks and
+        closes it), or any object with ``run(cells, on_start, on_result)``; default a :class:`LocalExecutor`.
+    allow_mixed_code : bool
+        With ``resume``: accept cells written by other code.
+    memory_gb : float, optional
+        Address space of each local cell process in GB (None: the config's ``run.memory_limit``, else 75 % of
+        the physical memory divided by ``jobs``; 0: none).
+    force : bool
+        Run the cells whose method's cost estimate exceeds their time limit (also the config's ``run.force``);
+        otherwise they are failed rows at once (:mod:`bench.run.estimate`).
+
+    Returns
+    -------
+    RunSummary
+        Cell counts by status, how many ran now, the seconds taken.
+
+    Raises
+    ------
+    InputError
+        A bad input (folder, config, limits, executor) — before anything runs.
+    geometry.files.WriteError
+        A write error (disk full, ...), after the finished cells are saved.
     """
     out = Path(out)
     executor = check_run_inputs(cfg, out, jobs=jobs, resume=resume, retry_failed=retry_failed,

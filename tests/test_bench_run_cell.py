@@ -1,0 +1,116 @@
+"""Tests of ``bench.run.cell``: :func:`run_cell` on one tiny cell (ok / failed rows, never raising),
+:func:`failed_result`, :func:`build_volume` with its cache, :func:`truth_samples`, :func:`vertex_mean_curvature`
+and :func:`method_info`."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+import runner_plugins  # noqa: F401  (registers "failing" here too)
+from bench.config import config_from_dict
+from bench.run import expand_grid
+from bench.run.cell import (build_volume, cell_source, failed_result, method_info, run_cell, truth_samples,
+                            vertex_mean_curvature)
+
+ID_COLUMNS = ("cell_id", "phantom", "variant", "N", "noise", "seed", "method", "label")
+
+
+@pytest.fixture(scope="module")
+def sphere_cell() -> dict:
+    cfg = config_from_dict({"grid": {"phantoms": ["sphere"], "n": 24}, "methods": [{"name": "marching_cubes"}],
+                            "metrics": {"n_samples": 2000}})
+    cfg.validate()
+    (cell,) = expand_grid(cfg)
+    return cell
+
+
+def test_run_cell_on_a_small_sphere_gives_an_ok_row_with_metrics_and_phase_times(sphere_cell):
+    result = run_cell(sphere_cell)
+    row = result["row"]
+    assert set(result) == {"row", "artifacts", "traceback"}
+    assert row["status"] == "ok" and row["error"] == "" and result["traceback"] is None
+    for key in ID_COLUMNS:
+        assert key in row
+    assert row["cell_id"] == sphere_cell["cell_id"] and row["N"] == 24
+    assert row["h"] == pytest.approx(2 * 2.5 / 23)
+    assert row["has_truth"] is True
+    # marching cubes of a unit sphere at N = 24: one closed genus-0 surface well within a cell of the truth
+    assert row["watertight"] and row["euler"] == 2 and row["components"] == 1
+    assert 0 < row["hausdorff_h"] < 0.5
+    assert row["iou"] > 0.9
+    assert row["n_faces"] > 0 and row["stop_reason"] == "done"
+    phases = row["phase_s"]
+    for phase in ("volume", "setup", "method", "validity", "metrics"):
+        assert phases[phase] >= 0.0
+    assert any(k.startswith("metrics/") for k in phases)
+    assert row["cell_s"] >= phases["metrics"] and row["cpu_s"] > 0
+    art = result["artifacts"]
+    assert art["vertices"].shape[1] == 3 and len(art["H"]) == len(art["vertices"])
+
+
+def test_a_method_that_raises_gives_a_failed_row_naming_the_stage_and_never_raises(sphere_cell):
+    cell = {**sphere_cell, "method": "failing", "label": "failing", "imports": ["runner_plugins"],
+            "cell_id": "failing"}
+    result = run_cell(cell)
+    row = result["row"]
+    assert row["status"] == "failed"
+    assert row["error"].startswith("reconstruction:") and "deliberate failure" in row["error"]
+    assert "RuntimeError" in result["traceback"]
+    assert row["cell_id"] == "failing" and "cell_s" in row
+
+
+def test_an_unknown_phantom_fails_in_the_volume_stage(sphere_cell):
+    row = run_cell({**sphere_cell, "phantom": "no_such_phantom", "cell_id": "nope"})["row"]
+    assert row["status"] == "failed" and row["error"].startswith("volume:")
+
+
+def test_failed_result_has_the_id_columns_status_and_error(sphere_cell):
+    result = failed_result(sphere_cell, "timeout", "cell time limit (1 s) exceeded")
+    assert result["artifacts"] == {} and result["traceback"] is None
+    row = result["row"]
+    assert row["status"] == "timeout" and row["error"] == "cell time limit (1 s) exceeded"
+    assert row["cell_id"] == sphere_cell["cell_id"] and row["method"] == "marching_cubes"
+
+
+def test_cell_source_is_the_source_or_the_phantom_name():
+    assert cell_source({"phantom": "sphere"}) == "sphere"
+    assert cell_source({"phantom": "a", "source": "mesh:/data/a.obj"}) == "mesh:/data/a.obj"
+
+
+def test_build_volume_caches_the_clean_volume_and_reads_it_back(sphere_cell, tmp_path):
+    ph, vol = build_volume(sphere_cell, str(tmp_path))
+    assert vol.shape == (24, 24, 24)
+    (cached,) = tmp_path.glob("*.npz")
+    _, again = build_volume(sphere_cell, str(tmp_path))
+    np.testing.assert_array_equal(again.values, vol.values)
+    cached.write_bytes(b"not an npz")                          # a broken cache file is rebuilt
+    _, rebuilt = build_volume(sphere_cell, str(tmp_path))
+    np.testing.assert_array_equal(rebuilt.values, vol.values)
+
+
+def test_truth_samples_lie_on_the_unit_sphere_and_are_cached(sphere_cell, tmp_path):
+    ph, _ = build_volume(sphere_cell)
+    pts = truth_samples(sphere_cell, ph, str(tmp_path))
+    assert pts.shape == (2000, 3)
+    np.testing.assert_allclose(np.linalg.norm(pts, axis=1), 1.0, atol=1e-6)
+    np.testing.assert_array_equal(truth_samples(sphere_cell, ph, str(tmp_path)), pts)
+    assert truth_samples(sphere_cell, None) is None
+
+
+def test_vertex_mean_curvature_of_a_sphere_is_one_over_its_radius():
+    r = 2.0
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=r)
+    H = vertex_mean_curvature(mesh.vertices, mesh.faces, h=0.15)
+    assert H.shape == (len(mesh.vertices),)
+    np.testing.assert_allclose(np.abs(H), 1.0 / r, rtol=0.05)
+    assert len(vertex_mean_curvature(np.zeros((0, 3)), np.zeros((0, 3), int), 0.1)) == 0
+
+
+def test_method_info_keeps_plain_values_and_drops_the_artifact_arrays():
+    info = {"iterations": np.int64(3), "energy_history": [1.0, 0.5], "snapshots": [object()], "mine": np.float32(2)}
+    out = method_info(info)
+    assert out == {"iterations": 3, "mine": 2.0}
+    assert type(out["iterations"]) is int
+    assert method_info(None) == {}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from phantoms import Sample
-from methods.shape_gradient import face_energies, shape_gradient
+from methods.shape_gradient import ShapeGradient, face_energies, shape_gradient
 
 
 class EllipsoidPolynomial:
@@ -130,3 +130,12 @@ def marching_cubes(volume):
     if m.volume < 0:
         m.invert()
     return m
+
+
+def SG(**params) -> ShapeGradient:
+    """The flow with the paper's fixed connectivity (the Fibonacci sphere, no remeshing): what the tests of
+    the energy, the gradient and the line search are about; remeshing and the enclosing start are tested in
+    test_methods_shape_gradient_remesh.py."""
+    params.setdefault("init", "sphere")
+    params.setdefault("remesh_every", 0)
+    return ShapeGradient(**params)

@@ -1,6 +1,6 @@
-"""methods/distmesh.py: the h0 range, the iteration cap and divergence guard, convergence, the flip sweep.
-
-(The reconstruction accuracy of DistMesh next to the other baselines: ``test_methods_baselines.py``.)"""
+"""Tests of ``methods.distmesh``: the reconstruction accuracy of the DistMesh baseline on the clean phantoms
+(the shared check of ``_baselines.py``), the h0 range, the iteration cap and divergence guard, convergence, the
+flip sweep."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import time
 import numpy as np
 import pytest
 
+from _baselines import check, reconstruct, volume
 from geometry.mesh import mesh_facts
 from methods import get_method
 from methods.distmesh import DistMesh, flip_edges, triangle_quality
@@ -86,3 +87,23 @@ def test_flip_keeps_tetrahedron_alone():
     t = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
     t2, flips, _ = flip_edges(p, t)
     assert flips == 0 and np.array_equal(t2, t)
+
+
+# DistMesh's two longest runs (~1600–2000 iterations on ~2–3k nodes, 5–10 s each) run with -m slow
+DISTMESH_CASES = ["sphere", "cylinder", pytest.param("ellipsoid", marks=pytest.mark.slow),
+                  pytest.param("fused_spheres", marks=pytest.mark.slow)]
+
+
+@pytest.mark.parametrize("phantom", DISTMESH_CASES)
+def test_distmesh(phantom):
+    check("distmesh", phantom)
+    rec = reconstruct("distmesh", phantom)
+    info = rec.info
+    assert info["stop_reason"] in ("converged", "max_iter")
+    assert info["converged"] == (info["stop_reason"] == "converged")
+    assert 0 < info["iterations"] <= 2000
+    assert info["folded_faces"] == 0
+    # DistMesh's point: near-equilateral triangles of edge ≈ h0 (≈ 2h)
+    assert info["mean_quality"] > 0.95 and info["min_quality"] > 0.5
+    edges = rec.mesh.edges_unique_length
+    assert 1.2 < np.median(edges) / volume(phantom).h < 2.8

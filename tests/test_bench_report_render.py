@@ -53,18 +53,3 @@ def test_render_mesh_draws_the_mesh_and_its_colour_strip_and_energy_is_svg():
     assert np.abs(grey.astype(int) - px.astype(int)).mean() > 1
     svg = base64.b64decode(render_energy([3.0, 2.0, 1.5], marks=[1], ylim=(1, 4)).split(",", 1)[1]).decode()
     assert svg.startswith("<svg") and "<polyline" in svg and svg.count("<circle") == 1 and "1e0" in svg
-
-
-def test_rasterize_fills_the_pixels_inside_the_triangles_in_order():
-    from geometry.picture import rasterize
-
-    # a 10 × 10 pixel square of two triangles at (5, 5)-(15, 15) in a 20 × 20 image, then a red triangle on top
-    sq = np.array([[[5, 5], [15, 5], [15, 15]], [[5, 5], [15, 15], [5, 15]], [[0, 0], [4, 0], [0, 4]]], float)
-    col = np.array([[0, 0, 1], [0, 0, 1], [1, 0, 0]], float)
-    img = rasterize(sq, col, 20, 20, supersample=1)
-    blue = (img[..., 2] == 255) & (img[..., 0] == 0)
-    assert blue.sum() == 100 and blue[5:15, 5:15].all()          # y up: pixel rows 19 - 14 .. 19 - 5
-    red = (img[..., 0] == 255) & (img[..., 2] == 0)
-    assert 6 <= red.sum() <= 10 and red[19, 0]                   # ~8 px below the diagonal x + y = 4
-    smooth = rasterize(sq, col, 20, 20, supersample=2)
-    assert ((smooth[..., 2] > 0) & (smooth[..., 2] < 255)).any()  # anti-aliased borders

@@ -1,5 +1,7 @@
-"""geometry/mesh.py: area-uniform surface sampling and the scored mesh's cached quantities against the direct
-computations, on small hand-built meshes."""
+"""Tests of ``geometry.mesh``: area-uniform surface sampling and the scored mesh's cached quantities against the
+direct computations, on small hand-built meshes; signed volume, face areas and normals, vertex normals, lumped
+vertex areas and the padded neighbour arrays against analytic values.  (The radius neighbourhoods:
+``test_geometry_neighbors.py``.)"""
 
 from __future__ import annotations
 
@@ -106,3 +108,78 @@ def test_mesh_facts_agree_with_trimesh():
     assert mesh_facts(ScoredMesh(box.vertices, box.faces)) == mesh_facts(box)
     empty = mesh_facts(trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int), process=False))
     assert empty == {"vertices": 0, "faces": 0, "watertight": False, "euler": 0, "signed_volume": 0.0, "components": 0}
+
+
+# ------------------------------------------------------------------------------------------------ primitives
+from geometry.mesh import lumped_vertex_areas, one_ring, padded_from_pairs  # noqa: E402
+from geometry.sphere import fibonacci_sphere  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def cube():
+    box = trimesh.creation.box(extents=(2.0, 3.0, 4.0))
+    return np.asarray(box.vertices), np.asarray(box.faces)
+
+
+def test_signed_volume_of_a_box_is_its_volume_positive_outward_negative_inward(cube):
+    v, f = cube
+    assert signed_volume(v, f) == pytest.approx(24.0)
+    assert signed_volume(v, f[:, ::-1]) == pytest.approx(-24.0)
+    assert signed_volume(v + [10.0, -5.0, 3.0], f) == pytest.approx(24.0)     # origin-independent (closed)
+    assert signed_volume(v, np.zeros((0, 3), int)) == 0.0
+
+
+def test_signed_volume_of_a_fine_sphere_converges_to_four_thirds_pi():
+    v, f = fibonacci_sphere(4000, 1.5)
+    assert signed_volume(v, f) == pytest.approx(4 / 3 * np.pi * 1.5 ** 3, rel=2e-3)
+
+
+def test_face_areas_and_normals_of_a_right_triangle_and_a_box(cube):
+    v = np.array([[0, 0, 0], [3, 0, 0], [0, 4, 0.0]])
+    f = np.array([[0, 1, 2]])
+    assert face_areas(v, f) == pytest.approx([6.0])
+    np.testing.assert_allclose(face_normals(v, f), [[0, 0, 1]])
+    np.testing.assert_allclose(face_normals(v, f[:, ::-1]), [[0, 0, -1]])   # right-hand rule
+    bv, bf = cube
+    assert face_areas(bv, bf).sum() == pytest.approx(2 * (6 + 8 + 12))
+    n = face_normals(bv, bf)
+    centroid_dir = bv[bf].mean(axis=1)
+    assert (np.einsum("ij,ij->i", n, centroid_dir) > 0).all()              # outward
+    np.testing.assert_allclose(np.abs(n).max(axis=1), 1.0)                 # axis-aligned unit normals
+
+
+def test_degenerate_faces_get_a_zero_normal_not_nan():
+    v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0.0]])
+    n = face_normals(v, np.array([[0, 1, 2]]))
+    assert np.isfinite(n).all() and (n == 0).all()
+
+
+def test_vertex_normals_of_a_sphere_are_radial_and_lumped_areas_sum_to_the_area():
+    v, f = fibonacci_sphere(800, 2.0)
+    n = vertex_normals(v, f)
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0)
+    assert (np.einsum("ij,ij->i", n, v / 2.0) > 0.999).all()
+    a = lumped_vertex_areas(v, f)
+    assert a.shape == (800,) and (a > 0).all()
+    assert a.sum() == pytest.approx(face_areas(v, f).sum())
+    assert a.sum() == pytest.approx(4 * np.pi * 4.0, rel=5e-3)
+
+
+def test_padded_from_pairs_groups_by_source_keeps_order_and_pads():
+    out = padded_from_pairs([2, 0, 2, 2, 0], [5, 6, 7, 8, 9], 4)
+    np.testing.assert_array_equal(out, [[6, 9, -1], [-1, -1, -1], [5, 7, 8], [-1, -1, -1]])
+    np.testing.assert_array_equal(padded_from_pairs([2, 0, 2, 2, 0], [5, 6, 7, 8, 9], 4, max_width=2),
+                                  [[6, 9], [-1, -1], [5, 7], [-1, -1]])
+    assert padded_from_pairs([], [], 3).shape == (3, 0)
+
+
+def test_one_ring_of_a_tetrahedron_and_an_icosahedron():
+    tet = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    ring = one_ring(tet, 4)
+    for i in range(4):
+        assert sorted(ring[i]) == sorted(set(range(4)) - {i})
+    ico = trimesh.creation.icosahedron()
+    ring = one_ring(ico.faces, 12)
+    assert ring.shape == (12, 5) and (ring >= 0).all()                     # every vertex: valence 5
+    for i in range(12):
+        assert set(ring[i]) == set(ico.vertex_neighbors[i])

@@ -1,6 +1,6 @@
 """Tests of ``methods.marching_cubes``: the :class:`MarchingCubes` baseline (closed, outward, within half a grid
 spacing of the clean phantoms at N = 96; its options), :func:`marching_cubes_mesh`, :func:`clean_mesh`,
-:func:`orient_outward` and :func:`mesh_facts`."""
+:func:`orient_outward` (the mesh facts it reports: ``geometry.mesh.mesh_facts``, test_geometry_mesh.py)."""
 
 from __future__ import annotations
 
@@ -70,16 +70,3 @@ def test_orient_outward_flips_an_inward_mesh_in_place():
     inward = trimesh.Trimesh(ico.vertices, ico.faces[:, ::-1], process=False)
     assert orient_outward(inward) is inward and inward.volume > 0
     np.testing.assert_array_equal(orient_outward(inward.copy()).faces, inward.faces)   # outward: untouched
-
-
-def test_mesh_facts_of_a_sphere_a_torus_two_spheres_and_nothing():
-    ico = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
-    facts = mesh_facts(ico)
-    assert facts == {"vertices": 162, "faces": 320, "watertight": True, "euler": 2,
-                     "signed_volume": pytest.approx(ico.volume), "components": 1}
-    assert facts["signed_volume"] == pytest.approx(4 / 3 * np.pi, rel=0.05)
-    assert mesh_facts(trimesh.creation.torus(1.0, 0.3))["euler"] == 0
-    two = trimesh.util.concatenate([ico, ico.copy().apply_translation([3, 0, 0])])
-    assert mesh_facts(two)["components"] == 2 and mesh_facts(two)["euler"] == 4
-    empty = mesh_facts(trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int)))
-    assert empty["watertight"] is False and empty["components"] == 0 and empty["euler"] == 0

@@ -1,5 +1,5 @@
 """The grid signed distance of a mesh phantom as it was before the bounded-memory rewrite (commit 21421c5),
-kept as the reference of tests/test_phantoms_mesh_grid.py: the new volume must equal it wherever it was
+kept as the reference of tests/test_phantoms_mesh_grid_sdf.py: the new volume must equal it wherever it was
 certified exact (the narrow band; ``stats["band_mask"]``).  Test support only; not part of the suite.
 
 The original module docstring:

@@ -1,4 +1,5 @@
-"""Mesh-backed phantoms (phantoms/mesh/): exact closest points, sign, grid volume, truth, samples."""
+"""Tests of ``phantoms.mesh.phantom``: the mesh-backed phantoms (:class:`MeshPhantom`) — normalisation,
+sign, grid volume, truth, samples.  (The closest-point and winding-number primitives: test_phantoms_mesh_closest.py.)"""
 
 import importlib.util
 import time
@@ -8,7 +9,7 @@ import pytest
 import trimesh
 
 from phantoms import InputError, MeshPhantom, get_phantom
-from phantoms.mesh import closest_point_on_triangles, winding_number
+from phantoms.mesh import winding_number
 
 HAS_NILEARN = importlib.util.find_spec("nilearn") is not None
 
@@ -32,30 +33,6 @@ def bunny():
 
 
 # ------------------------------------------------------------------------------------------ kernels
-def test_closest_point_on_triangles_matches_dense_sampling():
-    rng = np.random.default_rng(0)
-    a, b, c = (rng.normal(size=(300, 3)) for _ in range(3))
-    p = rng.normal(size=(300, 3)) * 2
-    bary, feat = closest_point_on_triangles(p, a, b, c)
-    assert np.all(bary >= -1e-12) and np.allclose(bary.sum(1), 1.0)
-    x = bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
-    d = np.linalg.norm(p - x, axis=1)
-    # dense barycentric sampling never beats the exact closest point
-    s = np.linspace(0, 1, 81)
-    uu, vv = np.meshgrid(s, s)
-    keep = uu + vv <= 1
-    uu, vv = uu[keep], vv[keep]
-    pts = (1 - uu - vv)[None, :, None] * a[:, None] + uu[None, :, None] * b[:, None] + vv[None, :, None] * c[:, None]
-    dense = np.linalg.norm(pts - p[:, None], axis=2).min(1)
-    assert np.all(d <= dense + 1e-12)
-    assert np.all(dense - d < 0.05 * np.linalg.norm(b - a, axis=1).max())
-    assert set(np.unique(feat)) <= set(range(7))
-
-
-def test_winding_number_of_a_closed_mesh():
-    v, f = _icosphere(2, 1.0)
-    w = winding_number(v, f, np.array([[0, 0, 0], [0.5, 0.2, 0.1], [2, 0, 0], [0, 0, -5.0]]))
-    assert np.allclose(w, [1, 1, 0, 0], atol=1e-9)
 
 
 # ------------------------------------------------------------------------------------------ icosphere

@@ -1,4 +1,5 @@
-"""The grid signed distance of a mesh phantom in bounded memory (phantoms/mesh/grid_sdf.py, grid_kernels.py):
+"""Tests of ``phantoms.mesh.grid_sdf`` (and its compiled kernels, ``grid_kernels.py``): the grid signed
+distance of a mesh phantom in bounded memory:
 the same values as before the rewrite in the band, an upper bound beyond, a certified closest-face query,
 and the memory of a bunny volume measured in a child process."""
 

@@ -20,27 +20,6 @@ def _nifti(path, values, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0)):
     return path
 
 
-def test_mask_of_a_known_sphere_zero_level_and_distances():
-    """A voxelised sphere (anisotropic spacing): the zero level set of its signed distance lies within half a
-    voxel (coarsest axis) of the true sphere, and near the surface φ is the true distance within a voxel."""
-    from skimage.measure import marching_cubes
-
-    spacing = np.array([0.4, 0.5, 0.7])
-    origin = np.array([-5.0, -6.0, -7.5])
-    n = (30, 26, 22)
-    centre, radius = np.array([0.3, -0.2, 0.1]), 4.0
-    pts = origin + np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), -1) * spacing
-    true = np.linalg.norm(pts - centre, axis=-1) - radius
-    vol = mask_to_sdf(true < 0, origin, spacing)
-    assert np.array_equal(vol.spacing, spacing) and np.array_equal(vol.origin, origin)
-    assert ((vol.values < 0) == (true < 0)).all()
-    v, _, _, _ = marching_cubes(vol.values, 0.0, spacing=tuple(spacing))
-    err = np.abs(np.linalg.norm(v + origin - centre, axis=1) - radius)
-    assert err.max() <= spacing.max() / 2 + 1e-9
-    near = np.abs(true) < 2.0
-    assert np.abs(vol.values[near] - true[near]).max() < spacing.max()
-
-
 def test_a_0_255_mask_is_a_mask_and_threshold_label_invert_read_intensities(tmp_path):
     m = sphere_mask()
     p = _nifti(tmp_path / "m.nii.gz", (m * 255).astype(np.uint8))

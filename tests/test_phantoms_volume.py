@@ -161,23 +161,3 @@ def test_a_volume_too_large_for_memory_is_refused_before_allocating_with_the_lar
         vol.channels(1)                                       # 4 channels (+ the stack) do not
     monkeypatch.setattr(pv, "available_memory", lambda: None)  # unknown: no check
     pv.check_memory((10 ** 4,) * 3, 8)
-
-
-def test_grid_volume_samples_in_slabs_with_the_same_values(monkeypatch):
-    """grid_volume hands the function slabs of whole x-planes (at most GRID_CHUNK points, never fewer than one
-    plane), so its temporaries stay bounded; the values equal one evaluation over the whole grid."""
-    import phantoms.base as pb
-
-    ph = get_phantom("ellipsoid")
-    seen = []
-
-    def fn(p):
-        seen.append(len(p))
-        return ph.sdf(p)
-
-    monkeypatch.setattr(pb, "GRID_CHUNK", 5000)
-    vol = pb.grid_volume(fn, n=40)
-    assert max(seen) <= 5000 and min(seen) >= 40 * 40 and sum(seen) == 40 ** 3
-    axis = vol.origin[0] + vol.h * np.arange(40)
-    whole = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
-    assert np.array_equal(vol.values, ph.sdf(whole).reshape(40, 40, 40))

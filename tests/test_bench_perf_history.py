@@ -1,5 +1,5 @@
-"""Perf history (bench.perf.history): a JSON line per run, read back the same, drawn into a self-contained page;
-and the injected-slowdown hook the gate's detection is measured with (bench.perf.timing)."""
+"""Tests of ``bench.perf.history``: a JSON line per run, read back the same, drawn into a self-contained page.
+(The injected-slowdown hook: test_bench_perf_timing.py.)"""
 
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ import pytest
 
 from bench.cli import main
 from bench.perf import history as h
-from bench.perf import timing
 
 TIMING = {"mode": "quick", "commit": {"id": "a" * 40, "dirty": False},
           "benchmarks": {"test_mc": {"ratio": 1.1, "cpu_ratio": 1.0}, "test_sg": {"ratio": 40.0, "cpu_ratio": None}}}
@@ -70,24 +69,3 @@ def test_plotting_a_missing_or_empty_history_is_one_line_exit_2(tmp_path, capsys
     assert len(err) == 2 and "cannot read the history file" in err[0] and "no history entries" in err[1]
 
 
-def test_the_slowdown_hook_parses_its_spec(monkeypatch):
-    monkeypatch.setenv(timing.ENV_SLOWDOWN, "iteration=2")
-    assert timing.slowdown_for("test_flow_iteration_100k") == 2.0
-    assert timing.slowdown_for("test_marching_cubes") == 1.0
-    monkeypatch.setenv(timing.ENV_SLOWDOWN, "iteration=abc")
-    assert timing.slowdown_for("test_iteration") == 1.0
-
-
-def test_an_injected_slowdown_is_real_cpu_inside_the_timed_interval():
-    def cpu_of_round(factor: float) -> float:
-        t = timing.CpuRecordingTimer(slowdown=factor)
-        t()
-        sum(range(3_000_000))
-        t()
-        return t.cpu[-1]
-
-    plain = min(cpu_of_round(1.0) for _ in range(3))
-    slowed = min(cpu_of_round(3.0) for _ in range(3))
-    # a busy loop of (3 − 1) × the round's wall time: CPU time about three times the plain round's (less when
-    # another process takes turns on the core during the busy loop); outside the interval it would add nothing
-    assert slowed > 1.6 * plain

@@ -1,0 +1,50 @@
+"""Tests of ``methods.distmesh_loop``: the compiled DistMesh iterations — :func:`flip_candidates` equals the
+numpy flip test, and a DistMesh run through :func:`relax` (``compiled=True``) ends where the numpy iterations
+end, to rounding."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from methods import distmesh_loop
+from methods.distmesh import DistMesh, _flip_candidates
+from phantoms import get_phantom
+
+pytestmark = pytest.mark.skipif(not distmesh_loop.AVAILABLE, reason="numba is not installed")
+
+
+def test_flip_candidates_equal_the_numpy_flip_test():
+    rng = np.random.default_rng(0)
+    p = rng.normal(size=(400, 3))
+    p[:, 2] *= 0.1                                              # nearly flat quads: flips are common
+    a, b, c, d = (rng.integers(0, 400, 3000) for _ in range(4))
+    ok = (a != b) & (a != c) & (a != d) & (b != c) & (b != d) & (c != d)
+    a, b, c, d = a[ok], b[ok], c[ok], d[ok]
+    cand, improve = distmesh_loop.flip_candidates(p, a, b, c, d, 0.9, 0.01)
+    ref_cand, ref_improve = _flip_candidates(p, a, b, c, d, 0.9, 0.01)
+    assert 0 < cand.sum() < len(cand)
+    np.testing.assert_array_equal(cand, ref_cand)
+    np.testing.assert_allclose(improve[cand], ref_improve[cand], rtol=1e-9, atol=1e-12)
+
+
+def test_a_thin_quad_flips_to_its_short_diagonal():
+    # a rhombus split along its long diagonal (a, b): two slivers; the short diagonal (c, d) is much better
+    p = np.array([[-1.0, 0, 0], [1.0, 0, 0], [0, 0.2, 0], [0, -0.2, 0]])
+    a, b, c, d = (np.array([i]) for i in (0, 1, 2, 3))
+    cand, improve = distmesh_loop.flip_candidates(p, b, a, c, d, 0.9, 0.01)
+    assert cand[0] and improve[0] > 0.3
+    p_good = np.array([[-0.2, 0, 0], [0.2, 0, 0], [0, 1.0, 0], [0, -1.0, 0]])   # (a, b) already the short diagonal
+    cand, _ = distmesh_loop.flip_candidates(p_good, b, a, c, d, 0.9, 0.01)
+    assert not cand[0]
+
+
+def test_the_compiled_iterations_end_where_the_numpy_ones_end():
+    vol = get_phantom("sphere").volume(n=24)
+    fast = DistMesh(max_iter=40, compiled=True).reconstruct(vol)
+    slow = DistMesh(max_iter=40, compiled=False).reconstruct(vol)
+    assert fast.info["iterations"] == slow.info["iterations"]
+    assert fast.info["stop_reason"] == slow.info["stop_reason"]
+    np.testing.assert_array_equal(fast.mesh.faces, slow.mesh.faces)
+    np.testing.assert_allclose(fast.mesh.vertices, slow.mesh.vertices, atol=1e-8)
+    assert fast.mesh.is_watertight and fast.mesh.volume > 0

@@ -1,0 +1,61 @@
+"""Tests of ``phantoms.mesh.grid_kernels``, the compiled kernels of the grid signed distance, one by one:
+:func:`tri_eval` against :func:`phantoms.mesh.closest.closest_point_on_triangles`, :func:`build_cells`
+against a brute-force bounding-box binning, :func:`mark_band` against the distance to the vertices.  (The
+whole grid: test_phantoms_mesh_grid_sdf.py.)"""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from phantoms.mesh import closest_point_on_triangles
+from phantoms.mesh import grid_kernels as gk
+from phantoms.mesh.index import TriangleIndex
+
+
+def _mesh():
+    m = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def test_tri_eval_is_the_exact_point_triangle_distance_and_feature():
+    v, f = _mesh()
+    idx = TriangleIndex(v, f)
+    rng = np.random.default_rng(0)
+    p = rng.normal(size=(200, 3)) * 1.5
+    faces = rng.integers(0, len(f), 200)
+    a, b, c = (v[f[faces, k]] for k in range(3))
+    bary, feat = closest_point_on_triangles(p, a, b, c)
+    x = bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
+    ref = np.linalg.norm(p - x, axis=1)
+    got = [gk.tri_eval(q[0], q[1], q[2], idx.pack, int(t)) for q, t in zip(p, faces)]
+    np.testing.assert_allclose([g[0] for g in got], ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_array_equal([g[1] for g in got], feat)
+
+
+def test_build_cells_bins_every_triangle_into_the_cells_its_box_overlaps():
+    v, f = _mesh()
+    tri = v[f]
+    lo_t, hi_t = tri.min(axis=1), tri.max(axis=1)
+    lo, c = v.min(axis=0), 0.4
+    dims = np.maximum(np.ceil((v.max(axis=0) - lo) / c).astype(np.int64), 1)
+    start, faces = gk.build_cells(lo_t, hi_t, lo, c, dims)
+    assert len(start) == int(np.prod(dims)) + 1 and start[-1] == len(faces)
+    i0 = np.maximum(((lo_t - lo) / c).astype(int), 0)
+    i1 = np.minimum(((hi_t - lo) / c).astype(int), dims - 1)
+    for q in range(int(np.prod(dims))):
+        i, j, k = q // (dims[1] * dims[2]), (q // dims[2]) % dims[1], q % dims[2]
+        want = np.flatnonzero((i0[:, 0] <= i) & (i <= i1[:, 0]) & (i0[:, 1] <= j) & (j <= i1[:, 1])
+                              & (i0[:, 2] <= k) & (k <= i1[:, 2]))
+        np.testing.assert_array_equal(np.sort(faces[start[q]:start[q + 1]]), want)
+
+
+def test_mark_band_marks_the_grid_points_within_the_radius_of_a_vertex():
+    v, _ = _mesh()
+    axis = np.linspace(-1.5, 1.5, 16)
+    state = np.zeros((16, 16, 16), np.int8)
+    gk.mark_band(v, axis, 0.3, state, 7)
+    g = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+    d = np.linalg.norm(g[:, None] - v[None], axis=2).min(1).reshape(16, 16, 16)
+    np.testing.assert_array_equal(state == 7, d <= 0.3)
+    assert set(np.unique(state)) == {0, 7}

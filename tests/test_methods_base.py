@@ -1,4 +1,4 @@
-"""Tests of ``methods.base``: :class:`Param` conversion, :func:`check_volume`, and the plug-in contract where a
+"""Tests of ``methods.base``: :func:`check_volume`, and the plug-in contract where a
 method breaks it (issue 30): a ``sys.exit()`` inside ``reconstruct`` and
 ``info`` values of the wrong type are failures naming the method (and the key) — in ``reconstruct`` and in a
 grid cell — never an exit 0 without output, one warning per character or a text in an integer column."""
@@ -84,25 +84,6 @@ def test_grid_cells_of_such_methods_are_failed_rows_naming_method_and_key(tmp_pa
     assert rows["exiting"]["status"] == "failed" and "'exiting' called sys.exit(0)" in rows["exiting"]["error"]
     bad = rows["bad_info"]
     assert bad["status"] == "failed" and "info['iterations']" in bad["error"] and bad["iterations"] == ""
-
-
-def test_param_converts_command_line_strings_and_checks_choices_and_bounds():
-    from methods import Param
-    from phantoms import InputError
-
-    p = Param(1.0, "a weight", float, min=0.0, max=10.0)
-    assert p.convert("m", "w", "2.5") == 2.5 and p.convert("m", "w", 3) == 3.0
-    for bad in ("-1", 11, "lots"):
-        with pytest.raises(InputError, match="method 'm', parameter 'w'"):
-            p.convert("m", "w", bad)
-    c = Param("lewiner", "variant", str, choices=("lewiner", "lorensen"))
-    assert c.convert("m", "v", "lorensen") == "lorensen"
-    with pytest.raises(InputError, match="'v'"):
-        c.convert("m", "v", "other")
-    b = Param(True, "a switch", bool)
-    assert b.convert("m", "b", "false") is False and b.convert("m", "b", "true") is True
-    auto = Param(None, "auto by default", int, min=2)
-    assert auto.convert("m", "a", "auto") is None and auto.convert("m", "a", "7") == 7
 
 
 def test_check_volume_accepts_a_volume_with_a_surface_and_names_the_method_otherwise():

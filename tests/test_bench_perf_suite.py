@@ -8,6 +8,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from _perf_common import REPO
 
 
@@ -19,6 +21,7 @@ def test_benchmarks_are_deselected_by_the_default_pytest_run():
     assert "::" not in proc.stdout, proc.stdout[-2000:]
 
 
+@pytest.mark.heavy
 def test_perf_runs_a_benchmark_and_records_its_ratio(tmp_path):
     """The real pipeline on the cheapest benchmark: pytest-benchmark JSON → ratio to the reference → summary."""
     out = tmp_path / "mc.json"

@@ -10,7 +10,7 @@ Exact everywhere a metric or method looks, a documented upper bound everywhere e
    the best distance is below the distance to the unsearched cells), the distance and closest feature from
    :meth:`~phantoms.mesh.index.TriangleIndex.eval_pairs` and the pseudonormal sign — the same values as the
    certified query of :mod:`phantoms.mesh.index` (the volume before this module was rewritten equals it
-   there to rounding; tests/test_phantoms_mesh_grid.py).
+   there to rounding; tests/test_phantoms_mesh_grid_sdf.py).
 2. *far region* (the rest): closest-triangle propagation.  Breadth first from the band over the 26
    neighbours, each far point takes the best of the closest triangles of its finished neighbours, then
    descends on the mesh (the faces across the edges of its face and, when its closest point is a vertex,

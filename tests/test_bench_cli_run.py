@@ -69,7 +69,7 @@ def test_quick_results_csv_has_a_row_per_cell_with_every_metric(quick_run):
     cfg.methods.append(parse_method_spec("failing"))
     cells = expand_grid(cfg)
     rows = _rows(out / "results.csv")
-    assert [r["cell_id"] for r in rows] == [c["cell_id"] for c in cells]
+    assert [r["cell_id"] for r in rows] == [c.cell_id for c in cells]
     header = list(rows[0])
     for col in ["cell_id", "phantom", "variant", "N", "noise", "snr_requested", "snr_achieved", "seed", "method",
                 "parameters", *METRIC_NAMES, "status", "error"]:

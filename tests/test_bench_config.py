@@ -77,17 +77,17 @@ def test_the_paper_grid_labels_name_every_variant_and_its_non_default_settings()
     cells = expand_grid(builtin_config("paper"))
     by_label: dict = {}
     for c in cells:
-        by_label.setdefault(c["label"], []).append(c)
-    assert {c["params"].get("preset") for c in by_label["shape_gradient[paper]"]} == {"paper"}
-    assert {c["params"].get("preset") for c in by_label["shape_gradient[paper+fixes]"]} == {"paper+fixes"}
-    assert all(c["params"] == {} for c in by_label["shape_gradient"])
+        by_label.setdefault(c.label, []).append(c)
+    assert {c.params.get("preset") for c in by_label["shape_gradient[paper]"]} == {"paper"}
+    assert {c.params.get("preset") for c in by_label["shape_gradient[paper+fixes]"]} == {"paper+fixes"}
+    assert all(c.params == {} for c in by_label["shape_gradient"])
     for label in ("shape_gradient[paper,beta=0]", "shape_gradient[paper+fixes,beta=0]"):
-        assert {c["noise"] for c in by_label[label]} == {"none"} and all(c["params"]["beta"] == 0 for c in by_label[label])
-    fused = [c for c in by_label["shape_gradient[paper]"] if c["phantom"] == "fused_spheres"]
-    assert all(c["params"]["max_iter"] == 150 and c["params"]["snapshots"] == [1, 75, 150] for c in fused)
-    assert not {"reach_for_the_spheres", "flying_edges", "dual_contouring", "reach_for_the_arcs"} & {c["method"] for c in cells}
+        assert {c.noise for c in by_label[label]} == {"none"} and all(c.params["beta"] == 0 for c in by_label[label])
+    fused = [c for c in by_label["shape_gradient[paper]"] if c.phantom == "fused_spheres"]
+    assert all(c.params["max_iter"] == 150 and c.params["snapshots"] == [1, 75, 150] for c in fused)
+    assert not {"reach_for_the_spheres", "flying_edges", "dual_contouring", "reach_for_the_arcs"} & {c.method for c in cells}
     quick = expand_grid(builtin_config("quick"))
-    assert all(c["params"] == {} for c in quick if c["label"] == "shape_gradient")
+    assert all(c.params == {} for c in quick if c.label == "shape_gradient")
 
 
 def test_a_method_can_be_limited_to_some_noise_kinds():
@@ -98,7 +98,7 @@ def test_a_method_can_be_limited_to_some_noise_kinds():
 
     cfg = config_from_dict(data)
     cfg.validate()
-    got = [(c["method"], c["noise"]) for c in expand_grid(cfg)]
+    got = [(c.method, c.noise) for c in expand_grid(cfg)]
     assert got == [("mc_taubin", "none"), ("marching_cubes", "gaussian"), ("mc_taubin", "gaussian")]
     assert config_from_dict(cfg.to_dict()).methods[0].noise == ("gaussian",)
     data["methods"][0]["noise"] = ["pink"]

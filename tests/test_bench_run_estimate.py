@@ -33,8 +33,9 @@ REFUSED = re.compile(r"^estimated [\d.]+ (min|h) > timeout 10 min \(use --force 
 
 
 def _cell(method: str, n: int, **params) -> dict:
-    return {"cell_id": f"sphere-{method}-n{n}", "phantom": "sphere", "variant": "sdf", "n": n, "noise": "none",
-            "snr_requested": None, "seed": 0, "method": method, "label": method, "params": params}
+    return {"cell_id": f"sphere-{method}-n{n}", "phantom": "sphere", "variant": "sdf", "n": n, "extent": 2.5,
+            "noise": "none", "snr_requested": None, "seed": 0, "method": method, "label": method, "params": params,
+            "n_samples": 1000, "imports": []}
 
 
 def _cfg(method: str, n: int, timeout: float, **run) -> object:
@@ -77,9 +78,9 @@ def test_reach_for_the_spheres_at_256_is_refused_under_ten_minutes_with_its_esti
     estimate = method_estimate(cell)
     assert estimate is not None and estimate > 600
     result = refusal(cell, TimeLimits(cell=600))
-    assert result["row"]["status"] == "failed"
-    assert REFUSED.match(result["row"]["error"]), result["row"]["error"]
-    assert result["row"]["estimate_s"] == pytest.approx(estimate, rel=1e-3)
+    assert result.row["status"] == "failed"
+    assert REFUSED.match(result.row["error"]), result.row["error"]
+    assert result.row["estimate_s"] == pytest.approx(estimate, rel=1e-3)
     assert refusal(cell, TimeLimits(cell=600), force=True) is None
     assert refusal(cell, TimeLimits()) is None                 # no limit: nothing to exceed
     assert refusal(cell, TimeLimits(cell=estimate * 2)) is None
@@ -122,7 +123,7 @@ class _InlineExecutor:
 
     def run(self, cells, on_start, on_result) -> None:
         for cell in cells:
-            self.given.append(cell["cell_id"])
+            self.given.append(cell.cell_id)
             on_start(cell)
             on_result(cell, run_cell(cell))
 

@@ -148,8 +148,8 @@ def test_a_worker_killed_mid_cell_still_gives_every_cell_exactly_once(tmp_path, 
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)  # really dead
     rows = _rows(out / "results.csv")
-    assert [r["cell_id"] for r in rows] == [c["cell_id"] for c in cells]  # every cell exactly once
-    assert sorted(p.stem for p in (out / "cells").glob("*.json")) == sorted(c["cell_id"] for c in cells)
+    assert [r["cell_id"] for r in rows] == [c.cell_id for c in cells]  # every cell exactly once
+    assert sorted(p.stem for p in (out / "cells").glob("*.json")) == sorted(c.cell_id for c in cells)
     status = {r["label"]: (r["status"], r["error"]) for r in rows}
     assert all(status[f"napping[tag={t}]"][0] == "ok" for t in range(6)), status
     assert status["sleepy"][0] == "timeout" and "6 s" in status["sleepy"][1]  # killed on the worker, row kept

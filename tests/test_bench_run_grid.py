@@ -22,15 +22,15 @@ def test_grid_expansion_sweeps_overrides_and_stable_ids():
     cells = expand_grid(cfg)
     # 2 phantoms x 2 N x (1 clean seed + 2 SNRs x 2 seeds) x (2 sweep values + 1) = 60
     assert len(cells) == 60
-    assert len({c["cell_id"] for c in cells}) == 60
-    assert {c["label"] for c in cells} == {"marching_cubes[step_size=1]", "marching_cubes[step_size=2]", "taubin"}
-    fs = [c for c in cells if c["phantom"] == "fused_spheres" and c["label"] == "taubin"]
-    assert all(c["params"] == {"iterations": 3} for c in fs)
-    snrs = {c["snr_requested"] for c in cells if c["phantom"] == "fused_spheres"}
+    assert len({c.cell_id for c in cells}) == 60
+    assert {c.label for c in cells} == {"marching_cubes[step_size=1]", "marching_cubes[step_size=2]", "taubin"}
+    fs = [c for c in cells if c.phantom == "fused_spheres" and c.label == "taubin"]
+    assert all(c.params == {"iterations": 3} for c in fs)
+    snrs = {c.snr_requested for c in cells if c.phantom == "fused_spheres"}
     assert snrs == {None, 30.0, 43.2}
-    assert [c["cell_id"] for c in expand_grid(cfg)] == [c["cell_id"] for c in cells]  # stable
+    assert [c.cell_id for c in expand_grid(cfg)] == [c.cell_id for c in cells]  # stable
     again = config_from_dict(json.loads(json.dumps(cfg.to_dict())))  # what run folders keep (config.json)
-    assert [c["cell_id"] for c in expand_grid(again)] == [c["cell_id"] for c in cells]
+    assert [c.cell_id for c in expand_grid(again)] == [c.cell_id for c in cells]
 
 
 def test_paper_config_is_the_paper_grid():
@@ -51,8 +51,8 @@ def test_paper_config_is_the_paper_grid():
 def test_scale_config_is_48_cells_of_the_baselines():
     cfg = load_config(CONFIG_DIR / "scale48.toml")
     cells = expand_grid(cfg)
-    assert len(cells) == 48 and {c["method"] for c in cells} == {"marching_cubes", "mc_taubin", "distmesh", "poisson"}
-    assert {c["n"] for c in cells} == {48}
+    assert len(cells) == 48 and {c.method for c in cells} == {"marching_cubes", "mc_taubin", "distmesh", "poisson"}
+    assert {c.n for c in cells} == {48}
 
 
 def test_cell_id_names_the_cell_and_hashes_every_parameter():
@@ -60,7 +60,7 @@ def test_cell_id_names_the_cell_and_hashes_every_parameter():
     cell = expand_grid(cfg)[0]
     cid = cell_id(cell)
     assert cid.startswith("sphere_sdf_n48_none_s0_shape_gradient_")
-    other = dict(cell, params={**cell["params"], "alpha": 4.0})
+    other = dict(cell.to_dict(), params={**cell.params, "alpha": 4.0})
     assert cell_id(other) != cid and cell_id(other).rsplit("_", 1)[0] == cid.rsplit("_", 1)[0]
 
 
@@ -70,12 +70,12 @@ def test_vary_one_at_a_time_sweeps_noise_at_the_first_n_and_n_at_the_first_noise
     grid = {"phantoms": ["sphere"], "n": [64, 32, 48], "noise": ["none", "gaussian@40", "gaussian@20"]}
     full = config_from_dict({"grid": grid, "methods": [{"name": "marching_cubes"}]})
     one = config_from_dict({"grid": dict(grid, vary="one_at_a_time"), "methods": [{"name": "marching_cubes"}]})
-    pairs = [(c["n"], c["noise"], c["snr_requested"]) for c in expand_grid(one)]
+    pairs = [(c.n, c.noise, c.snr_requested) for c in expand_grid(one)]
     assert pairs == [(64, "none", None), (64, "gaussian", 40.0), (64, "gaussian", 20.0), (32, "none", None),
                      (48, "none", None)]
     assert len(expand_grid(full)) == 9
     # the cells of the sweep are cells of the full product (same ids): results are comparable across configs
-    assert {c["cell_id"] for c in expand_grid(one)} <= {c["cell_id"] for c in expand_grid(full)}
+    assert {c.cell_id for c in expand_grid(one)} <= {c.cell_id for c in expand_grid(full)}
     assert config_from_dict(one.to_dict()).vary == "one_at_a_time"
     with pytest.raises(InputError, match="grid.vary"):
         config_from_dict({"grid": dict(grid, vary="sometimes"), "methods": [{"name": "marching_cubes"}]})
@@ -97,10 +97,10 @@ def test_user_volumes_run_native_once_and_a_changed_file_changes_the_cell_ids(tm
     })
     cfg.validate()
     cells = expand_grid(cfg)
-    assert [(c["phantom"], c["n"]) for c in cells] == [("a", 0), ("b", 0), (f"volume:{tmp_path / 'a.npy'}?resample=yes", 16),
+    assert [(c.phantom, c.n) for c in cells] == [("a", 0), ("b", 0), (f"volume:{tmp_path / 'a.npy'}?resample=yes", 16),
                                                        (f"volume:{tmp_path / 'a.npy'}?resample=yes", 24)]
-    assert cells[0]["source"] == f"volume:{tmp_path / 'a.npy'}"
+    assert cells[0].source == f"volume:{tmp_path / 'a.npy'}"
     st = os.stat(tmp_path / "b.npy")
     os.utime(tmp_path / "b.npy", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
     again = expand_grid(cfg)
-    assert again[0]["cell_id"] == cells[0]["cell_id"] and again[1]["cell_id"] != cells[1]["cell_id"]
+    assert again[0].cell_id == cells[0].cell_id and again[1].cell_id != cells[1].cell_id

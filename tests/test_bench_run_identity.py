@@ -139,15 +139,19 @@ def test_method_fingerprint_hashes_the_plugin_files_and_params_not_the_builtins(
 def test_changed_methods_compares_the_stored_and_current_method_code():
     from bench.run.identity import changed_methods
 
+    from bench.run import Cell
+
     fp = {"hash": "1" * 16, "files": ["/x/p.py"]}
-    cells = [{"cell_id": "a", "method": "p", "method_code": fp}, {"cell_id": "b", "method": "p", "method_code": fp},
-             {"cell_id": "c", "method": "marching_cubes"}]
-    same = {c["cell_id"]: {"cell": dict(c)} for c in cells}
+    base = dict(phantom="sphere", variant="sdf", n=16, extent=2.5, noise="none", snr_requested=None, seed=0,
+                label="x", params={}, n_samples=100)
+    cells = [Cell(**base, cell_id="a", method="p", method_code=fp),
+             Cell(**base, cell_id="b", method="p", method_code=fp), Cell(**base, cell_id="c", method="marching_cubes")]
+    same = {c.cell_id: {"cell": c.to_dict()} for c in cells}
     assert changed_methods(same, cells) == {}
-    moved = {**same, "a": {"cell": {**cells[0], "method_code": {**fp, "files": ["/y/p.py"]}}}}
+    moved = {**same, "a": {"cell": {**cells[0].to_dict(), "method_code": {**fp, "files": ["/y/p.py"]}}}}
     assert changed_methods(moved, cells) == {}                            # the same code in another folder
-    old = {**same, "a": {"cell": {**cells[0], "method_code": {**fp, "hash": "2" * 16}}},
-           "b": {"cell": {k: v for k, v in cells[1].items() if k != "method_code"}}}
+    old = {**same, "a": {"cell": {**cells[0].to_dict(), "method_code": {**fp, "hash": "2" * 16}}},
+           "b": {"cell": {k: v for k, v in cells[1].to_dict().items() if k != "method_code"}}}
     assert changed_methods(old, cells) == {"p": {"cells": ["a", "b"], "files": ["/x/p.py"], "unknown": True}}
 
 

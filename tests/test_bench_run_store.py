@@ -18,8 +18,9 @@ from phantoms import InputError
 
 
 def _cell(cid: str) -> dict:
-    return {"cell_id": cid, "phantom": "sphere", "variant": "sdf", "n": 16, "noise": "none",
-            "snr_requested": None, "seed": 0, "method": "marching_cubes", "label": "marching_cubes", "params": {}}
+    return {"cell_id": cid, "phantom": "sphere", "variant": "sdf", "n": 16, "extent": 2.5, "noise": "none",
+            "snr_requested": None, "seed": 0, "method": "marching_cubes", "label": "marching_cubes", "params": {},
+            "n_samples": 1000, "imports": []}
 
 
 def _result(cid: str, **row) -> dict:

@@ -185,7 +185,7 @@ def _cmd_run(args) -> int:
         check_run_inputs(cfg, None, **options)
         cells = expand_grid(cfg)
         for c in cells:
-            print(c["cell_id"])
+            print(c.cell_id)
         print(f"{len(cells)} cells ({printable(cfg.name)})")
         return 0
     out = Path(args.out) if args.out else Path("reports") / _dt.datetime.now().strftime("%Y%m%d-%H%M%S")

@@ -1,6 +1,8 @@
 """Running the benchmark grid: config → cells → executor → run folder.
 
-* :mod:`~bench.run.grid` — a config's cells (plain dicts) and their ids;
+* :mod:`~bench.run.contracts` — the stage contracts :class:`Cell` and :class:`CellResult` (frozen; plain dicts only
+  in the run folder);
+* :mod:`~bench.run.grid` — a config's cells and their ids;
 * :mod:`~bench.run.cell` — one cell from its parameters alone (volume, method, cost, metrics);
 * :mod:`~bench.run.executors` — where cells run (local processes, Dask);
 * :mod:`~bench.run.store` — the run folder's files, written atomically;
@@ -14,10 +16,11 @@
 """
 
 from .cell import failed_result, run_cell
+from .contracts import Cell, CellResult
 from .executors import LocalExecutor
 from .grid import cell_id, expand_grid
 from .runner import RunSummary, run_grid
 from .store import load_cells, write_results_csv
 
-__all__ = ["expand_grid", "cell_id", "run_cell", "failed_result", "run_grid", "RunSummary", "LocalExecutor",
-           "load_cells", "write_results_csv"]
+__all__ = ["Cell", "CellResult", "expand_grid", "cell_id", "run_cell", "failed_result", "run_grid", "RunSummary",
+           "LocalExecutor", "load_cells", "write_results_csv"]

@@ -1,9 +1,8 @@
 """One cell from its parameters alone: build the volume, run the method, measure it, score it.
 
 :func:`run_cell` never raises for a failing method and never touches the run folder (only the shared volume
-cache, when given), so any executor can run it anywhere.  It returns a plain dict::
-
-    {"row": {...}, "artifacts": {...}, "traceback": str | None}
+cache, when given), so any executor can run it anywhere.  It takes a :class:`~bench.run.contracts.Cell` (or its
+dict form) and returns a :class:`~bench.run.contracts.CellResult` (``row``, ``artifacts``, ``traceback``).
 
 ``row`` is the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop
 reason, cost, ``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`:
@@ -31,8 +30,9 @@ from phantoms import Volume, add_noise, get_phantom
 
 from ..metrics.flags import result_flags
 from ..metrics.validity import check_mesh
+from .contracts import Cell, CellResult
 from .cost import measure
-from .grid import canonical_json, slug
+from .grid import as_cell, canonical_json, slug
 from .limits import memory_error
 from .store import save_npz
 from .view import view_arrays
@@ -42,23 +42,25 @@ __all__ = ["run_cell", "failed_result", "build_volume", "cell_source", "truth_sa
            "method_info"]
 
 
-def _volume_cache_path(cache_dir: str, cell: dict) -> Path:
+def _volume_cache_path(cache_dir: str, cell: Cell) -> Path:
     source = cell_source(cell)
-    name = cell["phantom"] if source == cell["phantom"] else f"{cell['phantom']}_{hashlib.sha1(source.encode()).hexdigest()[:8]}"
-    key = f"{name}_{cell['variant']}_n{cell['n']}_e{cell['extent']:g}"
+    name = cell.phantom if source == cell.phantom else f"{cell.phantom}_{hashlib.sha1(source.encode()).hexdigest()[:8]}"
+    key = f"{name}_{cell.variant}_n{cell.n}_e{cell.extent:g}"
     return Path(cache_dir) / f"{slug(key)}.npz"
 
 
-def cell_source(cell: dict) -> str:
+def cell_source(cell: Cell | dict) -> str:
     """What resolves the cell's phantom (:func:`phantoms.get_phantom`): its ``source`` (a file of a dataset
     glob, named by its stem) or its name."""
-    return cell.get("source") or cell["phantom"]
+    cell = as_cell(cell)
+    return cell.source or cell.phantom
 
 
-def build_volume(cell: dict, cache_dir: str | None = None):
+def build_volume(cell: Cell | dict, cache_dir: str | None = None):
     """``(phantom, clean volume)`` of a cell, optionally cached on disk: the exact SDF of a phantom can cost
     seconds at N = 96 and is the same for every method and noise setting.  ``n`` 0 is a user volume's native
     grid."""
+    cell = as_cell(cell)
     ph = get_phantom(cell_source(cell))
     path = _volume_cache_path(cache_dir, cell) if cache_dir else None
     if path is not None and path.exists():
@@ -67,7 +69,7 @@ def build_volume(cell: dict, cache_dir: str | None = None):
                 return ph, Volume(z["values"], z["origin"], z["spacing"])
         except Exception:  # a broken cache file is rebuilt
             pass
-    vol = ph.volume(n=cell["n"] or None, extent=cell["extent"], variant=cell["variant"])
+    vol = ph.volume(n=cell.n or None, extent=cell.extent, variant=cell.variant)
     if path is not None:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -78,13 +80,14 @@ def build_volume(cell: dict, cache_dir: str | None = None):
     return ph, vol
 
 
-def truth_samples(cell: dict, ph, cache_dir: str | None = None) -> np.ndarray | None:
+def truth_samples(cell: Cell | dict, ph, cache_dir: str | None = None) -> np.ndarray | None:
     """The phantom's area-uniform surface samples the metrics compare with (``ph.sample_surface(n_samples,
     seed)``), optionally cached on disk beside the volume: the same for every method and noise setting."""
     if ph is None:
         return None
-    n, seed = int(cell["n_samples"]), int(cell["seed"])
-    path = (_volume_cache_path(cache_dir, cell).with_name(f"{slug(cell['phantom'])}_samples{n}_s{seed}.npz")
+    cell = as_cell(cell)
+    n, seed = int(cell.n_samples), int(cell.seed)
+    path = (_volume_cache_path(cache_dir, cell).with_name(f"{slug(cell.phantom)}_samples{n}_s{seed}.npz")
             if cache_dir else None)
     if path is not None and path.exists():
         try:
@@ -195,14 +198,14 @@ def _stopwatch(phases: dict):
     return lap
 
 
-def _id_row(cell: dict) -> dict[str, Any]:
+def _id_row(cell: Cell) -> dict[str, Any]:
     """The identifying columns of a cell's row."""
     return {
-        "cell_id": cell["cell_id"], "phantom": cell["phantom"], "variant": cell["variant"], "N": cell["n"],
-        "noise": cell["noise"], "snr_requested": cell["snr_requested"], "snr_achieved": None,
-        "seed": cell["seed"], "method": cell["method"], "label": cell["label"],
-        "parameters": canonical_json(plain(cell["params"])),
-        **({"source": cell["source"]} if cell.get("source") else {}),
+        "cell_id": cell.cell_id, "phantom": cell.phantom, "variant": cell.variant, "N": cell.n,
+        "noise": cell.noise, "snr_requested": cell.snr_requested, "snr_achieved": None,
+        "seed": cell.seed, "method": cell.method, "label": cell.label,
+        "parameters": canonical_json(plain(cell.params)),
+        **({"source": cell.source} if cell.source else {}),
     }
 
 
@@ -224,13 +227,13 @@ def method_info(info: dict) -> dict:
     return {str(k): plain(v) for k, v in (info or {}).items() if k not in ("snapshots", "energy_history")}
 
 
-def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
+def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> CellResult:
     """Compute one cell from its parameters; never raises for a failing method (see the module docstring).
 
     Parameters
     ----------
-    cell : dict
-        A cell of :func:`bench.run.grid.expand_grid`.
+    cell : Cell or dict
+        A cell of :func:`bench.run.grid.expand_grid`, or its dict form (:meth:`Cell.from_dict`).
     cache_dir : str, optional
         Folder of the shared cache of clean volumes and truth samples (the same for every method and noise).
     on_phase : callable, optional
@@ -239,11 +242,12 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
 
     Returns
     -------
-    dict
-        ``{"row", "artifacts", "traceback"}``; a failing method's row has ``status`` ``failed``, ``error``.
+    CellResult
+        Its row, artifacts and traceback; a failing method's row has ``status`` ``failed``, ``error``.
     """
     from bench.metrics import evaluate
 
+    cell = as_cell(cell)
     t0, c0 = time.perf_counter(), time.process_time()
     row = _id_row(cell)
     artifacts: dict = {}
@@ -252,28 +256,28 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
     phases = row["phase_s"] = {}
     lap = _stopwatch(phases)
     try:
-        import_plugins(cell.get("imports") or ())
+        import_plugins(cell.imports)
         stage = "volume"
         ph, vol = build_volume(cell, cache_dir)
-        if not cell["n"]:
+        if not cell.n:
             row["N"] = int(max(vol.shape))           # a user volume on its native grid
         truth = ph.ground_truth()
         row["h"], row["has_truth"] = float(vol.h), truth is not None
         clean = vol
         lap("volume")
-        if cell["noise"] != "none":
-            vol, achieved = add_noise(vol, cell["noise"], cell["snr_requested"], seed=cell["seed"])
+        if cell.noise != "none":
+            vol, achieved = add_noise(vol, cell.noise, cell.snr_requested, seed=cell.seed)
             row["snr_achieved"] = float(achieved)
             lap("noise")
         stage = "method setup"
-        method = get_method(cell["method"], **cell["params"])
-        row["parameters"] = canonical_json(plain(getattr(method, "config", cell["params"])))
+        method = get_method(cell.method, **cell.params)
+        row["parameters"] = canonical_json(plain(getattr(method, "config", cell.params)))
         stage = "reconstruction"
         if on_phase is not None:
             on_phase("method", {})
         lap("setup")
         rec, cost = measure(run_reconstruct, method, vol)   # sys.exit() in the method: a failed row
-        rec = as_reconstruction(rec, cell["method"])   # a bare trimesh etc.: named, not an AttributeError
+        rec = as_reconstruction(rec, cell.method)   # a bare trimesh etc.: named, not an AttributeError
         runner_values = _runner_values(rec, cost)
         row["method_info"] = method_info(rec.info)
         if on_phase is not None:
@@ -287,7 +291,7 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
         final_H: dict = {}
         metric_phases: dict = {}
         try:
-            metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell["n_samples"], seed=cell["seed"],
+            metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell.n_samples, seed=cell.seed,
                                timings=metric_phases, vertex_H=final_H,
                                truth_points=truth_samples(cell, truth, cache_dir))
         except Exception as exc:
@@ -322,16 +326,16 @@ def run_cell(cell: dict, cache_dir: str | None = None, on_phase=None) -> dict:
         tb = traceback.format_exc()
     row["cell_s"] = time.perf_counter() - t0
     row["cpu_s"] = time.process_time() - c0        # all threads of the cell: its cost whatever the machine's load
-    return {"row": row, "artifacts": artifacts, "traceback": tb}
+    return CellResult(row, artifacts, tb)
 
 
-def failed_result(cell: dict, status: str, error: str) -> dict:
+def failed_result(cell: Cell | dict, status: str, error: str) -> CellResult:
     """The result of a cell that produced nothing (a crash, a timeout), shaped as :func:`run_cell`'s.
 
     Parameters
     ----------
-    cell : dict
-        The cell.
+    cell : Cell or dict
+        The cell (or its dict form).
     status : str
         The row's ``status``, e.g. ``failed``.
     error : str
@@ -339,9 +343,9 @@ def failed_result(cell: dict, status: str, error: str) -> dict:
 
     Returns
     -------
-    dict
-        ``{"row": ID columns + status + error, "artifacts": {}, "traceback": None}``.
+    CellResult
+        Its row holds the ID columns, status and error; no artifacts, no traceback.
     """
-    row = _id_row(cell)
+    row = _id_row(as_cell(cell))
     row.update(status=status, error=error)
-    return {"row": row, "artifacts": {}, "traceback": None}
+    return CellResult(row)

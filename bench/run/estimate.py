@@ -23,6 +23,8 @@ from typing import Callable
 from phantoms import InputError
 
 from .cell import failed_result
+from .contracts import Cell, CellResult
+from .grid import as_cell
 from .limits import TimeLimits
 
 __all__ = ["method_estimate", "method_budget", "refusal", "screen_cells", "format_duration", "check_force"]
@@ -37,16 +39,17 @@ def format_duration(seconds: float) -> str:
     return f"{seconds / 3600:.3g} h"
 
 
-def method_estimate(cell: dict) -> float | None:
+def method_estimate(cell: Cell | dict) -> float | None:
     """The cell's method's estimate in seconds at the cell's N (None: no model, no N, a model that raises or
     returns no finite number ≥ 0, or a method that cannot even be built — that cell fails on its own when it
     runs)."""
-    if not cell.get("n"):
+    cell = as_cell(cell)
+    if not cell.n:
         return None
     from methods import get_method
 
     try:
-        estimate = get_method(cell["method"], **cell["params"]).estimate_seconds((cell["n"],) * 3)
+        estimate = get_method(cell.method, **cell.params).estimate_seconds((cell.n,) * 3)
     except Exception:  # noqa: BLE001 - a broken method or model must not stop the run: it is not refused
         return None
     try:
@@ -63,7 +66,7 @@ def method_budget(limits: TimeLimits) -> tuple[float, str] | None:
     return min(options) if options else None
 
 
-def refusal(cell: dict, limits: TimeLimits, force: bool = False) -> dict | None:
+def refusal(cell: Cell | dict, limits: TimeLimits, force: bool = False) -> CellResult | None:
     """The ``failed`` result of a cell whose estimate exceeds its budget (see the module docstring); None when
     it may run."""
     budget = method_budget(limits)
@@ -75,16 +78,16 @@ def refusal(cell: dict, limits: TimeLimits, force: bool = False) -> dict | None:
     error = (f"estimated {format_duration(estimate)} > {budget[1]} {format_duration(budget[0])} "
              "(use --force to run it anyway)")
     result = failed_result(cell, "failed", error)
-    result["row"].update(estimate_s=round(estimate, 3), cell_s=0.0)
+    result.row.update(estimate_s=round(estimate, 3), cell_s=0.0)
     return result
 
 
-def screen_cells(cells: list[dict], limits: TimeLimits, force: bool, on_start: Callable[[dict], None],
-                 on_result: Callable[[dict, dict], None]) -> list[dict]:
+def screen_cells(cells: list[Cell], limits: TimeLimits, force: bool, on_start: Callable[[Cell], None],
+                 on_result: Callable[[Cell, CellResult], None]) -> list[Cell]:
     """The cells to run; each refused one is reported at once (``on_start``, then ``on_result`` with its
     failed row), as if an executor had run it."""
     todo = []
-    for cell in cells:
+    for cell in map(as_cell, cells):
         result = refusal(cell, limits, force)
         if result is None:
             todo.append(cell)

@@ -1,8 +1,8 @@
-"""A run config → its cells: plain dicts of parameters, each with a stable, readable ``cell_id``.
+"""A run config → its cells (:class:`~bench.run.contracts.Cell`), each with a stable, readable ``cell_id``.
 
 A cell is everything needed to compute one result from nothing: phantom, variant, N, extent, noise kind,
 requested SNR, seed, method, label, the method's parameters (phantom-specific ones applied), the number of
-metric samples and the plug-in modules to import.  Executors ship cells to workers as they are.
+metric samples and the plug-in modules to import.  Executors ship cells to workers as they are (they pickle).
 
 A plug-in method's cells also carry ``method_code``, the fingerprint of its code
 (:func:`bench.run.method_code.method_fingerprint`).  It is not part of the ``cell_id``: the cell record keeps it, and
@@ -15,12 +15,15 @@ from __future__ import annotations
 import hashlib
 import json
 import re
+from dataclasses import replace
 from typing import Any
 
 from phantoms import VOLUME_PREFIX, InputError, expand_phantoms
 from phantoms.user import parse_spec
 
-__all__ = ["cell_id", "expand_grid", "canonical_json", "slug"]
+from .contracts import Cell
+
+__all__ = ["cell_id", "as_cell", "expand_grid", "canonical_json", "slug"]
 
 
 def slug(text: str) -> str:
@@ -33,20 +36,22 @@ def canonical_json(obj: Any) -> str:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=repr)
 
 
-def cell_id(cell: dict) -> str:
+def cell_id(cell: Cell | dict) -> str:
     """A readable, stable identifier: ``<phantom>_<variant>_n<N>_<noise>[<snr>dB]_s<seed>_<label>_<hash>``.
 
     The hash covers every parameter of the cell, so sweeps and changed settings never collide.
 
     Parameters
     ----------
-    cell : dict
-        A cell's parameters (as :func:`expand_grid` builds them).
+    cell : Cell or dict
+        A cell, or its dict form (:meth:`Cell.to_dict`, which is what the hash covers).
 
     Returns
     -------
     str
     """
+    if isinstance(cell, Cell):
+        cell = cell.to_dict()
     key = {k: cell[k] for k in ("phantom", "variant", "n", "extent", "noise", "snr_requested", "seed",
                                 "method", "params", "n_samples")}
     if cell.get("source", cell["phantom"]) != cell["phantom"]:
@@ -57,6 +62,25 @@ def cell_id(cell: dict) -> str:
     noise = cell["noise"] if cell["noise"] == "none" else f"{cell['noise']}{cell['snr_requested']:g}dB"
     return "_".join([slug(cell["phantom"]), cell["variant"], f"n{cell['n']}", slug(noise),
                      f"s{cell['seed']}", slug(cell["label"]), digest])
+
+
+def as_cell(cell: Cell | dict) -> Cell:
+    """``cell`` as a :class:`Cell`: the stages' public functions accept a cell's dict form too (tests, plug-ins,
+    records read back from disk); a dict without ``cell_id`` gets the one :func:`cell_id` gives it.
+
+    Parameters
+    ----------
+    cell : Cell or dict
+        A cell or its dict form (:meth:`Cell.from_dict`).
+
+    Returns
+    -------
+    Cell
+    """
+    if isinstance(cell, Cell):
+        return cell
+    out = Cell.from_dict(cell)
+    return out if out.cell_id else replace(out, cell_id=cell_id(out))
 
 
 def input_fingerprint(source: str) -> str | None:
@@ -103,7 +127,7 @@ def method_codes(names) -> dict[str, dict | None]:
     return {name: (method_fingerprint(registry[name]) if name in registry else None) for name in names}
 
 
-def expand_grid(cfg) -> list[dict]:
+def expand_grid(cfg) -> list[Cell]:
     """All cells of a run config, in order phantom → variant → N → noise → seed → method.
 
     A ``mesh:`` / ``volume:`` glob is one phantom per file (:func:`phantoms.expand_phantoms`; the cell's
@@ -119,8 +143,8 @@ def expand_grid(cfg) -> list[dict]:
 
     Returns
     -------
-    list of dict
-        The cells, each with its ``cell_id`` (:func:`cell_id`).
+    list of Cell
+        The cells, each with its ``cell_id`` (:func:`cell_id` of its dict form).
 
     Raises
     ------
@@ -156,8 +180,8 @@ def expand_grid(cfg) -> list[dict]:
                                     **({"method_code": codes[spec.name]} if codes[spec.name] else {}),
                                 }
                                 cell["cell_id"] = cell_id(cell)
-                                cells.append(cell)
-    ids = [c["cell_id"] for c in cells]
+                                cells.append(Cell.from_dict(cell))
+    ids = [c.cell_id for c in cells]
     if len(set(ids)) != len(ids):  # label uniqueness is checked when the config is validated
         raise InputError("the grid has duplicate cells (the same method settings listed twice)")
     return cells

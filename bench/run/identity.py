@@ -21,6 +21,7 @@ from importlib import metadata
 
 from phantoms import InputError
 
+from .contracts import Cell
 from .grid import canonical_json
 from .method_code import SUITE_PACKAGES, method_fingerprint
 from .provenance import SUITE_ROOT, git_commit
@@ -117,22 +118,23 @@ def _code_hash(code) -> str | None:
     return code.get("hash") if isinstance(code, dict) else None
 
 
-def changed_methods(records: dict[str, dict], cells: list[dict]) -> dict[str, dict]:
+def changed_methods(records: dict[str, dict], cells: list[Cell]) -> dict[str, dict]:
     """The finished cells whose plug-in method code differs from the code that would compute them now:
     ``{method: {"cells": [cell_id, ...], "files": [...], "unknown": bool}}`` (``unknown``: a record written
     before plug-in code was recorded).  Built-in methods (no ``method_code`` on either side) never differ here:
-    the suite's own code is checked by :func:`mixed_code`."""
-    current = {c["cell_id"]: c for c in cells}
+    the suite's own code is checked by :func:`mixed_code`.  ``records`` are the stored dicts (their ``cell`` in
+    its dict form), ``cells`` the grid's :class:`~bench.run.contracts.Cell` objects."""
+    current = {c.cell_id: c for c in cells}
     out: dict[str, dict] = {}
     for cid, rec in records.items():
         cell = current.get(cid)
         if cell is None:
             continue
         old = (rec.get("cell") or {}).get("method_code")
-        new = cell.get("method_code")
+        new = cell.method_code
         if _code_hash(old) == _code_hash(new):
             continue
-        entry = out.setdefault(cell["method"], {"cells": [], "files": (new or old or {}).get("files", []),
+        entry = out.setdefault(cell.method, {"cells": [], "files": (new or old or {}).get("files", []),
                                                 "unknown": False})
         entry["cells"].append(cid)
         entry["unknown"] = entry["unknown"] or old is None

@@ -22,6 +22,7 @@ import numpy as np
 from geometry.files import WriteError
 
 from ..terminal import printable
+from .contracts import Cell, CellResult
 from .estimate import screen_cells
 from .executors.local import LocalExecutor
 from .grid import expand_grid
@@ -143,12 +144,12 @@ class _Progress:
         self.bar = tqdm(total=total, initial=done, unit="cell", disable=not show, dynamic_ncols=True,
                         desc="cells", file=sys.stderr)
 
-    def start(self, cell: dict) -> None:
-        self.bar.set_postfix_str(f"{cell['phantom']}/{cell['noise']}/{cell['label']}", refresh=True)
+    def start(self, cell: Cell) -> None:
+        self.bar.set_postfix_str(f"{cell.phantom}/{cell.noise}/{cell.label}", refresh=True)
 
-    def finish(self, cell: dict, row: dict) -> None:
+    def finish(self, cell: Cell, row: dict) -> None:
         if row.get("status") != "ok" and self.show:
-            self.bar.write(printable(f"{row.get('status')}: {cell['cell_id']}: {row.get('error', '')}"))
+            self.bar.write(printable(f"{row.get('status')}: {cell.cell_id}: {row.get('error', '')}"))
         self.bar.update(1)
 
     def close(self) -> None:
@@ -182,7 +183,7 @@ def memory_limit(cfg, memory_gb: float | None, jobs: int) -> float | None:
     return float(value) or None
 
 
-def _load_done(out: Path, cells: list[dict], resume: bool, retry_failed: bool,
+def _load_done(out: Path, cells: list[Cell], resume: bool, retry_failed: bool,
                allow_mixed_code: bool) -> tuple[dict, dict, dict]:
     """The finished cells to keep (verified: a cell whose json or npz does not load is rerun, with a warning;
     a cell whose plug-in method's code changed since is rerun, with a note per method), ``{code: cells}`` when
@@ -190,7 +191,7 @@ def _load_done(out: Path, cells: list[dict], resume: bool, retry_failed: bool,
     That the folder's config gives the same grid was checked before the run (:func:`check_run_inputs`)."""
     if not resume:
         return {}, {}, {}
-    ids = {c["cell_id"] for c in cells}
+    ids = {c.cell_id for c in cells}
     found, problems = scan_cells(out, verify_artifacts=True)
     for msg in problems:
         print(printable(f"warning: {msg}; the cell will be rerun"), file=sys.stderr)
@@ -296,17 +297,17 @@ def _started(executor, cfg, out: Path, limits: TimeLimits):
             yield dask
 
 
-def _expected_cost(cell: dict) -> float:
+def _expected_cost(cell: Cell) -> float:
     """A rough relative cost of a cell (the method's ``relative_cost`` × N³, noisy cells more): the runner starts
     the dearest cells first, so that the workers finish together instead of one running the longest cell alone
     at the end.  Results are written in grid order whatever the order of running."""
     from methods import get_method
 
     try:
-        rel = float(getattr(get_method(cell["method"], **cell["params"]), "relative_cost", 1.0))
+        rel = float(getattr(get_method(cell.method, **cell.params), "relative_cost", 1.0))
     except Exception:  # a cell that cannot even build its method fails fast anyway
         rel = 1.0
-    return rel * (cell["n"] / 96.0) ** 3 * (1.5 if cell["noise"] != "none" else 1.0)
+    return rel * (cell.n / 96.0) ** 3 * (1.5 if cell.noise != "none" else 1.0)
 
 
 def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_meshes, progress, argv, executor,
@@ -320,7 +321,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     records, mixed, changed = _load_done(out, cells, resume, retry_failed, allow_mixed_code)
     write_json(out / "config.json", cfg.to_dict())
     code = code_identity()
-    todo = sorted((c for c in cells if c["cell_id"] not in records), key=_expected_cost, reverse=True)
+    todo = sorted((c for c in cells if c.cell_id not in records), key=_expected_cost, reverse=True)
     summary = RunSummary(out=out, total=len(cells), skipped=len(cells) - len(todo))
     session = {"start": _now(), "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
                **limits.to_dict(), "memory_limit_gb": memory, "cells_to_run": len(todo),
@@ -335,12 +336,13 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     if bar.show:
         bar.bar.write(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
 
-    def on_result(cell: dict, result: dict) -> None:
+    def on_result(cell: Cell, result: CellResult) -> None:
         save_cell(out, cell, result, save_meshes, code=code)
-        records[cell["cell_id"]] = {"row": result["row"], "cell": cell, "code": code}
+        # a record as stored (and as read back by --resume): plain dicts
+        records[cell.cell_id] = {"row": result.row, "cell": cell.to_dict(), "code": code}
         write_results_csv(out, cells, records)
         summary.ran += 1
-        bar.finish(cell, result["row"])
+        bar.finish(cell, result.row)
 
     if executor is None:
         executor = LocalExecutor(jobs, limits, cache_dir=str(out / CACHE_DIR), preload=list(cfg.imports),

@@ -37,6 +37,8 @@ import numpy as np
 from geometry.files import TMP_GLOB, WriteError, atomic_path, atomic_write, remove_temp_files
 from phantoms import InputError
 
+from .contracts import Cell, CellResult
+from .grid import as_cell
 from .integrity import UNCHECKED, record_problem, seal
 from .values import plain
 
@@ -115,12 +117,16 @@ def _mkdir(folder: Path) -> Path:
     return folder
 
 
-def save_cell(out: Path, cell: dict, result: dict, save_meshes: bool = False, code: dict | None = None) -> None:
+def save_cell(out: Path, cell: Cell | dict, result: CellResult | dict, save_meshes: bool = False,
+              code: dict | None = None) -> None:
     """Write one finished cell: artifacts (``.npz``) first, then the row (``.json``, which marks it done and
-    lists the arrays the ``.npz`` must hold, and the suite ``code`` that computed it)."""
+    lists the arrays the ``.npz`` must hold, and the suite ``code`` that computed it).  The record holds plain
+    dicts (:meth:`Cell.to_dict`): the storage boundary of the stage contracts."""
+    cell = as_cell(cell)
+    result = result if isinstance(result, CellResult) else CellResult.from_dict(result)
     cells_dir = _mkdir(Path(out) / CELLS_DIR)
-    cid = cell["cell_id"]
-    art = result.get("artifacts") or {}
+    cid = cell.cell_id
+    art = result.artifacts
     if art:
         save_npz(cells_dir / f"{cid}.npz", art)
         if save_meshes and "vertices" in art:
@@ -129,7 +135,7 @@ def save_cell(out: Path, cell: dict, result: dict, save_meshes: bool = False, co
             _mkdir(Path(out) / MESHES_DIR)
             mesh = trimesh.Trimesh(np.asarray(art["vertices"], float), np.asarray(art["faces"]), process=False)
             write_atomic(Path(out) / MESHES_DIR / f"{cid}.ply", mesh.export(file_type="ply"))
-    record = {"row": result["row"], "cell": cell, "traceback": result.get("traceback"),
+    record = {"row": result.row, "cell": cell.to_dict(), "traceback": result.traceback,
               "artifacts": sorted(art), "code": code,
               "finished": _dt.datetime.now().astimezone().isoformat(timespec="seconds")}
     write_json(cells_dir / f"{cid}.json", seal(record, cells_dir / f"{cid}.npz" if art else None))
@@ -256,15 +262,15 @@ def _csv_text(cols: list[str], rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-def write_results_csv(out: Path, cells: list[dict], records: dict[str, dict]) -> Path:
+def write_results_csv(out: Path, cells: "list[Cell | dict]", records: dict[str, dict]) -> Path:
     """Write ``results.csv``, then ``results.parquet`` recording the CSV's SHA-1: a row per finished cell.
 
     Parameters
     ----------
     out : Path
         The run folder.
-    cells : list of dict
-        The grid's cells; rows follow their order.
+    cells : list of Cell
+        The grid's cells (or their dict forms); rows follow their order.
     records : dict
         ``{cell_id: record}`` of the finished cells (:func:`load_cells`).
 
@@ -273,7 +279,8 @@ def write_results_csv(out: Path, cells: list[dict], records: dict[str, dict]) ->
     Path
         The CSV file.
     """
-    rows = [records[c["cell_id"]]["row"] for c in cells if c["cell_id"] in records]
+    ids = [c.cell_id if isinstance(c, Cell) else c["cell_id"] for c in cells]
+    rows = [records[cid]["row"] for cid in ids if cid in records]
     cols = result_columns(rows)
     path = Path(out) / RESULTS_CSV
     data = _csv_text(cols, rows).encode("utf-8")

@@ -20,7 +20,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from phantoms import InputError
 
 from .. import provenance
-from ..cell import failed_result
+from ..cell import Cell, CellResult, as_cell, failed_result   # the stage contracts, as run_cell takes and gives them
 from ..limits import TimeLimits
 from ..values import error_text
 from .local import LocalExecutor
@@ -59,9 +59,9 @@ class SuiteOnWorker(WorkerPlugin):
                                 f"machine at {self.commit[:12]}: install the same checkout on every worker machine")
 
 
-def _run_cell_task(cell: dict, cache_dir: str | None, limits: TimeLimits, imports: list[str]) -> dict:
-    """The Dask task: one cell in a child process of this worker; ``{"row", "artifacts", "traceback"}``."""
-    results: list[dict] = []
+def _run_cell_task(cell: Cell, cache_dir: str | None, limits: TimeLimits, imports: list[str]) -> CellResult:
+    """The Dask task: one cell in a child process of this worker; its :class:`CellResult`."""
+    results: list[CellResult] = []
     cache_dir = cache_dir or os.path.join(get_worker().local_directory, "levelset-bench-cache")
     LocalExecutor(1, limits, cache_dir, preload=imports).run([cell], lambda c: None, lambda c, r: results.append(r))
     return results[0]
@@ -124,10 +124,10 @@ class DaskExecutor:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def run(self, cells: list[dict], on_start, on_result) -> None:
+    def run(self, cells: list[Cell], on_start, on_result) -> None:
         """Submit every cell (the runner's order first), hand each result to ``on_result`` as it arrives.  The client
         does not see a task start (no ``on_start``); closing the client cancels what is left on the cluster."""
-        owned, start, lost = self.client is None, time.monotonic(), []
+        owned, start, lost, cells = self.client is None, time.monotonic(), [], [as_cell(c) for c in cells]
         futures = {self.connect().client.submit(_run_cell_task, cell, self.cache_dir, self.limits, self.imports,
                                                 pure=False, retries=self.retries, priority=len(cells) - i): cell
                    for i, cell in enumerate(cells)}
@@ -135,12 +135,12 @@ class DaskExecutor:
             for fut in as_completed(futures):
                 cell, exc = futures.pop(fut), fut.exception()   # waits while Dask recomputes a result its worker lost
                 if fut.cancelled():  # cancelled, or lost with the scheduler: no row
-                    lost.append(cell["cell_id"])
+                    lost.append(cell.cell_id)
                     continue
                 why = ("crash: the Dask workers running this cell died repeatedly (KilledWorker)"
                        if isinstance(exc, KilledWorker) else f"dask: {error_text(exc)}")
                 result = fut.result() if exc is None else failed_result(cell, "failed", why)
-                result["row"].setdefault("cell_s", time.monotonic() - start)
+                result.row.setdefault("cell_s", time.monotonic() - start)
                 on_result(cell, result)
         finally:
             if owned:

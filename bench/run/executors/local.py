@@ -20,13 +20,15 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from ..cell import failed_result, run_cell
+from ..contracts import Cell, CellResult
+from ..grid import as_cell
 from ..limits import TimeLimits, apply_memory_limit, memory_phase
 from ..values import error_text
 
 __all__ = ["LocalExecutor"]
 
 
-def _cell_process(cell: dict, cache_dir: str | None, result_conn, lifeline_conn,
+def _cell_process(cell: Cell, cache_dir: str | None, result_conn, lifeline_conn,
                   memory_gb: float | None = None) -> None:
     """Body of a worker process: run one cell, send the result, exit.  Exits at once if the runner dies.
 
@@ -60,9 +62,8 @@ def _cell_process(cell: dict, cache_dir: str | None, result_conn, lifeline_conn,
     try:
         result_conn.send(result)
     except Exception as exc:  # e.g. an unpicklable artifact: send the row alone
-        result["artifacts"] = {}
-        result["row"]["artifact_error"] = f"could not send artifacts: {error_text(exc)}"
-        result_conn.send(result)
+        row = {**result.row, "artifact_error": f"could not send artifacts: {error_text(exc)}"}
+        result_conn.send(CellResult(row, {}, result.traceback))
     result_conn.close()
 
 
@@ -71,7 +72,7 @@ class _Running:
     proc: Any
     conn: Any
     lifeline: Any
-    cell: dict
+    cell: Cell
     started: float
     deadline: float | None
     phase: str = "setup"
@@ -130,11 +131,11 @@ class LocalExecutor:
                 os.environ.setdefault(var, "1")
         return ctx
 
-    def _start(self, ctx, cell: dict) -> _Running:
+    def _start(self, ctx, cell: Cell) -> _Running:
         recv_end, send_end = ctx.Pipe(duplex=False)
         life_recv, life_send = ctx.Pipe(duplex=False)
         proc = ctx.Process(target=_cell_process, args=(cell, self.cache_dir, send_end, life_recv, self.memory_gb),
-                           name=f"cell-{cell['cell_id']}", daemon=True)
+                           name=f"cell-{cell.cell_id}", daemon=True)
         proc.start()
         send_end.close()
         life_recv.close()
@@ -179,13 +180,13 @@ class LocalExecutor:
             r.orphan = True
         return not _pid_running(r.proc.pid)
 
-    def _timed_out(self, r: _Running) -> dict:
+    def _timed_out(self, r: _Running) -> CellResult:
         """The row of a cell killed at its deadline: which limit ran out, in which phase."""
         self._kill(r)
         limit = self.limits.which(r.started, r.phase, r.phase_started)
         facts = r.facts or {}
         result = failed_result(r.cell, "timeout", self.limits.message(limit, r.phase, facts.get("wall_s")))
-        result["row"].update({k: v for k, v in facts.items() if v is not None})
+        result.row.update({k: v for k, v in facts.items() if v is not None})
         return result
 
     @staticmethod
@@ -202,24 +203,24 @@ class LocalExecutor:
         if r.orphan and _pid_running(r.proc.pid):   # its lifeline is closed: it exits by itself; make sure
             LocalExecutor._kill(r)
 
-    def run(self, cells: list[dict], on_start: Callable[[dict], None],
-            on_result: Callable[[dict, dict], None]) -> None:
+    def run(self, cells: "list[Cell | dict]", on_start: Callable[[Cell], None],
+            on_result: Callable[[Cell, CellResult], None]) -> None:
         """Run ``cells`` and report each as it starts and ends; returns when all have ended.
 
         Parameters
         ----------
-        cells : list of dict
-            The cells, started in this order.
+        cells : list of Cell
+            The cells, started in this order (a cell's dict form is read with :meth:`Cell.from_dict`).
         on_start : callable
             ``on_start(cell)``, as a cell's process starts.
         on_result : callable
-            ``on_result(cell, result)`` with :func:`bench.run.cell.run_cell`'s result, or a ``timeout`` /
+            ``on_result(cell, result)`` with :func:`bench.run.cell.run_cell`'s :class:`CellResult`, or a ``timeout`` /
             ``failed`` result for a cell killed at its deadline or whose process ended without one.
         """
         from multiprocessing.connection import wait
 
         ctx = self._context()
-        pending = deque(cells)
+        pending = deque(as_cell(c) for c in cells)
         running: list[_Running] = []
         try:
             while pending or running:
@@ -247,7 +248,7 @@ class LocalExecutor:
                         still.append(r)
                         continue
                     self._finish(r)
-                    result["row"].setdefault("cell_s", time.monotonic() - r.started)
+                    result.row.setdefault("cell_s", time.monotonic() - r.started)
                     on_result(r.cell, result)
                 running = still
         finally:
@@ -255,7 +256,7 @@ class LocalExecutor:
                 self._kill(r)
                 self._finish(r)
 
-    def _crash(self, r: _Running) -> dict:
+    def _crash(self, r: _Running) -> CellResult:
         """The row of a cell whose process ended without a result: how it ended, in which phase, and the memory
         limit when there was one (a library that cannot allocate may abort or crash instead of raising)."""
         if not r.orphan:

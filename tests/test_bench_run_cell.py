@@ -10,7 +10,7 @@ import trimesh
 
 import runner_plugins  # noqa: F401  (registers "failing" here too)
 from bench.config import config_from_dict
-from bench.run import expand_grid
+from bench.run import Cell, CellResult, expand_grid
 from bench.run.cell import (build_volume, cell_source, failed_result, method_info, run_cell, truth_samples,
                             vertex_mean_curvature)
 
@@ -18,7 +18,7 @@ ID_COLUMNS = ("cell_id", "phantom", "variant", "N", "noise", "seed", "method", "
 
 
 @pytest.fixture(scope="module")
-def sphere_cell() -> dict:
+def sphere_cell() -> Cell:
     cfg = config_from_dict({"grid": {"phantoms": ["sphere"], "n": 24}, "methods": [{"name": "marching_cubes"}],
                             "metrics": {"n_samples": 2000}})
     cfg.validate()
@@ -28,12 +28,12 @@ def sphere_cell() -> dict:
 
 def test_run_cell_on_a_small_sphere_gives_an_ok_row_with_metrics_and_phase_times(sphere_cell):
     result = run_cell(sphere_cell)
-    row = result["row"]
-    assert set(result) == {"row", "artifacts", "traceback"}
-    assert row["status"] == "ok" and row["error"] == "" and result["traceback"] is None
+    row = result.row
+    assert isinstance(result, CellResult)
+    assert row["status"] == "ok" and row["error"] == "" and result.traceback is None
     for key in ID_COLUMNS:
         assert key in row
-    assert row["cell_id"] == sphere_cell["cell_id"] and row["N"] == 24
+    assert row["cell_id"] == sphere_cell.cell_id and row["N"] == 24
     assert row["h"] == pytest.approx(2 * 2.5 / 23)
     assert row["has_truth"] is True
     # marching cubes of a unit sphere at N = 24: one closed genus-0 surface well within a cell of the truth
@@ -46,37 +46,37 @@ def test_run_cell_on_a_small_sphere_gives_an_ok_row_with_metrics_and_phase_times
         assert phases[phase] >= 0.0
     assert any(k.startswith("metrics/") for k in phases)
     assert row["cell_s"] >= phases["metrics"] and row["cpu_s"] > 0
-    art = result["artifacts"]
+    art = result.artifacts
     assert art["vertices"].shape[1] == 3 and len(art["H"]) == len(art["vertices"])
 
 
 def test_a_method_that_raises_gives_a_failed_row_naming_the_stage_and_never_raises(sphere_cell):
-    cell = {**sphere_cell, "method": "failing", "label": "failing", "imports": ["runner_plugins"],
+    cell = {**sphere_cell.to_dict(), "method": "failing", "label": "failing", "imports": ["runner_plugins"],
             "cell_id": "failing"}
     result = run_cell(cell)
-    row = result["row"]
+    row = result.row
     assert row["status"] == "failed"
     assert row["error"].startswith("reconstruction:") and "deliberate failure" in row["error"]
-    assert "RuntimeError" in result["traceback"]
+    assert "RuntimeError" in result.traceback
     assert row["cell_id"] == "failing" and "cell_s" in row
 
 
 def test_an_unknown_phantom_fails_in_the_volume_stage(sphere_cell):
-    row = run_cell({**sphere_cell, "phantom": "no_such_phantom", "cell_id": "nope"})["row"]
+    row = run_cell({**sphere_cell.to_dict(), "phantom": "no_such_phantom", "cell_id": "nope"}).row
     assert row["status"] == "failed" and row["error"].startswith("volume:")
 
 
 def test_failed_result_has_the_id_columns_status_and_error(sphere_cell):
     result = failed_result(sphere_cell, "timeout", "cell time limit (1 s) exceeded")
-    assert result["artifacts"] == {} and result["traceback"] is None
-    row = result["row"]
+    assert result.artifacts == {} and result.traceback is None
+    row = result.row
     assert row["status"] == "timeout" and row["error"] == "cell time limit (1 s) exceeded"
-    assert row["cell_id"] == sphere_cell["cell_id"] and row["method"] == "marching_cubes"
+    assert row["cell_id"] == sphere_cell.cell_id and row["method"] == "marching_cubes"
 
 
-def test_cell_source_is_the_source_or_the_phantom_name():
-    assert cell_source({"phantom": "sphere"}) == "sphere"
-    assert cell_source({"phantom": "a", "source": "mesh:/data/a.obj"}) == "mesh:/data/a.obj"
+def test_cell_source_is_the_source_or_the_phantom_name(sphere_cell):
+    assert cell_source(sphere_cell) == "sphere"
+    assert cell_source({**sphere_cell.to_dict(), "phantom": "a", "source": "mesh:/data/a.obj"}) == "mesh:/data/a.obj"
 
 
 def test_build_volume_caches_the_clean_volume_and_reads_it_back(sphere_cell, tmp_path):

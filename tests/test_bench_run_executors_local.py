@@ -7,12 +7,12 @@ from __future__ import annotations
 import time
 
 from bench.config import config_from_dict
-from bench.run import expand_grid
+from bench.run import Cell, CellResult, expand_grid
 from bench.run.executors.local import LocalExecutor
 from bench.run.limits import TimeLimits
 
 
-def _cells() -> list[dict]:
+def _cells() -> list[Cell]:
     cfg = config_from_dict({"grid": {"phantoms": ["sphere"], "n": 24},
                             "methods": [{"name": "marching_cubes"}, {"name": "mc_taubin"}],
                             "metrics": {"n_samples": 1000}})
@@ -20,27 +20,27 @@ def _cells() -> list[dict]:
     return expand_grid(cfg)
 
 
-def _plugin_cell(base: dict, method: str, params: dict | None = None) -> dict:
-    return {**base, "method": method, "label": method, "params": params or {}, "imports": ["runner_plugins"],
-            "cell_id": f"{method}_cell"}
+def _plugin_cell(base: Cell, method: str, params: dict | None = None) -> Cell:
+    return Cell.from_dict({**base.to_dict(), "method": method, "label": method, "params": params or {},
+                           "imports": ["runner_plugins"], "cell_id": f"{method}_cell"})
 
 
-def _run(executor: LocalExecutor, cells: list[dict]) -> tuple[list[str], dict[str, dict]]:
+def _run(executor: LocalExecutor, cells: list[Cell]) -> tuple[list[str], dict[str, CellResult]]:
     started, results = [], {}
-    executor.run(cells, on_start=lambda c: started.append(c["cell_id"]),
-                 on_result=lambda c, r: results.__setitem__(c["cell_id"], r))
+    executor.run(cells, on_start=lambda c: started.append(c.cell_id),
+                 on_result=lambda c, r: results.__setitem__(c.cell_id, r))
     return started, results
 
 
 def test_local_executor_runs_two_cells_and_reports_each_start_and_result():
     cells = _cells()
     started, results = _run(LocalExecutor(jobs=2, timeout=None), cells)
-    assert started == [c["cell_id"] for c in cells]
-    assert set(results) == {c["cell_id"] for c in cells}
+    assert started == [c.cell_id for c in cells]
+    assert set(results) == {c.cell_id for c in cells}
     for cell in cells:
-        row = results[cell["cell_id"]]["row"]
+        row = results[cell.cell_id].row
         assert row["status"] == "ok", row["error"]
-        assert row["method"] == cell["method"] and row["watertight"] and row["euler"] == 2
+        assert row["method"] == cell.method and row["watertight"] and row["euler"] == 2
 
 
 def test_local_executor_turns_a_cell_over_its_time_limit_into_a_timeout_row():
@@ -48,7 +48,7 @@ def test_local_executor_turns_a_cell_over_its_time_limit_into_a_timeout_row():
     t0 = time.monotonic()
     _, results = _run(LocalExecutor(jobs=1, timeout=3.0, preload=["runner_plugins"]), [sleepy])
     assert time.monotonic() - t0 < 30                       # killed at its deadline, not after 60 s
-    row = results["sleepy_cell"]["row"]
+    row = results["sleepy_cell"].row
     assert row["status"] == "timeout"
     assert "no result after 3 s" in row["error"] and "in the method" in row["error"]
     assert row["cell_s"] >= 3.0
@@ -58,9 +58,9 @@ def test_local_executor_reports_a_crashed_cell_as_failed_and_runs_the_others():
     ok, _ = _cells()
     crash = _plugin_cell(ok, "crashing")
     _, results = _run(LocalExecutor(jobs=1, timeout=None, preload=["runner_plugins"]), [crash, ok])
-    crashed = results["crashing_cell"]["row"]
+    crashed = results["crashing_cell"].row
     assert crashed["status"] == "failed" and crashed["error"].startswith("crash: worker process killed by SIGKILL")
-    assert results[ok["cell_id"]]["row"]["status"] == "ok"
+    assert results[ok.cell_id].row["status"] == "ok"
 
 
 def test_local_executor_settings():

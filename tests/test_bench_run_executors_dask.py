@@ -157,7 +157,7 @@ def test_a_worker_killed_mid_cell_still_gives_every_cell_exactly_once(tmp_path, 
 
     # --resume through the Dask path reruns only the cells missing from the store
     for c in cells[:2]:
-        (out / "cells" / f"{c['cell_id']}.json").unlink()
+        (out / "cells" / f"{c.cell_id}.json").unlink()
     # (the same config: --resume refuses another one; the timed-out sleepy cell counts as finished)
     again = run_grid(cfg, out, resume=True, progress=False,
                      executor=DaskExecutor(workers=1, timeout=6, imports=cfg.imports))

@@ -78,6 +78,7 @@ def test_bad_input_exit_code_2(tmp_path, args, message):
     assert "Traceback" not in r.stderr
 
 
+@pytest.mark.heavy   # end-to-end, > 10 s: run by .ci/run's `pytest -m heavy`
 def test_info_bad_files_exit_2(tmp_path):
     (tmp_path / "t.npz").write_bytes(b"PK\x03\x04 truncated")
     np.save(tmp_path / "nan.npy", np.full((8, 8, 8), np.nan))

@@ -80,6 +80,7 @@ def test_a_mesh_slightly_off_the_box_or_the_level_set_is_still_valid(good, spher
     assert check_mesh(_mesh(good.vertices * (1 + 0.3 * h), good.faces), sphere_volume) == []
 
 
+@pytest.mark.heavy   # end-to-end, > 10 s: run by .ci/run's `pytest -m heavy`
 def test_an_invalid_output_is_an_invalid_row_never_best_and_reconstruct_says_so(tmp_path):
     """Through the real command line: a plug-in whose mesh faces inward (it scores exactly like marching cubes on
     distances) is an `invalid` row with the reason, is never marked best, and `reconstruct` exits 1."""

@@ -41,6 +41,7 @@ def report(tmp_path_factory) -> Path:
     return write_report(out)
 
 
+@pytest.mark.heavy   # end-to-end, > 10 s: run by .ci/run's `pytest -m heavy`
 def test_the_report_loads_without_errors_and_every_chart_and_viewer_draws(report, capsys):
     sync_api = pytest.importorskip("playwright.sync_api", reason="headless browser test skipped: playwright "
                                                                  "is not installed")
@@ -85,6 +86,7 @@ def _launch(sync_api, p):
     return p.chromium.launch(executable_path=_chromium(), args=CHROMIUM_ARGS)
 
 
+@pytest.mark.heavy   # end-to-end, > 10 s: run by .ci/run's `pytest -m heavy`
 def test_method_status_and_flags_stay_in_view_at_1400_px(report, tmp_path, capsys):
     """Every summary table scrolled fully sideways in a 1,400 px window still shows its method and status
     columns (sticky), inside the window; a screenshot is kept in the test's folder."""

@@ -133,3 +133,39 @@ def test_a_bad_quality_baseline_is_one_line_and_exit_2(tmp_path, capsys):
     assert main(["perf", "--no-timing", "--quality", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "not a quality summary" in err[0]
+
+
+def _mc_summary(machine, **metrics) -> dict:
+    s = _summary(**metrics)
+    s["cells"]["quick/sphere_sdf_n48_none_s0_marching_cubes"] = dict(s["cells"].pop("quick/sphere_mc"),
+                                                                      method="marching_cubes")
+    s["machine"] = machine
+    return s
+
+
+def test_marching_cubes_rows_fail_on_any_change_on_the_baselines_machine():
+    here = q.machine_fingerprint()
+    key = "quick/sphere_sdf_n48_none_s0_marching_cubes"
+    assert q.quality_gate(_mc_summary(here), _mc_summary(here)).passed
+    # 1e-15 h better is still a change: the fixed point moved (volume or scoring code changed)
+    res = q.quality_gate(_mc_summary(here), _mc_summary(here, hausdorff_h=0.5 - 1e-15))
+    assert [(r["cell"], r["metric"], r["status"]) for r in res.failures] == [(key, "hausdorff_h", "changed")]
+    # the same change passes the ordinary tolerance on a row of another method
+    assert q.quality_gate(_summary(), _summary(hausdorff_h=0.5 - 1e-15)).passed
+
+
+def test_marching_cubes_rows_allow_only_reassociation_on_another_machine():
+    here, there = q.machine_fingerprint(), {**q.machine_fingerprint(), "cpu": "another CPU"}
+    assert q.quality_gate(_mc_summary(there), _mc_summary(here, hausdorff_h=0.5 * (1 + 1e-12))).passed
+    res = q.quality_gate(_mc_summary(there), _mc_summary(here, hausdorff_h=0.5 * (1 + 1e-6)))
+    assert [r["metric"] for r in res.failures] == ["hausdorff_h"]
+    # a row keyed by its label only (a baseline without the method field) is recognised by its suffix
+    old = _mc_summary(here)
+    del old["cells"]["quick/sphere_sdf_n48_none_s0_marching_cubes"]["method"]
+    assert not q.quality_gate(old, _mc_summary(here, euler=0.0)).passed
+
+
+def test_the_fingerprint_names_the_cpu_and_the_numerical_libraries():
+    fp = q.machine_fingerprint()
+    assert fp["libraries"]["numpy"] and fp["libraries"]["scikit-image"] and fp["python"]
+    assert fp == q.machine_fingerprint()

@@ -201,6 +201,10 @@ def _quality(args):
         print(q.format_quality(result))
         print(f"quality baseline: {args.quality} ({baseline.get('created', '?')}, commit "
               f"{(baseline.get('commit') or {}).get('commit', '?')})")
+        exact = ("bit for bit (same machine and libraries as the baseline)"
+                 if baseline.get("machine") == current.get("machine")
+                 else f"within {q.EXACT_REL_ELSEWHERE:g} relative (another machine or other library versions)")
+        print(f"quality: {', '.join(q.EXACT_METHODS)} rows compared {exact}")
     if args.save_quality:
         print(f"wrote {q.save_quality(current, args.save_quality)}")
     return current, result
@@ -230,7 +234,8 @@ def _cmd_perf(args) -> int:
     quality, qresult = _quality(args)
     if qresult is not None and not qresult.passed:
         bad = sorted({f"{r['cell']} {r['metric']}" for r in qresult.failures})
-        print(f"perf: quality FAILED — {len(bad)} value(s) worse than the baseline: " + "; ".join(bad[:8])
+        print(f"perf: quality FAILED — {len(bad)} value(s) worse than the baseline (exact rows: changed): "
+              + "; ".join(bad[:8])
               + (" …" if len(bad) > 8 else ""), file=sys.stderr)
         failures += bad
         code = 1

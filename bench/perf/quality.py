@@ -17,6 +17,12 @@ gradient and marching cubes) — and keeps per cell its status, its flags and th
 Better than the baseline never fails (the row says ``better``: refresh the baseline to keep the gate sharp).
 The grids are seeded: on one machine a rerun gives the same values bit for bit, so the tolerances only absorb
 differences of floating-point libraries between machines.
+
+The rows of :data:`EXACT_METHODS` (marching cubes: no iteration, no randomness) are the suite's fixed points:
+their metrics depend only on the volume and the scoring code, so a refactor of either must leave them exactly
+as they were.  On the machine and libraries that recorded the baseline (:func:`machine_fingerprint`) any
+change of such a value — better or worse — fails (``changed``); elsewhere they may differ by floating-point
+reassociation only (:data:`EXACT_REL_ELSEWHERE`).
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
+import platform
 import re
 import tempfile
 from dataclasses import dataclass, field
@@ -36,13 +43,18 @@ from .baseline import read_json_file
 __all__ = ["QUALITY_FORMAT", "QUALITY_BASELINE", "QUALITY_CONFIGS", "TOLERANCES", "Tolerance", "run_quality",
            "same_within_tolerance",
            "cells_from_rows", "load_quality", "save_quality", "quality_gate", "QualityResult",
-           "format_quality", "compare_value", "stable_cell_id"]
+           "format_quality", "compare_value", "stable_cell_id", "EXACT_METHODS", "EXACT_REL_ELSEWHERE",
+           "machine_fingerprint"]
 
 QUALITY_FORMAT = "levelset-bench-quality/1"
 #: the committed quality baseline the CI gate compares with (package data)
 QUALITY_BASELINE = Path(__file__).resolve().parent / "quality.json"
 #: built-in grid configurations (bench/configs/<name>.toml) the quality gate runs
 QUALITY_CONFIGS = ("quick", "quality_real")
+#: methods whose rows must not change at all (see the module docstring)
+EXACT_METHODS = ("marching_cubes",)
+#: the relative difference an exact row's value may have on another machine or other library versions
+EXACT_REL_ELSEWHERE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -130,8 +142,32 @@ def cells_from_rows(rows: list[dict], prefix: str) -> dict[str, dict]:
                 continue
             metrics[name] = _truthy(r[name]) if tol.better == "true" else _finite(r[name])
         key = f"{prefix}/{stable_cell_id(str(r['cell_id']))}"
-        out[key] = {"status": str(r.get("status") or "?"), "flags": _flags(r.get("flags")), "metrics": metrics}
+        out[key] = {"status": str(r.get("status") or "?"), "flags": _flags(r.get("flags")), "metrics": metrics,
+                    "method": str(r.get("method") or "")}
     return out
+
+
+def machine_fingerprint() -> dict:
+    """What makes floating-point results bit-identical between two runs: the CPU model, the platform and the
+    versions of the numerical libraries (numpy, scipy, scikit-image, numba, trimesh, pymeshlab)."""
+    import importlib.metadata as md
+
+    cpu = platform.processor()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    libs = {}
+    for name in ("numpy", "scipy", "scikit-image", "numba", "trimesh", "pymeshlab"):
+        try:
+            libs[name] = md.version(name)
+        except md.PackageNotFoundError:
+            libs[name] = None
+    return {"cpu": cpu, "machine": platform.machine(), "system": platform.system(),
+            "python": platform.python_version(), "libraries": libs}
 
 
 def _commit() -> dict:
@@ -161,7 +197,7 @@ def run_quality(configs=None, *, jobs: int | None = 2, progress: bool = False) -
         rows = df.astype(object).where(df.notna(), None).to_dict("records")
         cells.update(cells_from_rows(rows, cfg.name))
     return {"format": QUALITY_FORMAT, "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-            "commit": _commit(), "configs": names, "cells": cells}
+            "commit": _commit(), "machine": machine_fingerprint(), "configs": names, "cells": cells}
 
 
 def load_quality(path: str | Path) -> dict:
@@ -235,9 +271,26 @@ def compare_value(metric: str, tol: Tolerance, base, cur, base_flags=(), truth: 
     return ("worse", True, limit) if cur < limit else (("better" if cur > base + slack else "ok"), False, limit)
 
 
+def _exact_value(base, cur, rel: float) -> tuple[str, bool]:
+    """An exact row's value: ``ok`` when equal (within ``rel`` relative; None / NaN equal only to themselves)."""
+    if base is None or cur is None or isinstance(base, bool) or isinstance(cur, bool):
+        return ("ok", False) if base == cur else ("changed", True)
+    return ("ok", False) if abs(cur - base) <= rel * max(abs(base), abs(cur)) else ("changed", True)
+
+
+def _is_exact(key: str, cell: dict) -> bool:
+    method = cell.get("method") or ""
+    return method in EXACT_METHODS if method else any(key.endswith("_" + m) for m in EXACT_METHODS)
+
+
 def quality_gate(baseline: dict, current: dict, tolerances: dict[str, Tolerance] | None = None) -> QualityResult:
-    """Compare the cells of ``current`` with those of ``baseline`` (quality summaries).  Pure: no I/O."""
+    """Compare the cells of ``current`` with those of ``baseline`` (quality summaries).  Pure: no I/O.
+
+    The cells of :data:`EXACT_METHODS` are compared value by value without tolerance when both summaries carry
+    the same :func:`machine_fingerprint`, else within :data:`EXACT_REL_ELSEWHERE`."""
     tolerances = TOLERANCES if tolerances is None else tolerances
+    same_machine = baseline.get("machine") is not None and baseline.get("machine") == current.get("machine")
+    exact_rel = 0.0 if same_machine else EXACT_REL_ELSEWHERE
     rows = []
     cur_cells = current.get("cells", {})
     for key, b in sorted(baseline.get("cells", {}).items()):
@@ -257,7 +310,11 @@ def quality_gate(baseline: dict, current: dict, tolerances: dict[str, Tolerance]
             base, cur = b["metrics"].get(metric), c.get("metrics", {}).get(metric)
             if metric not in b["metrics"]:
                 continue
-            status, failed, limit = compare_value(metric, tol, base, cur, b.get("flags", []))
+            if _is_exact(key, b):
+                status, failed = _exact_value(base, cur, exact_rel)
+                limit = base if failed else None
+            else:
+                status, failed, limit = compare_value(metric, tol, base, cur, b.get("flags", []))
             rows.append({"cell": key, "metric": metric, "baseline": base, "value": cur, "limit": limit,
                          "status": status, "failed": failed})
     for key in sorted(set(cur_cells) - set(baseline.get("cells", {}))):

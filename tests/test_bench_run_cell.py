@@ -114,3 +114,19 @@ def test_method_info_keeps_plain_values_and_drops_the_artifact_arrays():
     assert out == {"iterations": 3, "mine": 2.0}
     assert type(out["iterations"]) is int
     assert method_info(None) == {}
+
+
+def test_small_snapshots_get_their_mean_curvature_in_the_cell_large_ones_are_left_to_the_report(monkeypatch):
+    from types import SimpleNamespace
+
+    from bench.run import cell as cell_mod
+
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=1.5)        # 642 vertices
+    v, f = np.asarray(sphere.vertices), np.asarray(sphere.faces)
+    rec = SimpleNamespace(mesh=sphere, info={"snapshots": {1: 1.2 * v, 5: (v, f)}})
+    art = cell_mod._artifacts(rec, 0.1)
+    assert set(art["snapshot_iterations"]) == {1, 5}
+    np.testing.assert_allclose(art["snap1_H"], cell_mod.vertex_mean_curvature(1.2 * v, f, 0.1), rtol=1e-5)
+    assert abs(float(np.median(art["snap1_H"])) - 1 / 1.8) < 0.02               # H = 1/r of the scaled sphere
+    monkeypatch.setattr(cell_mod, "SNAPSHOT_H_MAX_VERTICES", len(v) - 1)
+    assert "snap1_H" not in cell_mod._artifacts(rec, 0.1)

@@ -109,6 +109,11 @@ def truth_samples(cell: Cell | dict, ph, cache_dir: str | None = None) -> np.nda
     return pts
 
 
+#: snapshots up to this many vertices get their per-vertex H in the cell (the paper's 1,896-vertex sphere: 25 ms
+#: each); the report fits larger ones only for the pictures it draws
+SNAPSHOT_H_MAX_VERTICES = 20_000
+
+
 def vertex_mean_curvature(vertices, faces, h: float) -> np.ndarray:
     """Per-vertex mean curvature for pictures: paraboloid fit over every vertex within 2h (at least the
     1-ring), outward normals — the neighbourhood docs/METRICS.md prescribes, so marching-cubes slivers do not
@@ -170,7 +175,7 @@ def _artifacts(rec, h: float, curvature: dict | None = None, sdf=None) -> dict:
         except Exception:  # noqa: BLE001 — the viewer's distance map is optional
             pass
     art.update(view_arrays(v, f, colours))
-    art["spacing"] = np.float64(h)   # the report fits the snapshots' H for the pictures it draws (not all)
+    art["spacing"] = np.float64(h)   # the report fits the large snapshots' H for the pictures it draws
     energy = rec.info.get("energy_history")
     if energy is not None and len(energy):
         art["energy_history"] = np.asarray(energy, float)
@@ -183,6 +188,8 @@ def _artifacts(rec, h: float, curvature: dict | None = None, sdf=None) -> dict:
             art[f"snap{it}_vertices"] = sv.astype(np.float32)
             if sf is not f:
                 art[f"snap{it}_faces"] = sf.astype(np.int32)
+            if len(sv) <= SNAPSHOT_H_MAX_VERTICES:   # cheap here, in parallel; the report fits the others
+                art[f"snap{it}_H"] = vertex_mean_curvature(sv, sf, h).astype(np.float32)
     return art
 
 

@@ -12,6 +12,8 @@ colour scale.
 from __future__ import annotations
 
 import json
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -142,8 +144,15 @@ def picture_row(entries: list[tuple[dict | None, int | None]], arts: Artifacts) 
         v, f, H, _ = m
         if view_extent([v])[2] > 1.5 * typical:
             note = (note + "; " if note else "") + "extends far beyond the frame shared by this row"
-        out.append({"img": render_mesh(v, f, H, vmin=vmin, vmax=vmax, extent=ext),
-                    "note": note, "caption": f"{len(v):,} vertices, {len(f):,} faces; H {vmin:.3g} … {vmax:.3g}"})
+        out.append({"mesh": (v, f, H), "note": note,
+                    "caption": f"{len(v):,} vertices, {len(f):,} faces; H {vmin:.3g} … {vmax:.3g}"})
+    drawn = [e for e in out if "mesh" in e]
+    # the rasteriser and the WebP encoder release the GIL: a row's pictures are drawn side by side on the cores
+    with ThreadPoolExecutor(max_workers=min(4, len(drawn), os.cpu_count() or 1)) as pool:
+        imgs = list(pool.map(lambda e: render_mesh(*e["mesh"], vmin=vmin, vmax=vmax, extent=ext), drawn))
+    for e, img in zip(drawn, imgs):
+        del e["mesh"]
+        e["img"] = img
     return out
 
 

@@ -61,3 +61,17 @@ def test_report_with_a_run_json_that_is_a_list_warns_and_renders(damaged, capsys
     assert main(["report", str(damaged)]) == 0
     assert "run.json holds a list, not the run's metadata" in capsys.readouterr().err
     assert (damaged / "index.html").stat().st_size > 0
+
+
+def test_after_preload_writing_the_report_imports_none_of_the_heavy_libraries(run_dir):
+    """bench run preloads the report in a thread while the cells run; whatever write_report still imports after
+    preload() is paid after the run."""
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom bench.report import preload, write_report\npreload()\nbefore = set(sys.modules)\n"
+            f"write_report({str(run_dir)!r})\n"
+            "heavy = ('pandas', 'pyarrow', 'plotly', 'matplotlib', 'PIL', 'jinja2', 'scipy', 'numba')\n"
+            "print(sorted(m for m in set(sys.modules) - before if m.split('.')[0] in heavy))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "[]"

@@ -18,10 +18,10 @@ Pictures are drawn by :mod:`.render` from the arrays the cells stored (:mod:`.ar
 from __future__ import annotations
 
 from .cost import cost_section
-from .page import write_report
+from .page import preload, write_report
 from .paper import gallery_tables, paper_layout, paper_tables
 from .render import render_energy, render_mesh
 from .tables import BEST_DIRECTION, summary_tables
 
-__all__ = ["write_report", "render_mesh", "render_energy", "summary_tables", "cost_section", "BEST_DIRECTION",
+__all__ = ["write_report", "preload", "render_mesh", "render_energy", "summary_tables", "cost_section", "BEST_DIRECTION",
            "paper_tables", "gallery_tables", "paper_layout"]

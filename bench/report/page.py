@@ -22,7 +22,7 @@ from .tables import BEST_DIRECTION, summary_tables
 from .verdicts import board_html, cd_figure, leaderboards
 from .colours import method_colour
 
-__all__ = ["TEMPLATE_DIR", "write_report"]
+__all__ = ["TEMPLATE_DIR", "write_report", "preload"]
 
 TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 
@@ -190,6 +190,36 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
         "mixed_code": meta.get("mixed_code") or {},
         "best_rules": {k: (v if isinstance(v, str) else f"closest to {v[1]}") for k, v in BEST_DIRECTION.items()},
     }
+
+
+def preload() -> None:
+    """Import what :func:`write_report` loads on its way (pandas, pyarrow, plotly, matplotlib's colour maps,
+    Pillow's encoders, jinja2, scipy.stats, the rasteriser's compiled kernel): ≈ 3 s that ``bench run`` spends in
+    a thread while its cells run in their own processes, instead of after them."""
+    import jinja2  # noqa: F401
+    import matplotlib.colors  # noqa: F401
+    import narwhals  # noqa: F401  (plotly reads data frames through it)
+    import pandas
+    import plotly.graph_objects as go
+    import plotly.io
+    import plotly.offline  # noqa: F401
+    import pyarrow.dataset  # noqa: F401
+    import pyarrow.parquet  # noqa: F401
+    import scipy.stats  # noqa: F401
+    from matplotlib import colormaps  # noqa: F401
+    from PIL import Image, features
+
+    import numpy as np
+
+    from geometry.picture import rasterize
+
+    Image.init()
+    features.check("webp")
+    pandas.DataFrame({"a": [1]}).to_dict("records")
+    fig = go.Figure(go.Scatter(x=[0], y=[0], mode="markers", marker={"line": {"width": 1}}))
+    fig.update_layout(title="t", margin={"l": 0}, xaxis={"title": "x"}, yaxis={"title": "y"})
+    plotly.io.to_json(fig)
+    rasterize(np.zeros((1, 3, 2)), np.zeros((1, 3)), 2, 2)
 
 
 def write_report(out: str | Path, problems: list[str] | None = None) -> Path:

@@ -40,12 +40,11 @@ def test_paper_config_is_the_paper_grid():
     assert [n.kind for n in cfg.noise] == ["none", "gaussian", "uniform"]
     labels = [lab for m in cfg.methods for lab, _ in m.instances()]
     assert labels == ["shape_gradient[paper]", "shape_gradient[paper,beta=0]", "shape_gradient[paper+fixes]",
-                      "shape_gradient[paper+fixes,beta=0]", "shape_gradient", "marching_cubes", "distmesh",
-                      "mc_taubin"]
+                      "shape_gradient[paper+fixes,beta=0]", "shape_gradient", "marching_cubes", "distmesh"]
     assert cfg.methods[0].params["preset"] == "paper" and cfg.methods[1].params["beta"] == 0
     assert cfg.methods[2].params["preset"] == "paper+fixes" and cfg.methods[4].params == {}
     # β = 1 on every noise setting, the β = 0 ablations clean, the suite default clean and Gaussian
-    assert len(expand_grid(cfg)) == 4 * (3 + 1 + 3 + 1 + 2 + 3 * 3)
+    assert len(expand_grid(cfg)) == 4 * (3 + 1 + 3 + 1 + 2 + 2 * 3)
 
 
 def test_scale_config_is_48_cells_of_the_baselines():

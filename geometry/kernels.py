@@ -294,7 +294,7 @@ def ring_curvature(x: np.ndarray, n: np.ndarray, ring: np.ndarray, count: np.nda
 @_jit
 def _trilinear(flat, n0, n1, n2, idx_t, out):
     sx = n1 * n2
-    C = flat.shape[1]
+    C = out.shape[0]
     for p in range(idx_t.shape[1]):
         fx, fy, fz = idx_t[0, p], idx_t[1, p], idx_t[2, p]
         if not (0.0 <= fx <= n0 - 1 and 0.0 <= fy <= n1 - 1 and 0.0 <= fz <= n2 - 1):   # NaN too
@@ -312,10 +312,14 @@ def _trilinear(flat, n0, n1, n2, idx_t, out):
                          + w6 * flat[b + sx + n2, c] + w7 * flat[b + sx + n2 + 1, c])
 
 
-def trilinear(flat: np.ndarray, shape, idx_t: np.ndarray) -> np.ndarray:
+def trilinear(flat: np.ndarray, shape, idx_t: np.ndarray, channels: int | None = None) -> np.ndarray:
     """:func:`phantoms.volume.trilinear_channels` point by point: (C, P) from the stacked grids ``flat``
-    (N, C) at the fractional indices ``idx_t`` (3, P), finite and inside [0, N − 1] per axis."""
-    out = np.empty((flat.shape[1], idx_t.shape[1]))
+    (N, C) at the fractional indices ``idx_t`` (3, P), finite and inside [0, N − 1] per axis; ``channels``:
+    only the first this many grids (C = ``channels``)."""
+    n = flat.shape[1] if channels is None else int(channels)
+    if not 0 < n <= flat.shape[1]:
+        raise ValueError(f"trilinear: channels = {channels} of a stack of {flat.shape[1]}")
+    out = np.empty((n, idx_t.shape[1]))
     _trilinear(flat, int(shape[0]), int(shape[1]), int(shape[2]),
                np.ascontiguousarray(idx_t, dtype=np.float64), out)
     return out

@@ -110,10 +110,39 @@ class Sample:
 _HESS_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
+def _derivative_channels(values: np.ndarray, spacing, order: int) -> np.ndarray:
+    """:meth:`Volume.channels` built in place: each grid is written into the (…, C) array as soon as it is
+    computed, and only one gradient's three derivatives are alive beside it — at N = 256 and C = 10 the peak is
+    C + 4 grids instead of C + 16 (1.9 GB instead of 3.5 GB).  The values are those of stacking φ, ∇φ and
+    the symmetrised Hessian ½(∂ᵢ∂ⱼφ + ∂ⱼ∂ᵢφ) (the two difference orders differ at the border)."""
+    n_chan = {0: 1, 1: 4}.get(order, 10)
+    check_memory(values.shape, n_chan + (4 if order >= 2 else 1), what=f"the interpolation grids (order {order})")
+    out = np.empty(values.shape + (n_chan,))
+    out[..., 0] = values
+    if order >= 1:
+        for c, g in enumerate(np.gradient(values, *spacing, edge_order=2)):
+            out[..., 1 + c] = g
+    if order >= 2:
+        slot = {pair: 4 + k for k, pair in enumerate(_HESS_PAIRS)}
+        for a in range(3):
+            second = np.gradient(out[..., 1 + a], *spacing, edge_order=2)
+            for b in range(3):
+                i, j = min(a, b), max(a, b)
+                if a == b:
+                    out[..., slot[i, j]] = second[b]
+                elif a < b:                                  # ∂_b ∂_a φ now, ∂_a ∂_b φ when a takes b's turn
+                    out[..., slot[i, j]] = second[b]
+                else:
+                    out[..., slot[i, j]] = 0.5 * (out[..., slot[i, j]] + second[b])
+            del second
+    return out
+
+
 _CHUNK = 4096   # points per block of trilinear_channels: the block's 8 corner rows stay in the L2 cache
 
 
-def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, reference: bool = False) -> np.ndarray:
+def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, channels: int | None = None,
+                       reference: bool = False) -> np.ndarray:
     """Trilinear interpolation of stacked grids at fractional grid indices: the one gather.
 
     ``flat`` (N0·N1·N2, C): C grids of ``shape`` (N0, N1, N2), raveled in C order, all channels of a
@@ -128,11 +157,16 @@ def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, reference:
     fresh allocation per call, paid in page faults, and read back from main memory by the sum.  Each
     output value is the same 8-term sum either way (bit-identical results).
 
+    ``channels``: interpolate only the first this many of the C grids (e.g. φ and ∇φ of a stack that also
+    holds the Hessian: one stack serves every order, no copy of its first columns).
+
     With numba, the compiled :func:`geometry.kernels.trilinear` (the same sum, point by point) runs
     instead; ``reference=True`` keeps this numpy form.
     """
     if kernels.wanted(idx_t.shape[1]) and not reference and flat.dtype == np.float64 and flat.flags.c_contiguous:
-        return kernels.trilinear(flat, shape, idx_t)
+        return kernels.trilinear(flat, shape, idx_t, channels)
+    if channels is not None:
+        flat = flat[:, :channels]
     idx_t = np.asarray(idx_t, dtype=np.float64)
     if idx_t.shape[1] and not ((idx_t.min(axis=1) >= 0).all()                # NaN fails both tests
                                and (idx_t.max(axis=1) <= np.asarray(shape) - 1).all()):
@@ -282,18 +316,7 @@ class Volume:
         shared with the volume's cache: treat it as read-only (or copy it).
         """
         if order not in self._channels:
-            n_chan = {0: 1, 1: 4}.get(order, 10)
-            check_memory(self.shape, 2 * n_chan, what=f"the interpolation grids (order {order})")
-            chans = [self.values]
-            if order >= 1:
-                grads = np.gradient(self.values, *self.spacing, edge_order=2)
-                chans += grads
-            if order >= 2:
-                second = [np.gradient(g, *self.spacing, edge_order=2) for g in grads]
-                # symmetrise the mixed derivatives (the two difference orders differ at the border)
-                for a, b in _HESS_PAIRS:
-                    chans.append(0.5 * (second[a][b] + second[b][a]) if a != b else second[a][a])
-            self._channels[order] = np.ascontiguousarray(np.stack(chans, axis=-1))
+            self._channels[order] = _derivative_channels(self.values, self.spacing, order)
         return self._channels[order]
 
     def sample(self, points, *, derivatives: int = 0, clamp: bool = False) -> Sample:

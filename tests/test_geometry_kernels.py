@@ -126,3 +126,20 @@ def test_face_energies_kernel_equals_numpy():
     got = kernels.face_energies(ch, n, a, 5.0, 1.0)
     np.testing.assert_allclose(got[0], ref[0], rtol=1e-14, atol=0)
     np.testing.assert_allclose(got[1], ref[1], rtol=1e-14, atol=1e-15)
+
+
+def test_trilinear_reads_only_the_first_channels_when_asked_equal_to_a_copy_of_them():
+    from geometry import kernels
+    from phantoms.volume import trilinear_channels
+
+    rng = np.random.default_rng(5)
+    flat = rng.normal(size=(6 * 7 * 8, 10))
+    idx = np.stack([rng.uniform(0, 5, 2000), rng.uniform(0, 6, 2000), rng.uniform(0, 7, 2000)])
+    full = kernels.trilinear(flat, (6, 7, 8), idx)
+    first4 = kernels.trilinear(flat, (6, 7, 8), idx, 4)
+    assert first4.shape == (4, 2000) and np.array_equal(first4, full[:4])
+    assert np.array_equal(first4, kernels.trilinear(np.ascontiguousarray(flat[:, :4]), (6, 7, 8), idx))
+    np.testing.assert_allclose(trilinear_channels(flat, (6, 7, 8), idx, channels=4, reference=True), first4,
+                               rtol=1e-13, atol=1e-13)
+    with pytest.raises(ValueError, match="channels"):
+        kernels.trilinear(flat, (6, 7, 8), idx, 11)

@@ -161,3 +161,19 @@ def test_a_volume_too_large_for_memory_is_refused_before_allocating_with_the_lar
         vol.channels(1)                                       # 4 channels (+ the stack) do not
     monkeypatch.setattr(pv, "available_memory", lambda: None)  # unknown: no check
     pv.check_memory((10 ** 4,) * 3, 8)
+
+
+def test_derivative_channels_equal_stacking_phi_its_gradient_and_the_symmetrised_hessian_bit_for_bit():
+    from phantoms.volume import _HESS_PAIRS, Volume
+
+    rng = np.random.default_rng(3)
+    values = rng.normal(size=(9, 11, 13))
+    spacing = np.array([0.5, 0.7, 1.1])
+    vol = Volume(values, np.zeros(3), spacing)
+    grads = np.gradient(values, *spacing, edge_order=2)
+    second = [np.gradient(g, *spacing, edge_order=2) for g in grads]
+    hess = [0.5 * (second[a][b] + second[b][a]) if a != b else second[a][a] for a, b in _HESS_PAIRS]
+    want = np.stack([values, *grads, *hess], axis=-1)
+    assert np.array_equal(vol.channels(2), want)
+    assert np.array_equal(Volume(values, np.zeros(3), spacing).channels(1), want[..., :4])
+    assert np.array_equal(Volume(values, np.zeros(3), spacing).channels(0), want[..., :1])

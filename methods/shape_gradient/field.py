@@ -44,6 +44,9 @@ def estimate_noise(volume: Volume) -> float:
 _HESS_INDEX = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]]).ravel()
 
 
+_N_CHANNELS = {0: 1, 1: 4, 2: 10}   # φ; φ, ∇φ; φ, ∇φ, the Hessian's six entries
+
+
 class GridSampler:
     """Trilinear φ, ∇φ, D²φ of a :class:`phantoms.Volume` at many points: one gather of the 8 corners.
 
@@ -64,10 +67,12 @@ class GridSampler:
         self._lower, self._upper = volume.lower, volume.upper
 
     def _channels(self, order: int) -> np.ndarray:
-        """The stacked grids as an (N, C) array: given ones, else the volume's own (cached by the volume)."""
-        if order in self._given:
-            return self._given[order]
-        ch = self.volume.channels(order)
+        """The stacked grids as an (N, C) array with at least the channels of ``order``: the given ones, else
+        the volume's own order-2 stack (cached by the volume; the flow reads every order from one stack)."""
+        for o in (order, 2):
+            if o in self._given:
+                return self._given[o]
+        ch = self.volume.channels(2)
         return ch.reshape(-1, ch.shape[-1])
 
     def contains(self, points: np.ndarray) -> np.ndarray:
@@ -84,7 +89,7 @@ class GridSampler:
         for c in range(3):
             np.multiply(xt[c] - self._origin[c], self._inv_spacing[c], out=idx[c])
             np.clip(idx[c], 0.0, self._nmax[c], out=idx[c])
-        return trilinear_channels(self._channels(derivatives), self._shape, idx)
+        return trilinear_channels(self._channels(derivatives), self._shape, idx, channels=_N_CHANNELS[derivatives])
 
     def sample(self, points, derivatives: int = 0, clamp: bool = True) -> Sample:
         """Like :meth:`phantoms.Volume.sample` (points (P, 3)), always clamping."""
@@ -138,7 +143,7 @@ def smoothed_field(volume: Volume, sigma: float, presmooth_phi: bool = False) ->
         ch2 = smooth.channels(2).reshape(-1, 10)                # a new array, owned by ``smooth``
         if not key[1]:
             ch2[:, 0] = volume.values.ravel()
-        cache[key] = {2: ch2, 1: np.ascontiguousarray(ch2[:, :4])}
+        cache[key] = {2: ch2}
         del smooth                                               # its own cache goes with it
     return GridSampler(volume, channels=cache[key])
 

@@ -223,6 +223,11 @@ def _preload_report():
     written."""
     import threading
 
+    # the runner imports these too (results.csv): first, here, so that the two threads never import one package
+    # at the same time
+    import pandas  # noqa: F401
+    import pyarrow  # noqa: F401
+
     def load():
         try:
             from ..report import preload

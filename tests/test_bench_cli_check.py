@@ -125,6 +125,7 @@ def test_the_readme_example_passes_check_method(readme_package):
     assert without.returncode == 2 and f"unknown method '{name}'" in without.stderr
 
 
+@pytest.mark.heavy   # end to end, ~10 s: run by .ci/run's second pytest
 def test_import_on_methods_and_reconstruct(readme_package, tmp_path):
     module, name, env = readme_package
     listing = _bench(env, "methods", name, "--import", module)

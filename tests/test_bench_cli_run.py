@@ -204,6 +204,7 @@ def test_interrupted_run_resumes_to_the_same_results(quick_run, tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------- isolation
+@pytest.mark.heavy   # end to end, ~10 s: run by .ci/run's second pytest
 def test_timeout_and_crash_are_rows_and_the_run_goes_on(tmp_path):
     out = tmp_path / "run"
     res = _bench("--quick", "--phantoms", "sphere", "--noise", "none", "--n", "16", "--n-samples", "2000",

@@ -145,6 +145,7 @@ def test_a_mesh_glob_is_a_dataset_and_a_corrupt_file_fails_only_its_cells(tmp_pa
     assert "Traceback" not in empty.stderr and len(empty.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.heavy   # end to end, ~10 s: run by .ci/run's second pytest
 def test_an_unreadable_volume_is_a_failed_row_in_a_grid(tmp_path):
     (tmp_path / "cut.nii.gz").write_bytes(b"\x1f\x8b not really")
     nii, _ = write_boxes(tmp_path)

@@ -69,6 +69,7 @@ def test_reconstruct_refuses_a_string_of_warnings(sphere, tmp_path):
     assert "warning: a" not in r.stderr           # not one warning line per character
 
 
+@pytest.mark.heavy   # end to end, ~10 s: run by .ci/run's second pytest
 def test_grid_cells_of_such_methods_are_failed_rows_naming_method_and_key(tmp_path):
     cfg = tmp_path / "g.toml"
     cfg.write_text('[grid]\nphantoms = ["sphere"]\nn = [24]\n[run]\nimports = ["runner_plugins"]\n'

@@ -43,7 +43,7 @@ def test_edge_and_vertex_manifold_check_can_fail():
     assert not edge_and_vertex_manifold(pinched)
 
 
-@pytest.mark.parametrize("n", [24, 32, 48])
+@pytest.mark.parametrize("n", [24, 32, pytest.param(48, marks=pytest.mark.heavy)])   # 48: ~10 s, heavy
 def test_bunny_closed_manifold_outward_and_close(n):
     """The bunny's ears are thinner than a cell at these sizes: one vertex per cell gave non-manifold edges
     and vertices (measured before this adapter split cells); with a vertex per patch the mesh is one closed,

@@ -194,7 +194,7 @@ class DistMesh(Method):
 
     #: the cost model (docs/NOTES.md, "Cost models"): CPU seconds, fitted to the clean sphere and bunny at
     #: N = 24–128 (the nodes grow with the surface: q = 1 is assumed, not fitted)
-    COST = PowerLaw(a=0.514, p=2.5, q=1.0)
+    COST = PowerLaw(a=0.465, p=2.51, q=1.0)
 
     def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:
         """The fit of the default settings (h0 = 2 h, compiled), × 40 for the numpy form; None with an h0 of

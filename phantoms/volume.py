@@ -20,6 +20,7 @@ import numpy as np
 
 from geometry import kernels
 from geometry.errors import InputError
+from geometry.grid_derivatives import derivative_stack
 
 __all__ = ["Volume", "Sample", "VolumeSampler", "trilinear_channels", "check_grid", "check_memory", "available_memory"]
 
@@ -111,7 +112,7 @@ _HESS_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
 def _derivative_channels(values: np.ndarray, spacing, order: int) -> np.ndarray:
-    """:meth:`Volume.channels` built in place: each grid is written into the (…, C) array as soon as it is
+    """:meth:`Volume.channels` in numpy (the reference of :func:`geometry.grid_derivatives.derivative_stack`), built in place: each grid is written into the (…, C) array as soon as it is
     computed, and only one gradient's three derivatives are alive beside it — at N = 256 and C = 10 the peak is
     C + 4 grids instead of C + 16 (1.9 GB instead of 3.5 GB).  The values are those of stacking φ, ∇φ and
     the symmetrised Hessian ½(∂ᵢ∂ⱼφ + ∂ⱼ∂ᵢφ) (the two difference orders differ at the border)."""
@@ -316,7 +317,14 @@ class Volume:
         shared with the volume's cache: treat it as read-only (or copy it).
         """
         if order not in self._channels:
-            self._channels[order] = _derivative_channels(self.values, self.spacing, order)
+            n_chan = {0: 1, 1: 4}.get(order, 10)
+            check_memory(self.values.shape, n_chan, what=f"the interpolation grids (order {order})")
+            if kernels.AVAILABLE and order >= 1:
+                # compiled, bit for bit the numpy form below: one pass, no temporary grid (at N = 256 ~1 s
+                # and C grids instead of 9–11 s and C + 4)
+                self._channels[order] = derivative_stack(self.values, self.spacing, order)
+            else:
+                self._channels[order] = _derivative_channels(self.values, self.spacing, order)
         return self._channels[order]
 
     def sample(self, points, *, derivatives: int = 0, clamp: bool = False) -> Sample:

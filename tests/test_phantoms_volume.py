@@ -126,10 +126,9 @@ def test_interpolation_matches_scipy_and_the_flow_sampler():
     iu = np.triu_indices(3)
     np.testing.assert_allclose(s.hess[:, iu[0], iu[1]], expected[:, 4:], atol=1e-12)
     np.testing.assert_allclose(s.hess, np.swapaxes(s.hess, 1, 2))
-    g = GridSampler(vol).sample(p, derivatives=2)
-    np.testing.assert_allclose(g.phi, s.phi, atol=1e-12)          # index maps differ by rounding only
-    np.testing.assert_allclose(g.grad, s.grad, atol=1e-12)
-    np.testing.assert_allclose(g.hess, s.hess, atol=1e-12)
+    g = GridSampler(vol).sample(p, derivatives=2)                 # the flow's float32 grids: rounding only
+    for got, want in ((g.phi, s.phi), (g.grad, s.grad), (g.hess, s.hess)):
+        np.testing.assert_allclose(got, want, rtol=0, atol=2e-7 * np.abs(want).max())
 
 
 def test_sampler_is_sample_with_clamp_without_the_checks():
@@ -177,3 +176,21 @@ def test_derivative_channels_equal_stacking_phi_its_gradient_and_the_symmetrised
     assert np.array_equal(vol.channels(2), want)
     assert np.array_equal(Volume(values, np.zeros(3), spacing).channels(1), want[..., :4])
     assert np.array_equal(Volume(values, np.zeros(3), spacing).channels(0), want[..., :1])
+
+
+def test_single_precision_grids_are_the_double_ones_rounded_and_interpolate_alike():
+    """``channels(order, float32)``: the float64 grids rounded, cached apart from them; trilinear sampling of
+    them (compiled and numpy) agrees with the float64 grids' to single-precision rounding."""
+    from phantoms.volume import trilinear_channels
+
+    vol = get_phantom("ellipsoid").volume(n=20)
+    c64, c32 = vol.channels(2), vol.channels(2, dtype=np.float32)
+    assert c32.dtype == np.float32 and vol.channels(2, dtype=np.float32) is c32 and vol.channels(2) is c64
+    assert np.array_equal(c32, c64.astype(np.float32))
+    idx = np.random.default_rng(4).uniform(0, 19, size=(3, 3000))
+    ref = trilinear_channels(c64.reshape(-1, 10), vol.shape, idx)
+    scale = np.abs(c64.reshape(-1, 10)).max(axis=0)[:, None]
+    for reference in (False, True):
+        got = trilinear_channels(c32.reshape(-1, 10), vol.shape, idx, reference=reference)
+        assert got.dtype == np.float64
+        assert np.all(np.abs(got - ref) <= 1e-7 * scale) and not np.array_equal(got, ref)

@@ -15,10 +15,16 @@ relax) of the last round are stored in the benchmark's ``extra_info``.
   sphere, its operators and the first step are the per-round setup and are not timed.
 * A whole default run on the bunny and on the cortex at N = 96 (issue 14: ≤ 5 s each), ``perf_slow`` (skipped by
   ``python -m bench perf --quick``); the per-phase seconds go to ``extra_info``.
+* A whole default run on brain_mri at N = 256 (issue 31: ≤ 60 s, ≤ 3 GB), ``perf_slow``, in a child process.
 """
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+
+import numpy as np
 import pytest
 
 from methods.shape_gradient import ShapeGradient
@@ -88,3 +94,49 @@ def test_full_run_at_n96(benchmark, real_volumes, name):
     benchmark.extra_info.update({f"{p}_s": round(t.get(p, 0.0), 3) for p in PHASES + ("setup", "remesh", "guard",
                                                                                         "polish", "projection")})
     benchmark.extra_info.update({"iterations": rec.info["iterations"], "vertices": len(rec.mesh.vertices)})
+
+
+_MRI_RUN = """
+import json, resource, sys, time
+import numpy as np
+from phantoms import Volume
+from methods.shape_gradient import ShapeGradient
+z = np.load(sys.argv[1])
+vol = Volume(z["values"], z["origin"], z["spacing"])
+t, c = time.perf_counter(), time.process_time()
+rec = ShapeGradient().reconstruct(vol)
+print(json.dumps({"wall_s": time.perf_counter() - t, "cpu_s": time.process_time() - c,
+                  "peak_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6,
+                  "vertices": len(rec.mesh.vertices), "watertight": bool(rec.mesh.is_watertight),
+                  "euler": int(rec.mesh.euler_number), "iterations": rec.info["iterations"],
+                  "stop_reason": rec.info["stop_reason"],
+                  "timings": {k: round(v, 2) for k, v in rec.info["timings"].items()}}))
+"""
+
+
+@pytest.fixture(scope="module")
+def brain_256(tmp_path_factory):
+    """brain_mri at MRI size (N = 256, 16.8M voxels), written once for the child process."""
+    vol = get_phantom("brain_mri").volume(n=256)
+    path = tmp_path_factory.mktemp("mri") / "brain256.npz"
+    np.savez(path, values=vol.values, origin=vol.origin, spacing=vol.spacing)
+    return path
+
+
+@pytest.mark.perf_slow
+def test_full_run_brain_mri_n256(benchmark, brain_256):
+    """The default shape gradient on brain_mri at N = 256 (issue 31's target: ≤ 60 s and ≤ 3 GB peak on
+    2 cores), in a fresh process so that its peak RSS is its own (the volume loaded from a file, the method,
+    nothing else); the child's seconds, peak and per-phase split go to ``extra_info``."""
+    def run():
+        out = subprocess.run([sys.executable, "-c", _MRI_RUN, str(brain_256)], capture_output=True, text=True,
+                             check=True)
+        return json.loads(out.stdout.strip().splitlines()[-1])
+
+    res = benchmark.pedantic(run, rounds=1, iterations=1, warmup_rounds=0)
+    benchmark.extra_info.update({k: v for k, v in res.items() if k != "timings"})
+    benchmark.extra_info.update({f"{k}_s": v for k, v in res["timings"].items()})
+    print(f"\nbrain_mri N = 256: {res['wall_s']:.1f} s wall, {res['cpu_s']:.1f} s CPU, peak {res['peak_gb']:.2f} GB, "
+          f"{res['vertices']} vertices, {res['iterations']} iterations ({res['stop_reason']})")
+    assert res["watertight"] and res["euler"] == 2 and res["vertices"] > 200_000
+    assert res["peak_gb"] <= 3.0

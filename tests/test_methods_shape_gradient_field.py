@@ -42,18 +42,22 @@ def test_the_interpolated_noise_variance_is_eight_27ths():
     assert np.mean(v ** 2) == pytest.approx((2 / 3) ** 3, rel=0.03)
 
 
-def test_the_flow_reads_single_precision_grids_that_agree_with_the_volume():
-    """The flow's sampler reads the float32 stack (half the memory); φ and ∇φ agree with the volume's own
-    float64 interpolation to single-precision rounding, and the sampled field is still the sphere's."""
-    from methods.shape_gradient.field import STACK_DTYPE, GridSampler
+def test_the_flow_reads_single_precision_grids_only_above_the_size_limit(monkeypatch):
+    """Large volumes: the flow's sampler reads the float32 stack (half the memory), whose φ and ∇φ agree with
+    the volume's own float64 interpolation to single-precision rounding and still are the sphere's; below
+    the limit it reads the float64 grids."""
+    import methods.shape_gradient.field as fd
 
+    assert fd.stack_dtype((128, 128, 128)) is np.float64 and fd.stack_dtype((160, 160, 160)) is np.float32
     vol = get_phantom("sphere").volume(n=32)
-    gs = GridSampler(vol)
-    assert STACK_DTYPE == np.float32 and gs._channels(2).dtype == np.float32
+    assert fd.GridSampler(vol)._channels(2).dtype == np.float64
+    monkeypatch.setattr(fd, "FLOAT32_ABOVE_BYTES", 0)
+    gs = fd.GridSampler(vol)
+    assert gs._channels(2).dtype == np.float32
     pts = np.random.default_rng(3).normal(size=(2000, 3))
     pts = pts / np.linalg.norm(pts, axis=1, keepdims=True) * np.random.default_rng(4).uniform(0.5, 1.5, (2000, 1))
     got, want = gs.sample(pts, derivatives=1), vol.sample(pts, derivatives=1)
     assert np.max(np.abs(got.phi - want.phi)) <= 1e-7 * np.abs(vol.values).max()
-    assert np.max(np.abs(got.grad - want.grad)) <= 1e-6
+    assert np.max(np.abs(got.grad - want.grad)) <= 1e-6 and not np.array_equal(got.grad, want.grad)
     r = np.linalg.norm(pts, axis=1)
     assert np.max(np.abs(got.phi - (r - 1.0))) < 0.5 * vol.h       # the unit sphere's SDF, to interpolation error

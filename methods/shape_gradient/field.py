@@ -10,7 +10,7 @@ import numpy as np
 from phantoms import Sample, Volume
 from phantoms.volume import trilinear_channels
 
-__all__ = ["GridSampler", "STACK_DTYPE", "as_field", "estimate_noise", "smoothed_field", "start_smoothing"]
+__all__ = ["GridSampler", "FLOAT32_ABOVE_BYTES", "stack_dtype", "as_field", "estimate_noise", "smoothed_field", "start_smoothing"]
 
 _NOISE: "weakref.WeakKeyDictionary[Volume, float]" = weakref.WeakKeyDictionary()
 
@@ -46,11 +46,17 @@ _HESS_INDEX = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]]).ravel()
 
 _N_CHANNELS = {0: 1, 1: 4, 2: 10}   # φ; φ, ∇φ; φ, ∇φ, the Hessian's six entries
 
-#: the flow's interpolation grids are stored in single precision (computed in double): ten grids of N³ are
-#: the flow's largest array (1.34 GB in float64 at N = 256, beside a 0.13 GB volume); rounding them moves a
-#: sampled value by 6e-8 of its size, far below trilinear interpolation's own O(h²) error (docs/NOTES.md:
-#: results against float64 grids)
-STACK_DTYPE = np.float32
+#: above this many bytes in float64 (N ≈ 150 for a cube) the flow's interpolation grids are stored in single
+#: precision (computed in double): ten grids of N³ are the flow's largest array (1.34 GB in float64 at N = 256,
+#: beside a 0.13 GB volume); rounding them moves a sampled value by 6e-8 of its size, far below trilinear
+#: interpolation's own O(h²) error (docs/NOTES.md: results against float64 grids).  Below it they stay float64:
+#: the compiled gather reads float32 ~30 % slower, and memory is no concern there
+FLOAT32_ABOVE_BYTES = 2 ** 28
+
+
+def stack_dtype(shape) -> type:
+    """The dtype of the flow's 10-channel interpolation grids for a volume of ``shape``."""
+    return np.float32 if 10 * 8 * float(np.prod([float(n) for n in shape])) > FLOAT32_ABOVE_BYTES else np.float64
 
 
 class GridSampler:
@@ -78,7 +84,7 @@ class GridSampler:
         for o in (order, 2):
             if o in self._given:
                 return self._given[o]
-        ch = self.volume.channels(2, dtype=STACK_DTYPE)
+        ch = self.volume.channels(2, dtype=stack_dtype(self._shape))
         return ch.reshape(-1, ch.shape[-1])
 
     def contains(self, points: np.ndarray) -> np.ndarray:
@@ -146,7 +152,7 @@ def smoothed_field(volume: Volume, sigma: float, presmooth_phi: bool = False) ->
     if key not in cache:
         from scipy.ndimage import gaussian_filter
         smooth = volume.with_values(gaussian_filter(volume.values, sigma=sigma, mode="nearest"))
-        ch2 = smooth.channels(2, dtype=STACK_DTYPE).reshape(-1, 10)    # a new array, owned by ``smooth``
+        ch2 = smooth.channels(2, dtype=stack_dtype(volume.shape)).reshape(-1, 10)   # owned by ``smooth``
         if not key[1]:
             ch2[:, 0] = volume.values.ravel()
         cache[key] = {2: ch2}

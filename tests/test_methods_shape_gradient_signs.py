@@ -81,3 +81,22 @@ def test_growing_into_samples_the_start_missed_is_no_cut_and_earns_no_allowance(
     assert g.check(10, _capped(exact.vertices, -1, 2 * h), ops) is not None          # ... then cut elsewhere
     assert abs(g.log[-1][1] - cut) <= 0.05 * cut and g.checkpoint[0] == 5
     assert g.check(15, start, ops) is not None and g.log[-1][1] >= 0.95 * missed     # the grown part cut again
+
+
+def test_a_failed_check_goes_back_to_the_checkpoint_with_the_fewest_wrong_samples():
+    """A flow that cuts a part does so over several checks, each within the allowance: the guard goes back to
+    the accepted checkpoint with the fewest samples on the wrong side (the latest of equals), not the last."""
+    vol = get_phantom("sphere").volume(n=32)
+    h = vol.h
+    exact = trimesh.creation.icosphere(5, radius=1.0)
+    ops = type("Ops", (), {"faces": exact.faces})()
+    g = SignGuard(vol, h, exact.vertices * 1.0, exact.faces, ops)
+    u = np.array([0.3, 0.5, 0.81]) / np.linalg.norm([0.3, 0.5, 0.81])
+    nicked = exact.vertices.copy()
+    nicked[nicked @ u > np.cos(0.15)] *= 1 - 1.0 * h                         # a dent a voxel deep ...
+    assert 0 < g.wrong_side(nicked, exact.faces) <= g.allowed                # ... within the allowance
+    assert g.check(5, exact.vertices, ops) is None and g.check(8, exact.vertices, ops) is None
+    assert g.check(10, nicked, ops) is None and g.checkpoint[0] == 10 and g.log[-1][1] > 0
+    back = g.check(15, exact.vertices * (1 - 0.6 * h), ops)
+    assert back is not None and np.array_equal(back[0], exact.vertices)
+    assert "rolled back to iteration 8, the checkpoint with the fewest (0)" in g.message

@@ -136,8 +136,8 @@ class ShapeGradient(Method):
                             "of the surface (inside samples it covered and no longer covers, outside samples it "
                             "covers; inside samples the start missed may be grown into); when the flow puts more "
                             "there than its start did (+2), it is cutting a part of the object (a voxel-thin ear "
-                            "on a coarse grid; docs/NOTES.md), so the mesh goes back to the last checkpoint and "
-                            "the run stops "
+                            "on a coarse grid; docs/NOTES.md), so the mesh goes back to the accepted checkpoint with "
+                            "the fewest samples on the wrong side (the latest of equals) and the run stops "
                             "(stop_reason 'sign_guard'); info['sign_guard'] lists (iteration, count)", bool),
         "edge_length": Param(0.5, "target edge length of the initial sphere (init='auto') and of the remeshing, "
                              "in voxels; 0.5 keeps parts a voxel thin (the bunny's ear tips are lost at 1)",

@@ -107,16 +107,18 @@ class Sample:
     hess: np.ndarray | None = None
 
 
+#: channels of the interpolation grids per derivative order: φ; φ, ∇φ; φ, ∇φ, the Hessian's six entries
+_N_CHANNELS = {0: 1, 1: 4, 2: 10}
 # Order of the six independent Hessian entries in the cached channel array.
 _HESS_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
 def _derivative_channels(values: np.ndarray, spacing, order: int) -> np.ndarray:
-    """:meth:`Volume.channels` in numpy (the reference of :func:`geometry.grid_derivatives.derivative_stack`), built in place: each grid is written into the (…, C) array as soon as it is
-    computed, and only one gradient's three derivatives are alive beside it — at N = 256 and C = 10 the peak is
+    """:meth:`Volume.channels` in numpy (the reference of :func:`geometry.grid_derivatives.derivative_stack`),
+    built in place: each grid is written into the (…, C) array as soon as it is computed, and only one gradient's three derivatives are alive beside it — at N = 256 and C = 10 the peak is
     C + 4 grids instead of C + 16 (1.9 GB instead of 3.5 GB).  The values are those of stacking φ, ∇φ and
     the symmetrised Hessian ½(∂ᵢ∂ⱼφ + ∂ⱼ∂ᵢφ) (the two difference orders differ at the border)."""
-    n_chan = {0: 1, 1: 4}.get(order, 10)
+    n_chan = _N_CHANNELS[order]
     check_memory(values.shape, n_chan + (4 if order >= 2 else 1), what=f"the interpolation grids (order {order})")
     out = np.empty(values.shape + (n_chan,))
     out[..., 0] = values
@@ -319,10 +321,11 @@ class Volume:
         6e-8, far below the interpolation's own error).  The array is shared with the volume's cache:
         treat it as read-only (or copy it).
         """
+        if order not in _N_CHANNELS:
+            raise ValueError(f"channels: order must be 0, 1 or 2, got {order!r}")
         key = (order, np.dtype(dtype).str)
         if key not in self._channels:
-            n_chan = {0: 1, 1: 4}.get(order, 10)
-            check_memory(self.values.shape, n_chan, itemsize=np.dtype(dtype).itemsize,
+            check_memory(self.values.shape, _N_CHANNELS[order], itemsize=np.dtype(dtype).itemsize,
                          what=f"the interpolation grids (order {order})")
             if kernels.AVAILABLE and (order >= 1 or np.dtype(dtype) != np.float64):
                 # compiled, bit for bit the numpy form below: one pass, no temporary grid (at N = 256 ~1 s

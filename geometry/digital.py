@@ -14,9 +14,11 @@ to be separate.
 * :func:`homotopic_growth` — that growth (26-connected solid, 6-connected background; the grid's outer layer
   is never added, so the solid's surface is closed inside the box).  Compiled with numba; the simple-point test
   has a pure-Python reference (:func:`is_simple_reference`, scipy labelling) the tests compare it with.
+* :func:`homotopic_thinning` — the reverse: samples of a solid removed, highest φ first, each only while it is
+  a simple point (the topology is kept; what must stay to close a hole stays).
 * :func:`ball_field` — a copy of φ whose marching-cubes surface (scikit-image, Lewiner's topologically
   consistent tables) has the grown solid's topology: samples left out of the solid are set just outside
-  (+ ``eps``·h); then marching cubes' ambiguous cells (faces with diagonal signs, cubes whose inside or
+  (+ ``eps``·h), samples of the solid at or above the level just inside (− ``eps``·h); then marching cubes' ambiguous cells (faces with diagonal signs, cubes whose inside or
   outside corners are not edge-connected) are resolved toward the solid's 26-connectivity, first gently (the
   outside values of a face scaled until the face's asymptotic decider joins the inside corners), then, if the
   surface still has a handle, by clamping the values of the ambiguous cells (inside ≤ −``floor``, outside
@@ -37,8 +39,8 @@ from scipy import ndimage
 
 from .kernels import AVAILABLE, _jit
 
-__all__ = ["homotopic_growth", "is_simple_reference", "ball_field", "ambiguous_cells", "surface_is_sphere",
-           "NEIGHBOUR_OFFSETS"]
+__all__ = ["homotopic_growth", "homotopic_thinning", "is_simple_reference", "ball_field", "ambiguous_cells",
+           "surface_is_sphere", "NEIGHBOUR_OFFSETS"]
 
 #: the 26 neighbour offsets, in a fixed order (position 13 of the 3×3×3 block is the centre, left out)
 NEIGHBOUR_OFFSETS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
@@ -209,6 +211,72 @@ def homotopic_growth(phi: np.ndarray, level: float = 0.0, *, reference: bool = F
     return _grow(phi, float(level), seed.astype(np.int64), NEIGHBOUR_OFFSETS, _ADJ6, _ADJ26, _N18, _FACE6, _ALL)
 
 
+@_jit
+def _thin(solid, phi, removable, off, adj6, adj26, n18, face, all26):
+    solid = solid.copy()
+    queued = np.zeros(solid.shape, np.bool_)
+    heap = [(-phi[0, 0, 0], 0, 0, 0)]
+    heap.pop()
+    idx = np.argwhere(removable & solid)
+    for r in range(idx.shape[0]):
+        i, j, k = idx[r, 0], idx[r, 1], idx[r, 2]
+        queued[i, j, k] = True
+        heap.append((-phi[i, j, k], i, j, k))
+    heapq.heapify(heap)
+    while len(heap) > 0:
+        _, i, j, k = heapq.heappop(heap)
+        queued[i, j, k] = False
+        if not solid[i, j, k] or not _is_simple(solid, i, j, k, off, adj6, adj26, n18, face, all26):
+            continue            # may become simple later: re-queued when a neighbour leaves
+        solid[i, j, k] = False
+        for a in range(26):
+            u, v, w = i + off[a, 0], j + off[a, 1], k + off[a, 2]
+            if solid[u, v, w] and removable[u, v, w] and not queued[u, v, w]:
+                queued[u, v, w] = True
+                heapq.heappush(heap, (-phi[u, v, w], u, v, w))
+    return solid
+
+
+def _thin_reference(solid: np.ndarray, phi: np.ndarray, removable: np.ndarray) -> np.ndarray:
+    """The thinning in Python with :func:`is_simple_reference` (the tests' reference, the fallback without numba)."""
+    solid = solid.copy()
+    heap = [(-float(phi[p]), p) for p in map(tuple, np.argwhere(removable & solid))]
+    heapq.heapify(heap)
+    queued = set(q for _, q in heap)
+    while heap:
+        _, p = heapq.heappop(heap)
+        queued.discard(p)
+        if not solid[p] or not is_simple_reference(solid[tuple(slice(c - 1, c + 2) for c in p)]):
+            continue
+        solid[p] = False
+        for o in NEIGHBOUR_OFFSETS:
+            q = tuple(int(c) for c in np.asarray(p) + o)
+            if solid[q] and removable[q] and q not in queued:
+                queued.add(q)
+                heapq.heappush(heap, (-float(phi[q]), q))
+    return solid
+
+
+def homotopic_thinning(solid: np.ndarray, phi: np.ndarray, removable: np.ndarray, *,
+                       reference: bool = False) -> np.ndarray:
+    """``solid`` with its ``removable`` samples taken out, highest ``phi`` first, each only while it is a simple
+    point (26-connected solid, 6-connected background): the topology is unchanged, and a removable sample stays
+    only where taking it out would open a hole, split the solid or make a cavity.  ``removable`` must not touch
+    the grid's outer layer (nor does a solid from :func:`homotopic_growth`)."""
+    solid = np.asarray(solid, bool)
+    removable = np.asarray(removable, bool) & solid
+    if removable.any():
+        edge = removable.copy()
+        edge[1:-1, 1:-1, 1:-1] = False
+        if edge.any():
+            raise ValueError("homotopic_thinning: removable samples on the grid's outer layer")
+    phi = np.ascontiguousarray(phi, dtype=np.float64)
+    if reference or not AVAILABLE:
+        return _thin_reference(solid, phi, removable)
+    return _thin(np.ascontiguousarray(solid), phi, np.ascontiguousarray(removable), NEIGHBOUR_OFFSETS, _ADJ6,
+                 _ADJ26, _N18, _FACE6, _ALL)
+
+
 # --- a marching-cubes field with the solid's topology ------------------------------------------------------
 
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)])
@@ -318,7 +386,8 @@ def ball_field(phi: np.ndarray, solid: np.ndarray, h: float, eps: float = 0.05):
     (vertices in index coordinates, faces) of that surface, and which attempt gave it ('gentle',
     'clamp <floor>' or, last, 'binary': inside samples −h, outside +eps·h); ``(None, None, 'failed')`` if none did.  See the module docstring."""
     base = np.where(solid, phi, np.maximum(phi, eps * h))
-    base = np.where(solid, np.minimum(base, -1e-6 * h), base)      # no sample exactly on the level
+    # no sample exactly on the level; a sample above it that the solid holds (a closed pinhole) just inside
+    base = np.where(solid, np.where(phi >= 0, -eps * h, np.minimum(base, -1e-6 * h)), base)
     field = _join_faces(base)
     mesh = surface_is_sphere(field)
     if mesh is not None:

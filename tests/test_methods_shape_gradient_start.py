@@ -168,3 +168,33 @@ def test_pieces_are_joined_on_clean_volumes_only():
     r = ShapeGradient(max_iter=2).reconstruct(noisy)
     assert r.info["parameters"]["join_below_used"] == 0.0 and r.info["init"]["joined_pieces"] == 0
     assert ShapeGradient(max_iter=2).reconstruct(vol).info["parameters"]["join_below_used"] == 0.5
+
+
+def test_a_noise_pinhole_in_a_thin_sheet_does_not_cut_the_start():
+    # a ball with a sheet one sample thick; one sample of the sheet lifted to +0.1 voxel (what 40 dB noise does to
+    # the bunny's ear at N = 64): the growth stops at it and the start is slit open behind it, unless it is closed
+    import sys
+    from pathlib import Path
+    from phantoms import Volume
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_geometry_pinholes import ball_with_sheet
+    phi, _ = ball_with_sheet()
+    h = 0.05
+    vol = Volume(phi * h, np.zeros(3), np.full(3, h))
+    behind = np.array([[i, 15, 15] for i in range(20, 25)]) * h      # the sheet's samples behind the pinhole
+    for below, n_left, covered in ((0.0, 5, 0), (0.25, 0, 5)):
+        x, f, facts = genus0_surface(vol, vol.values, 0.0, pinhole_below=below)
+        assert is_sphere_like(f, len(x)) and facts["left_out_samples"] == n_left
+        assert trimesh.Trimesh(x, f).contains(behind).sum() == covered
+    assert facts["pinholes"] == 1 and facts["pinhole_samples"] == 1
+    assert not self_intersection_pairs(x, f).size
+
+
+def test_pinholes_are_closed_on_noisy_volumes_only():
+    ph = get_phantom("bunny")
+    clean = ph.volume(n=40)
+    noisy, _ = add_noise(clean, "gaussian", 40.0, seed=0)
+    assert ShapeGradient().prepare(clean).init_facts["pinhole_below_voxels"] == 0.0
+    facts = ShapeGradient().prepare(noisy).init_facts
+    assert facts["pinhole_below_voxels"] >= 0.25 and "pinholes" in facts
+    assert ShapeGradient(close_pinholes=False).prepare(noisy).init_facts["pinhole_below_voxels"] == 0.0

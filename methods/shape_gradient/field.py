@@ -10,7 +10,8 @@ import numpy as np
 from phantoms import Sample, Volume
 from phantoms.volume import trilinear_channels
 
-__all__ = ["GridSampler", "FLOAT32_ABOVE_BYTES", "stack_dtype", "as_field", "estimate_noise", "smoothed_field", "start_smoothing"]
+__all__ = ["GridSampler", "FLOAT32_ABOVE_BYTES", "stack_dtype", "as_field", "estimate_noise", "smoothed_field", "start_smoothing",
+           "noise_after_smoothing"]
 
 _NOISE: "weakref.WeakKeyDictionary[Volume, float]" = weakref.WeakKeyDictionary()
 
@@ -168,6 +169,11 @@ def _gaussian_noise_gain(sigma: float) -> float:
     k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
     k /= k.sum()
     return float(np.sum(k ** 2)) ** 1.5
+
+
+def noise_after_smoothing(noise_voxels: float, sigma: float) -> float:
+    """The std (voxels) of i.i.d. noise of ``noise_voxels`` std after scipy's Gaussian filter of σ voxels."""
+    return float(noise_voxels) * _gaussian_noise_gain(sigma)
 
 
 def start_smoothing(noise_voxels: float, target_voxels: float = 1.0) -> float:

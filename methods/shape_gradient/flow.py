@@ -325,6 +325,7 @@ class ShapeGradientFlow:
         # the flow's meshes are closed (checked at every remesh); the start is checked here once more, and gets
         # all the rounds (marching cubes' slivers); a later mesh is near isotropic: one round
         rounds = self.settings.remesh_iterations if it == 0 else 1
+        before = (self.state.x, self.ops, self.state)
         out = remesh(self.state.x, self.ops.faces, self.edge_length, rounds, closed=it > 0)
         if out is None:
             self.remesh_refused += 1
@@ -336,7 +337,10 @@ class ShapeGradientFlow:
             self._move_prev, self._grow = self.max_move, False
             self._calm = self._still = 0
         self.timings["remesh"] += time.perf_counter() - t0
-        self._guard(it)
+        if not self._guard(it) and self._safe is None and out is not None:   # an unrepairable remeshed start:
+            self.remesh_refused += 1                                           # the start as grown is safe
+            self._set_mesh(before[0], before[1], before[2])
+            self._guard(it)
 
     def _checked(self) -> bool:
         """True when the current mesh is the last one the intersection guard passed (nothing moved since)."""

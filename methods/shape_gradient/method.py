@@ -12,7 +12,7 @@ from geometry.sphere import PAPER_SPHERE_RADIUS, PAPER_SPHERE_VERTICES
 from phantoms import InputError, Volume
 
 from ..base import Method, Param, Reconstruction, check_volume
-from .field import estimate_noise, smoothed_field, start_smoothing
+from .field import estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
 from .flow import ShapeGradientFlow
 from .settings import FlowSettings
 from .start import initial_surface, parse_snapshots, target_topology
@@ -40,6 +40,7 @@ PRESETS: dict[str, dict[str, Any]] = {
 
 _AUTO_PRESMOOTH_SIGMA = 1.0   # presmooth='auto': σ (voxels) used on noisy volumes ...
 _AUTO_PRESMOOTH_NOISE = 0.05  # ... i.e. when the estimated noise is at least this many voxels
+_PINHOLE_FLOOR_VOXELS = 0.25  # close_pinholes: a pinhole's sample is below max(noise std of the start's values, this)
 
 
 def _auto_or_number(key: str, value: Any, hi: float) -> "float | str":
@@ -131,6 +132,11 @@ class ShapeGradient(Method):
                             "voxels apart at d/2) through a path of samples at that saddle, so the start grows into "
                             "all of them; farther pieces: the largest is kept, with the topology warning. Clean "
                             "volumes only (under noise the pieces beside the surface are speckles). 0 = never join", float, min=0.0, max=10.0),
+        "close_pinholes": Param(True, "init='genus0' on a noisy volume: where noise lifted one sample of a thin sheet "
+                                "(an ear, a wing) above 0, the growth would stop at the pinhole and the start lose "
+                                "the tip beyond it; close such holes — one sample below max(noise std, 1/4 voxel), "
+                                "next to the samples left out (geometry.pinholes; docs/NOTES.md). Wider gaps (sulcal "
+                                "banks touching) stay open", bool),
         "sign_guard": Param(True, "with the genus-0 start on a clean volume: at every remesh, count the grid samples "
                             "that are clearly inside or outside (|φ| > h/4, within 3 h of φ = 0) but on the wrong side "
                             "of the surface (inside samples it covered and no longer covers, outside samples it "
@@ -229,10 +235,15 @@ class ShapeGradient(Method):
         # under noise the pieces of φ < 0 beside the surface are speckles (30 dB: 13–31 on the fused spheres and
         # the cortex at N = 96), not parts: the genus-0 start joins pieces on clean volumes only
         join_below = float(cfg["join_below"]) if clean else 0.0
+        pinhole_below = 0.0
+        if cfg["close_pinholes"] and not clean:
+            pinhole_below = max(noise_after_smoothing(noise / volume.h, s0), _PINHOLE_FLOOR_VOXELS)
         x, faces, flipped, init_facts = initial_surface(
             volume, init=cfg["init"], init_mesh=cfg["init_mesh"], edge_length=cfg["edge_length"],
             join_below=join_below, init_vertices=cfg["init_vertices"], init_radius=cfg["init_radius"],
-            init_center=cfg["init_center"], values=values)
+            init_center=cfg["init_center"], values=values, pinhole_below=pinhole_below)
+        if init_facts["kind"] == "genus0":
+            init_facts["pinhole_below_voxels"] = round(pinhole_below, 4)
         settings = FlowSettings.resolve(cfg, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,
                                         join_below=join_below, remesh_start=init_facts["kind"] == "genus0")
         field = smoothed_field(volume, sigma, cfg["presmooth_phi"])

@@ -118,7 +118,7 @@ def prepare_init_mesh(mesh) -> tuple[np.ndarray, np.ndarray, bool]:
 
 def initial_surface(volume: Volume, *, init: str, init_mesh, edge_length: float, join_below: float,
                     init_vertices: int, init_radius: float, init_center: np.ndarray | None = None,
-                    values: np.ndarray | None = None):
+                    values: np.ndarray | None = None, pinhole_below: float = 0.0):
     """(vertices, faces, flipped, facts) of the initial surface the parameters ask for, checked to lie in the grid.
 
     Parameters
@@ -144,12 +144,15 @@ def initial_surface(volume: Volume, *, init: str, init_mesh, edge_length: float,
     values : ndarray, optional
         The samples the genus-0 start is grown from (default: the volume's; the method passes pre-smoothed
         samples on noisy volumes).
+    pinhole_below : float
+        ``init='genus0'``: close the solid's noise pinholes of samples below this many voxels (0 = never).
     """
     flipped = False
     facts: dict = {"kind": init if init_mesh is None else "mesh"}
     x = None
     if init_mesh is None and init == "genus0":
-        x, faces, more = genus0_surface(volume, volume.values if values is None else values, join_below)
+        x, faces, more = genus0_surface(volume, volume.values if values is None else values, join_below,
+                                        pinhole_below)
         facts.update(more)
         if x is None:
             facts["kind"] = "auto"
@@ -232,7 +235,8 @@ def target_topology(volume: Volume) -> dict:
     return out
 
 
-def genus0_surface(volume: Volume, values: np.ndarray, join_below: float = JOIN_BELOW_VOXELS):
+def genus0_surface(volume: Volume, values: np.ndarray, join_below: float = JOIN_BELOW_VOXELS,
+                   pinhole_below: float = 0.0):
     """(vertices, faces, facts) of a genus-0 surface of the region ``values < 0`` (world coordinates, outward),
     or ``(None, None, facts)`` when no attempt gave one.
 
@@ -243,12 +247,15 @@ def genus0_surface(volume: Volume, values: np.ndarray, join_below: float = JOIN_
     group.  The region is grown from its deepest sample, in order of φ, keeping only simple points
     (:func:`geometry.digital.homotopic_growth`): a solid with one component, no handle and no cavity that takes
     every inside sample except where the sampled region has a handle (two sulcal banks closer than a voxel), where
-    it stops at the thinnest place.  Its marching-cubes surface (:func:`geometry.digital.ball_field`) is one closed
+    it stops at the thinnest place — unless that place is a noise pinhole: one sample below ``pinhole_below``
+    voxels closing the hole (:func:`geometry.pinholes.close_pinholes`).  Its marching-cubes surface (:func:`geometry.digital.ball_field`) is one closed
     genus-0 surface within a fraction of a voxel of φ = 0 elsewhere (a joining path: a tube about a voxel wide).
     Facts: samples inside / in the solid / left out (the path samples count in the solid, not as inside), how
-    marching cubes' ambiguous cells were resolved, pieces of φ < 0, joins, their saddles (voxels), path samples.
+    marching cubes' ambiguous cells were resolved, pieces of φ < 0, joins, their saddles (voxels), path samples,
+    pinholes closed and their samples.
     """
     from geometry.digital import ball_field, homotopic_growth
+    from geometry.pinholes import close_pinholes
     from geometry.saddles import join_pieces
 
     values = np.asarray(values, dtype=np.float64)
@@ -258,11 +265,13 @@ def genus0_surface(volume: Volume, values: np.ndarray, join_below: float = JOIN_
         values = values.copy()
         values[1:-1, 1:-1, 1:-1] = core
     solid = homotopic_growth(values, 0.0)
+    solid, pins = close_pinholes(values, solid, 0.0, pinhole_below * volume.h)
     facts = {"inside_samples": int(inside.sum()), "solid_samples": int(solid.sum()),
              "left_out_samples": int((inside & ~solid).sum()), "disambiguation": "failed",
              "pieces": joins["pieces"], "joined_pieces": joins["joins"],
              "join_saddles_voxels": [round(w / volume.h, 3) for w in joins["join_saddles"]],
-             "join_samples": joins["join_samples"]}
+             "join_samples": joins["join_samples"], "pinholes": pins["pinholes"],
+             "pinhole_samples": pins["pinhole_samples"]}
     if not solid.any():
         raise InputError("method 'shape_gradient': no sample of the volume is inside (φ < 0) away from the box's "
                          "outer layer — there is no surface to reconstruct")

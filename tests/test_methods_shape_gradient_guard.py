@@ -39,3 +39,29 @@ def test_a_clean_mesh_has_no_intersections_by_either_check():
     x, f, top = _sphere_with_a_dent(0.5)                  # a dent, no piercing
     assert count_intersections(x, f)[0] == 0
     assert count_intersections(x, f, moved=np.array([top]))[0] == 0
+
+
+def test_an_unrepairable_remeshed_start_falls_back_to_the_start_as_grown(monkeypatch):
+    # the remesher returns a mesh with a vertex pushed through the surface and the repair gives up: with no
+    # earlier safe mesh to roll back to, the flow keeps the start as grown (intersection-free), and the stop tests
+    # wait for a remesh (marching cubes' slivers move slowly: the noisy bunny at 30 dB stopped at iteration 3)
+    import methods.shape_gradient.flow as flow_module
+    from methods.shape_gradient import ShapeGradient
+    from phantoms import get_phantom
+
+    def pierced(x, f, edge_length, iterations, closed=False):
+        x = np.array(x, dtype=float)
+        top = int(np.argmax(x[:, 2]))
+        x[top, 2] -= 1.2 * (x[:, 2].max() - x[:, 2].min())          # through the far side
+        return x, np.asarray(f)
+    monkeypatch.setattr(flow_module, "remesh", pierced)
+    monkeypatch.setattr(flow_module, "repair_intersections", lambda ops, x, bad: None)
+    vol = get_phantom("sphere").volume(n=24)
+    method = ShapeGradient(max_iter=4, remesh_every=3, sign_guard=False)
+    grown = method.prepare(vol).snapshots[0]
+    flow = method.prepare(vol)
+    assert flow.remesh_refused == 1 and flow.intersections[0][1] > 0 and tuple(flow.intersections[-1]) == (0, 0)
+    assert np.array_equal(flow.state.x, grown[0]) and flow._hold_stop
+    flow.run()
+    assert count_intersections(flow.state.x, flow.ops.faces)[0] == 0
+    assert flow.remeshes and not flow._hold_stop      # the remesh at iteration 3 released the stop tests

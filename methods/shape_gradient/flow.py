@@ -89,6 +89,7 @@ class ShapeGradientFlow:
         self.stop: str | None = None
         self.message = ""
         self._calm = self._still = 0
+        self._hold_stop = False                         # no stop test until a remesh (see _remesh_and_guard)
         self.n_backtracks = 0
         self.n_rejected_folds = 0
         self.curvature_fallbacks = 0
@@ -221,8 +222,9 @@ class ShapeGradientFlow:
                 self._guard(it)                      # a snapshot is a result too: intersection-free
             self.snapshots[it] = self._snapshot()
         rel = abs(prev - new.E) / max(abs(prev), 1e-300)
-        self._calm = self._calm + 1 if rel < st.tol else 0
-        self._still = self._still + 1 if move < st.move_tol * h else 0
+        held = self._hold_stop        # the start kept unremeshed: marching cubes' slivers move slowly until a remesh
+        self._calm, self._still = (0, 0) if held else (self._calm + 1 if rel < st.tol else 0,
+                                                       self._still + 1 if move < st.move_tol * h else 0)
         if self._calm >= _CONVERGE_PATIENCE:
             return self._settle("converged", f"iteration {it}: relative energy change below tol = {st.tol:g} "
                                           f"for {_CONVERGE_PATIENCE} iterations")
@@ -334,13 +336,13 @@ class ShapeGradientFlow:
             self._set_mesh(x, MeshOperators(f, len(x)))
             self.remeshes.append((it, len(x)))
             # a new mesh: the line search starts again from the step cap, the stop tests count afresh
-            self._move_prev, self._grow = self.max_move, False
+            self._move_prev, self._grow, self._hold_stop = self.max_move, False, False
             self._calm = self._still = 0
         self.timings["remesh"] += time.perf_counter() - t0
         if not self._guard(it) and self._safe is None and out is not None:   # an unrepairable remeshed start:
             self.remesh_refused += 1                                           # the start as grown is safe
             self._set_mesh(before[0], before[1], before[2])
-            self._guard(it)
+            self._hold_stop = self._guard(it)
 
     def _checked(self) -> bool:
         """True when the current mesh is the last one the intersection guard passed (nothing moved since)."""
@@ -461,14 +463,10 @@ class ShapeGradientFlow:
         self.timings["total"] = time.perf_counter() - self.t_start
         mesh = trimesh.Trimesh(final_geo.vertices.copy(), self.ops.faces.copy(), process=False)
         info = {
-            "iterations": int(self.iteration),
-            "stop_reason": self.stop or "max_iter",
-            "stop_message": self.message,
-            "energy_history": [float(e) for e in self.history],
-            "energy_final": float(self.history[-1]),
+            "iterations": int(self.iteration), "stop_reason": self.stop or "max_iter", "stop_message": self.message,
+            "energy_history": [float(e) for e in self.history], "energy_final": float(self.history[-1]),
             "snapshots": dict(self.snapshots),
-            "H": H_final,
-            "K": K_final,
+            "H": H_final, "K": K_final,
             "parameters": st.reported_parameters(),
             "timings": dict(self.timings),
             "n_backtracks": int(self.n_backtracks),

@@ -130,8 +130,9 @@ class ShapeGradient(Method):
                             "join the pieces whose lowest saddle of φ is below this many voxels (a part thinner than "
                             "a voxel: a neck 0.6 voxel thick has its saddle at 0.41 voxel at worst; two objects d "
                             "voxels apart at d/2) through a path of samples at that saddle, so the start grows into "
-                            "all of them; farther pieces: the largest is kept, with the topology warning. Clean "
-                            "volumes only (under noise the pieces beside the surface are speckles). 0 = never join", float, min=0.0, max=10.0),
+                            "all of them; farther pieces: the largest is kept, with the topology warning. Under "
+                            "noise the threshold is lowered by the noise std σ̂ (a saddle read through noise is about "
+                            "σ̂ lower; 30 dB speckles are never joined). 0 = never join", float, min=0.0, max=10.0),
         "close_pinholes": Param(True, "init='genus0' on a noisy volume: where noise lifted one sample of a thin sheet "
                                 "(an ear, a wing) above 0, the growth would stop at the pinhole and the start lose "
                                 "the tip beyond it; close such holes — one sample below max(noise std, 1/4 voxel), "
@@ -232,9 +233,9 @@ class ShapeGradient(Method):
         if s0 > 0 and cfg["init"] == "genus0" and cfg["init_mesh"] is None:
             from scipy.ndimage import gaussian_filter
             values = gaussian_filter(volume.values, float(s0), mode="nearest")
-        # under noise the pieces of φ < 0 beside the surface are speckles (30 dB: 13–31 on the fused spheres and
-        # the cortex at N = 96), not parts: the genus-0 start joins pieces on clean volumes only
-        join_below = float(cfg["join_below"]) if clean else 0.0
+        # under noise a saddle is lower by about a noise std (the lowest of many paths' highest samples): the
+        # threshold is lowered by σ̂, so the speckles of 30 dB noise (σ̂ ≈ 0.6 voxel) are never joined
+        join_below = float(cfg["join_below"]) if clean else max(float(cfg["join_below"]) - noise / volume.h, 0.0)
         pinhole_below = 0.0
         if cfg["close_pinholes"] and not clean:
             pinhole_below = max(noise_after_smoothing(noise / volume.h, s0), _PINHOLE_FLOOR_VOXELS)

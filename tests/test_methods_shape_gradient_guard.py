@@ -1,6 +1,12 @@
-"""The intersection guard's check (methods/shape_gradient/guard.py): both tests, the local patch check."""
+"""The intersection guard's check (methods/shape_gradient/guard.py): both tests, the local patch check, the
+fallback of an unrepairable start, and a clean exit after the guard's thread ran (pymeshlab loaded on the caller's
+thread: first loaded inside the guard's thread after the metrics' worker thread had run, it corrupted the heap —
+glibc aborted the process at exit, 'malloc_consolidate(): unaligned fastbin chunk detected')."""
 
 from __future__ import annotations
+
+import subprocess
+import sys
 
 import numpy as np
 
@@ -65,3 +71,26 @@ def test_an_unrepairable_remeshed_start_falls_back_to_the_start_as_grown(monkeyp
     flow.run()
     assert count_intersections(flow.state.x, flow.ops.faces)[0] == 0
     assert flow.remeshes and not flow._hold_stop      # the remesh at iteration 3 released the stop tests
+
+
+_CHILD = """
+import importlib.util, warnings; warnings.filterwarnings("ignore")
+from pathlib import Path
+from bench.metrics import evaluate
+from methods import get_method
+from methods.shape_gradient.guard import count_intersections
+from phantoms import add_noise, get_phantom
+mesh = Path(importlib.util.find_spec("pymeshlab").submodule_search_locations[0]) / "tests/sample_meshes/bone.ply"
+ph = get_phantom(f"mesh:{mesh}")
+vol, _ = add_noise(ph.volume(n=64), "gaussian", 40.0, seed=0)
+r = get_method("marching_cubes").reconstruct(vol)
+evaluate(r.mesh, ph, vol.h, n_samples=100_000)
+print(count_intersections(r.mesh.vertices, r.mesh.faces)[0])
+"""
+
+
+def test_scoring_then_the_guards_thread_exits_cleanly():
+    # a fresh process: pymeshlab not yet loaded, the metrics' distance query run in its worker thread first
+    done = subprocess.run([sys.executable, "-c", _CHILD], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == "0"

@@ -63,6 +63,8 @@ def count_intersections(x: np.ndarray, faces: np.ndarray, moved: np.ndarray | No
         faces = faces[ids]
         if len(faces) < 2:
             return 0, np.zeros(0, dtype=np.int64)
+    import pymeshlab  # noqa: F401  (loaded on this thread: its first load in the pool's thread, after the
+    #                   metrics' worker thread had run, corrupted the heap — glibc aborted at exit)
     job = _POOL.submit(_meshlab_faces, x, faces)
     bad = self_intersection_pairs(x, faces).ravel()
     bad = unique_ints(np.concatenate([job.result(), bad]))

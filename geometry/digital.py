@@ -18,10 +18,10 @@ to be separate.
   a simple point (the topology is kept; what must stay to close a hole stays).
 * :func:`ball_field` — a copy of φ whose marching-cubes surface (scikit-image, Lewiner's topologically
   consistent tables) has the grown solid's topology: samples left out of the solid are set just outside
-  (+ ``eps``·h), samples of the solid at or above the level just inside (− ``eps``·h); then marching cubes' ambiguous cells (faces with diagonal signs, cubes whose inside or
-  outside corners are not edge-connected) are resolved toward the solid's 26-connectivity, first gently (the
-  outside values of a face scaled until the face's asymptotic decider joins the inside corners), then, if the
-  surface still has a handle, by clamping the values of the ambiguous cells (inside ≤ −``floor``, outside
+  (+ ``eps``·h), samples of the solid at or above the level just inside (− ``eps``·h); then marching cubes'
+  ambiguous cells (faces with diagonal signs, cubes whose inside or outside corners are not edge-connected)
+  are resolved toward the solid's 26-connectivity, first gently (the outside values of a face scaled until the
+  face's asymptotic decider joins the inside corners), then, if the surface still has a handle, by clamping the values of the ambiguous cells (inside ≤ −``floor``, outside
   ≤ δ) with ``floor`` growing.  Each attempt is checked (:func:`surface_is_sphere`); the caller receives the
   first that gives one closed genus-0 surface, and which one it was.
 

@@ -35,23 +35,24 @@ _CUBE = np.ones((3, 3, 3), bool)
 
 
 def close_pinholes(phi: np.ndarray, solid: np.ndarray, level: float, close_below: float,
-                   max_plate: int = 1, max_rim: int = 1000) -> tuple[np.ndarray, dict]:
+                   max_plate: int = 1) -> tuple[np.ndarray, dict]:
     """(solid, facts): ``solid`` (a :func:`~geometry.digital.homotopic_growth` of ``phi < level``) with its
     noise pinholes closed (see the module docstring); facts: ``left_out_before``, ``left_out``,
     ``pinholes`` (holes closed), ``pinhole_samples`` (samples above the level now in the solid).
 
-    ``close_below`` ≤ ``level`` or nothing left out: ``solid`` unchanged."""
+    ``close_below`` ≤ ``level`` (then the left-out counts are not computed: 0) or nothing left out: ``solid``
+    unchanged."""
     phi = np.asarray(phi, dtype=np.float64)
     solid = np.asarray(solid, bool)
     inside = phi < level
     facts = {"left_out_before": 0, "left_out": 0, "pinholes": 0, "pinhole_samples": 0}
-    if not solid.any():
+    if not solid.any() or close_below <= level:          # (clean volumes: nothing to do, nothing labelled)
         return solid, facts
     labels, _ = ndimage.label(inside, structure=_CUBE)
     piece = labels == labels[tuple(np.argwhere(solid)[0])]
     left = piece & ~solid
     facts["left_out_before"] = facts["left_out"] = int(left.sum())
-    if not left.any() or close_below <= level:
+    if not left.any():
         return solid, facts
     interior = np.zeros(phi.shape, bool)
     interior[1:-1, 1:-1, 1:-1] = True
@@ -61,8 +62,7 @@ def close_pinholes(phi: np.ndarray, solid: np.ndarray, level: float, close_below
     plates = needed & cand
     groups, n_groups = ndimage.label(plates | left, structure=_CUBE)
     size = np.bincount(groups[plates], minlength=n_groups + 1)
-    rim = np.bincount(groups[left], minlength=n_groups + 1)
-    accept = (size >= 1) & (size <= int(max_plate)) & (rim <= int(max_rim))
+    accept = (size >= 1) & (size <= int(max_plate))
     accept[0] = False
     pins = plates & accept[groups]
     if not pins.any():

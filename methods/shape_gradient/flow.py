@@ -341,7 +341,7 @@ class ShapeGradientFlow:
         self.timings["remesh"] += time.perf_counter() - t0
         if not self._guard(it) and self._safe is None and out is not None:   # an unrepairable remeshed start:
             self.remesh_refused += 1                                           # the start as grown is safe
-            self._set_mesh(before[0], before[1], before[2])
+            self._set_mesh(*before)
             self._hold_stop = self._guard(it)
 
     def _checked(self) -> bool:

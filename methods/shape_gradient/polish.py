@@ -80,9 +80,17 @@ def crease_polish(field, ops: MeshOperators, x: np.ndarray, h: float, *, angle: 
     y[zone] = np.linalg.solve(A, b[..., None])[..., 0]
     cost = np.full(V, np.inf)
     cost[zone] = np.linalg.norm(y[zone] - xp[zone], axis=1)
+    # at a convex crease the sharp edge lies outside the sampled zero set (interpolating φ's convex kink
+    # overestimates φ, so the zero set is rounded inwards): a crease point inside a convex vertex's tangent plane
+    # is the quadric's pull towards the centre of a rounded tip, not a crease — not snapped
+    a, bb = crease[:, 0], crease[:, 1]
+    concave_vertex = np.zeros(V, bool)
+    is_concave = np.einsum("ed,ed->e", nu[a] - nu[bb], xp[a] - xp[bb]) < 0.0
+    concave_vertex[a[is_concave]] = concave_vertex[bb[is_concave]] = True
+    inward = np.einsum("zd,zd->z", nu[zone], y[zone] - xp[zone]) < 0.0
+    cost[zone[inward & ~concave_vertex[zone]]] = np.inf
     # greedy, vectorised in rounds: a crease edge proposes its cheaper endpoint; it wins when its
     # (cost, index) rank is the smallest of all open crease edges at both its endpoints
-    a, bb = crease[:, 0], crease[:, 1]
     cand = np.where(cost[a] <= cost[bb], a, bb)
     rank = np.empty(len(crease), np.int64)
     rank[np.lexsort((np.arange(len(crease)), cost[cand]))] = np.arange(len(crease))

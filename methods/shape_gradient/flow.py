@@ -9,7 +9,6 @@ import numpy as np
 import trimesh
 from scipy.sparse.linalg import cg, splu
 
-from geometry.arrays import unique_ints
 from geometry.mesh import signed_volume
 from geometry.operators import MeshOperators, dot, jacobi_cg
 from phantoms import InputError
@@ -17,7 +16,7 @@ from phantoms import InputError
 from ..base import Reconstruction, ReconstructionFailed
 from .energy import evaluate_state, gradient_from_state, no_fold
 from .guard import count_intersections, repair_intersections
-from .polish import crease_polish, newton_project
+from .post import post_steps
 from .remesh import remesh
 from .settings import FlowSettings, Stage
 from .signs import SignGuard
@@ -34,9 +33,6 @@ _CG_MAXITER = 100
 _DIRECT_MAX_VERTICES = 40_000  # solver='auto': the LU up to this many vertices, multigrid above ...
 _CG_MAX_S_EDGES = 2.0          # ... or CG while s is at most this many squared edge lengths
 _FACTOR_REFRESH = 5            # the direct and multigrid H¹ solvers rebuild their factor every this many iterations
-_PROJECTION_STEPS = 3          # final Newton projection onto φ = 0: steps ...
-_PROJECTION_MAX_VOXELS = 0.5   # ... each capped at this many voxels
-_PROJECTION_REVERT_ROUNDS = 4  # rounds of putting back the vertices whose projection made faces intersect
 _OFF_SURFACE_VOXELS = 0.5      # a result whose median |φ| at the vertices exceeds this (voxels) has failed ...
 _OFF_SURFACE_NOISE = 1.0       # ... added in quadrature to this many noise stds (on the true surface of a noisy
 #                                volume the median |φ| is already 0.67 std)
@@ -57,7 +53,7 @@ class ShapeGradientFlow:
         self.field, self.ops, self.settings, self.h = field, ops, settings, float(h)
         self.t_start = time.perf_counter() - setup_seconds
         self.timings = dict.fromkeys(("setup", "interpolation", "curvature", "gradient", "preconditioner",
-                                      "energy", "relax", "polish", "remesh", "guard", "projection"), 0.0)
+                                      "energy", "relax", "polish", "remesh", "guard", "projection", "tips"), 0.0)
         self.timings["setup"] = setup_seconds
         self.alpha, self.beta = settings.alpha, settings.beta
         # −α(2/3)³σ̂² on a noisy volume (unbias): the area term a noisy φ² adds to E (energy.evaluate_state)
@@ -379,56 +375,16 @@ class ShapeGradientFlow:
 
     # ------------------------------------------------------------------ the result
     def _finish(self):
-        """(final geometry, info['polish'], info['projection']): the last iterate after the post-steps.
-
-        The crease polish (clean volumes) and the final Newton projection onto φ = 0 (``projection``) are each
-        kept only if they leave the mesh free of self-intersections (when the guard is on).
-        """
+        """(final geometry, info['polish'], info['projection'], info['tips']): the last iterate after the
+        post-steps (post.py)."""
         st, h = self.settings, self.h
         guard = st.guard
         if guard and not self._checked():
             self._guard(self.iteration)
-        x = self.state.x
-        polish = {"used": st.polish}
-        if polish["used"]:
-            t0 = time.perf_counter()
-            xp, stats = crease_polish(self.field, self.ops, x, h, angle=st.polish_angle,
-                                      weight=st.polish_weight)
-            polish.update(stats)
-            moved = np.flatnonzero(np.any(xp != x, axis=1))    # x was checked: only the polished patch can meet
-            if guard and stats["zone_vertices"] and count_intersections(xp, self.ops.faces, moved=moved)[0]:
-                polish["rejected"] = "it made faces intersect"
-            else:
-                x = xp
-            polish["energy"] = float(evaluate_state(self.field, self.ops, x, self.alpha, self.beta,
-                                                        density=self.density).E) \
-                if stats["zone_vertices"] else float(self.state.E)
-            self.timings["polish"] += time.perf_counter() - t0
-        projection = {"used": st.projection}
-        if projection["used"]:
-            t0 = time.perf_counter()
-            xq, _ = newton_project(self.field, x, steps=_PROJECTION_STEPS, max_step=_PROJECTION_MAX_VOXELS * h)
-            xq = np.where(np.isfinite(xq).all(axis=1, keepdims=True), xq, x)
-            kept_back, n = 0, 0
-            for _ in range(_PROJECTION_REVERT_ROUNDS if guard else 0):
-                n, bad = count_intersections(xq, self.ops.faces)
-                if n == 0:
-                    break
-                back = unique_ints(self.ops.faces[bad])      # where projecting made faces meet: not projected
-                back = unique_ints(np.concatenate([back, self.ops.ring[back][self.ops.ring_valid[back]]]))
-                kept_back += int(np.any(xq[back] != x[back], axis=1).sum())
-                xq[back] = x[back]
-            if guard and n:                                   # the last round's repair is not checked yet
-                n = count_intersections(xq, self.ops.faces)[0]
-            ok = not (guard and n)
-            projection["max_move_voxels"] = float(np.linalg.norm(xq - x, axis=1).max() / h) if ok else 0.0
-            projection["kept_back"] = kept_back
-            if ok:
-                x = xq
-            else:
-                projection["rejected"] = "it made faces intersect"
-            self.timings["projection"] += time.perf_counter() - t0
-        return self.ops.geometry(x), polish, projection
+        energy = (lambda xe: evaluate_state(self.field, self.ops, xe, self.alpha, self.beta, density=self.density).E)
+        x, polish, projection, tips = post_steps(self.field, self.ops, self.state.x, h, st, guard=guard,
+                                                 energy=energy, timings=self.timings)
+        return self.ops.geometry(x), polish, projection, tips
 
     def _check_result(self, geo) -> dict:
         """Volume and distance of the final mesh to φ = 0; a collapsed or off-surface result is a failure."""
@@ -456,7 +412,7 @@ class ShapeGradientFlow:
         if self._polished is None:
             self._polished = self._finish()
         t0 = time.perf_counter()
-        final_geo, polish_info, projection_info = self._polished
+        final_geo, polish_info, projection_info, tips_info = self._polished
         checks = self._check_result(final_geo)
         H_final, K_final = self.ops.curvature(final_geo, linear=self.linear)
         self.timings["curvature"] += time.perf_counter() - t0
@@ -487,6 +443,7 @@ class ShapeGradientFlow:
             "grid_spacing": float(h),
             "polish": polish_info,
             "projection": projection_info,
+            "tips": tips_info,
             "remeshes": [list(r) for r in self.remeshes],
             "stages": [dict(r) for r in self.stage_starts],
             "remesh_refused": int(self.remesh_refused),

@@ -29,6 +29,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # a tolerance, so its tables' rows 50 and 100 are reached unless the line search runs out of steps.
     "paper": {"gradient": "paper", "precondition": "none", "relax": 0.0, "presmooth": 0.0,
               "curvature": "paper", "polish": "off", "init": "sphere", "remesh_every": 0, "guard": False,
+              "extend_tips": False,
               "coarse_to_fine": False, "beta": 1.0,
               "projection": "off", "max_iter": 100, "tol": 0.0, "move_tol": 0.0},
     # the paper's experiment (the same Γ0, β, iteration count and fixed connectivity) run by the suite's
@@ -164,6 +165,12 @@ class ShapeGradient(Method):
         "projection": Param("auto", "final Newton projection of the vertices onto φ = 0 (3 steps of at most 0.5 "
                             "voxel; kept only if it makes no faces intersect). 'auto': on for clean volumes, off "
                             "on noisy ones (like polish)", str, choices=("auto", "on", "off")),
+        "extend_tips": Param(True, "tip extension of the final mesh (tips.py): vertices of sharply convex parts "
+                             "(mean curvature above tip_curvature per voxel) move outwards along their normal, up "
+                             "to a voxel, until they touch the empty ball |x − q| < φ(q)/|∇φ(q)| of an outside "
+                             "sample q; kept back where faces would meet", bool),
+        "tip_curvature": Param(0.3, "tip extension: the least mean curvature, per voxel, of a vertex that may move",
+                               float, min=0.0),
         "strict_topology": Param(False, "refuse (error) when the region φ < 0 is not compatible with one genus-0 "
                                  "surface (several components, handles, cavities); otherwise info['topology'] "
                                  "and a warning say so", bool),

@@ -85,6 +85,8 @@ class FlowSettings:
         The crease polish's angle (degrees) and quadric weight.
     projection : bool
         The final Newton projection onto φ = 0 runs.
+    extend_tips, tip_curvature : bool, float
+        The tip extension runs on the final mesh; the least mean curvature (per voxel) of a vertex it moves.
     noise_variance : float
         The noise variance subtracted from φ² in the data term (0 on clean volumes or with ``unbias=False``).
     stages : tuple of Stage
@@ -121,6 +123,8 @@ class FlowSettings:
     polish_angle: float
     polish_weight: float
     projection: bool
+    extend_tips: bool
+    tip_curvature: float
     noise_variance: float
     stages: tuple[Stage, ...]
     snapshots: tuple[int, ...]
@@ -183,7 +187,8 @@ class FlowSettings:
             remesh_every=int(c["remesh_every"]), remesh_iterations=int(c["remesh_iterations"]),
             remesh_start=bool(remesh_start), guard=bool(c["guard"]), sign_guard=bool(c["sign_guard_used"]),
             polish=bool(c["polish_used"]), polish_angle=c["polish_angle"], polish_weight=c["polish_weight"],
-            projection=bool(c["projection_used"]), noise_variance=float(c["noise_variance"]),
+            projection=bool(c["projection_used"]), extend_tips=bool(c["extend_tips"]),
+            tip_curvature=float(c["tip_curvature"]), noise_variance=float(c["noise_variance"]),
             stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),
             snapshots=tuple(c["snapshots"]), presmooth=c["presmooth_used"], start_smooth=c["start_smooth_used"],
             parameters=_reported(c))

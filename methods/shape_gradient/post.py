@@ -1,0 +1,92 @@
+"""The post-steps of the final mesh: crease polish, Newton projection onto φ = 0, tip extension.
+
+Each is a geometric step on the flow's last iterate (nothing here changes where the flow went).  With the guard on,
+a step that makes faces meet keeps those faces' vertices back (the projection and the tip extension) or is dropped
+(the polish: keeping back part of it made the cortex worse, docs/NOTES.md).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+
+from geometry.arrays import unique_ints
+from geometry.operators import MeshOperators
+
+from .guard import count_intersections
+from .polish import crease_polish, newton_project
+from .settings import FlowSettings
+from .tips import extend_tips
+
+__all__ = ["post_steps", "keep_back"]
+
+_PROJECTION_STEPS = 3          # final Newton projection onto φ = 0: steps ...
+_PROJECTION_MAX_VOXELS = 0.5   # ... each capped at this many voxels
+_REVERT_ROUNDS = 4             # rounds of putting back the vertices whose move made faces intersect
+
+
+def keep_back(ops: MeshOperators, xq: np.ndarray, x: np.ndarray, *, local: bool = False
+              ) -> tuple[np.ndarray, int, bool]:
+    """(xq, vertices kept back, intersection-free): where moving x (intersection-free) to xq made faces meet,
+    their vertices and 1-rings stay at x, a few rounds (putting back can expose more); ``local``: only the
+    moved patch is checked (a step that moved few vertices)."""
+    def check():
+        moved = np.flatnonzero(np.any(xq != x, axis=1)) if local else None
+        return count_intersections(xq, ops.faces, moved=moved)
+
+    xq, kept = xq.copy(), 0
+    for _ in range(_REVERT_ROUNDS):
+        n, bad = check()
+        if n == 0:
+            return xq, kept, True
+        back = unique_ints(ops.faces[bad])
+        back = unique_ints(np.concatenate([back, ops.ring[back][ops.ring_valid[back]]]))
+        kept += int(np.any(xq[back] != x[back], axis=1).sum())
+        xq[back] = x[back]
+    return xq, kept, check()[0] == 0                      # the last round's repair is checked too
+
+
+def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSettings, *, guard: bool,
+               energy: Callable[[np.ndarray], float], timings: dict) -> tuple[np.ndarray, dict, dict, dict]:
+    """(vertices, info['polish'], info['projection'], info['tips']) after the post-steps the settings ask for,
+    in this order: the polish (clean volumes) and the projection put vertices on φ = 0, the tip extension then
+    moves sharply convex parts out to the samples' empty balls (tips.py)."""
+    polish = {"used": st.polish}
+    if polish["used"]:
+        t0 = time.perf_counter()
+        xp, stats = crease_polish(field, ops, x, h, angle=st.polish_angle, weight=st.polish_weight)
+        polish.update(stats)
+        moved = np.flatnonzero(np.any(xp != x, axis=1))        # x was checked: only the polished patch can meet
+        if guard and stats["zone_vertices"] and count_intersections(xp, ops.faces, moved=moved)[0]:
+            polish["rejected"] = "it made faces intersect"
+        else:
+            x = xp
+        polish["energy"] = float(energy(x))
+        timings["polish"] = timings.get("polish", 0.0) + time.perf_counter() - t0
+    projection = {"used": st.projection}
+    if projection["used"]:
+        t0 = time.perf_counter()
+        xq, _ = newton_project(field, x, steps=_PROJECTION_STEPS, max_step=_PROJECTION_MAX_VOXELS * h)
+        xq = np.where(np.isfinite(xq).all(axis=1, keepdims=True), xq, x)
+        x, projection = _kept(ops, xq, x, h, guard, projection, local=False)
+        timings["projection"] = timings.get("projection", 0.0) + time.perf_counter() - t0
+    tips = {"used": st.extend_tips}
+    if tips["used"] and hasattr(field, "volume"):
+        t0 = time.perf_counter()
+        xt, stats = extend_tips(field.volume, ops, x, h, min_curvature=st.tip_curvature,
+                                phi=lambda pt: field.sample_t(pt, 0)[0])
+        tips.update(stats)
+        x, tips = _kept(ops, xt, x, h, guard, tips, local=True)
+        timings["tips"] = timings.get("tips", 0.0) + time.perf_counter() - t0
+    return x, polish, projection, tips
+
+
+def _kept(ops, xq, x, h, guard, info, *, local):
+    """xq with what made faces meet kept back (guard on), else x if that fails; the step's info updated."""
+    xq, info["kept_back"], ok = keep_back(ops, xq, x, local=local) if guard else (xq, 0, True)
+    info["max_move_voxels"] = float(np.linalg.norm(xq - x, axis=1).max() / h) if ok and len(x) else 0.0
+    if not ok:
+        info["rejected"] = "it made faces intersect"
+    return (xq if ok else x), info

@@ -1,0 +1,84 @@
+"""Tests of ``methods.shape_gradient.tips``: the tip extension moves sharply convex vertices out to the samples'
+empty balls, no farther, and leaves smooth, concave and deep-inside vertices alone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from geometry.operators import MeshOperators
+from methods.shape_gradient import GridSampler, ShapeGradient
+from methods.shape_gradient.tips import extend_tips
+from phantoms import get_phantom
+
+
+@pytest.fixture(scope="module")
+def needle():
+    """A prolate ellipsoid (semi-axes 1, 0.2, 0.2) at N = 32 and the flow's final mesh without the extension."""
+    ph = get_phantom("ellipsoid", axes=(1.0, 0.2, 0.2))
+    vol = ph.volume(n=32)
+    m = ShapeGradient(extend_tips=False).reconstruct(vol).mesh
+    x, f = np.asarray(m.vertices, float), np.asarray(m.faces)
+    return ph, vol, x, f, MeshOperators(f, len(x))
+
+
+def _phi(vol):
+    field = GridSampler(vol)
+    return lambda pt: field.sample_t(pt, 0)[0]
+
+
+def test_a_needle_tip_moves_out_towards_the_true_tip_and_not_past_it(needle):
+    """The sampled zero set of the needle stops 0.18 short of its tip (x = 1), and the flow with it; the
+    extension brings the tip out, not past it, and the mesh nearer the true surface (Hausdorff)."""
+    ph, vol, x, f, ops = needle
+    out, stats = extend_tips(vol, ops, x, vol.h, phi=_phi(vol))
+    assert stats["moved"] > 0 and stats["max_move_voxels"] <= 1.0 + 1e-9
+    assert 1.0 - x[:, 0].max() > vol.h                             # short of the tip by more than a voxel ...
+    assert x[:, 0].max() + 0.5 * vol.h < out[:, 0].max() <= 1.0 + 0.25 * vol.h   # ... now nearer, not past it
+    tp = ph.sample_surface(20_000, seed=0)[0]
+
+    def hausdorff(v):
+        _, d, _ = trimesh.proximity.ProximityQuery(trimesh.Trimesh(v, f, process=False)).on_surface(tp)
+        return max(d.max(), np.abs(ph.distance(v)).max())
+    assert hausdorff(out) < 0.8 * hausdorff(x)
+
+
+def test_moved_vertices_stay_out_of_every_outside_samples_empty_ball(needle):
+    _, vol, x, f, ops = needle
+    out, _ = extend_tips(vol, ops, x, vol.h, phi=_phi(vol), max_phi=np.inf)   # the balls alone
+    moved = np.flatnonzero(np.any(out != x, axis=1))
+    assert len(moved) > 0
+    v = vol.values
+    g = np.linalg.norm(np.stack(np.gradient(v, *vol.spacing), -1), axis=-1)
+    d = v / np.median(g[np.abs(v) < 2 * vol.h])
+    grid = np.stack(np.meshgrid(*[vol.origin[k] + vol.spacing[k] * np.arange(v.shape[k]) for k in range(3)],
+                                indexing="ij"), -1)
+    for i in moved:
+        near = np.linalg.norm(grid - x[i], axis=-1) < 1.8 * vol.h   # inside the 4×4×4 block around x[i]
+        q, r = grid[near & (v > 0)], d[near & (v > 0)]
+        gap = np.linalg.norm(q - out[i], axis=1) - r
+        # outside every ball (a moved vertex started outside them; vertices inside one do not move)
+        assert gap.min() >= -1e-9 * vol.h
+
+
+def test_smooth_and_deep_inside_vertices_do_not_move():
+    vol = get_phantom("sphere").volume(n=32)                       # radius 1: mean curvature h·H ≈ 0.16
+    ico = trimesh.creation.icosphere(4, radius=1.0)               # edges ≈ half a voxel, as the flow's mesh
+    x, ops = np.asarray(ico.vertices, float), MeshOperators(np.asarray(ico.faces), len(ico.vertices))
+    out, stats = extend_tips(vol, ops, x, vol.h, phi=_phi(vol))
+    assert stats["candidates"] == 0 and np.array_equal(out, x)
+    tiny = trimesh.creation.icosphere(2, radius=0.05)              # deep inside (φ ≈ −6 h), sharply curved
+    xs = np.asarray(tiny.vertices, float)
+    ops_s = MeshOperators(np.asarray(tiny.faces), len(xs))
+    out, stats = extend_tips(vol, ops_s, xs, vol.h, phi=_phi(vol))
+    assert stats["candidates"] == 0 and np.array_equal(out, xs)
+
+
+def test_the_flow_reports_it_and_the_paper_preset_has_it_off():
+    vol = get_phantom("ellipsoid", axes=(1.0, 0.2, 0.2)).volume(n=32)
+    r = ShapeGradient().reconstruct(vol)
+    tips = r.info["tips"]
+    assert tips["used"] and tips["moved"] > 0 and tips["kept_back"] >= 0 and "rejected" not in tips
+    assert r.info["parameters"]["extend_tips"] is True
+    assert ShapeGradient(preset="paper").config["extend_tips"] is False

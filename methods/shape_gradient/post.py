@@ -75,8 +75,7 @@ def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSetti
     tips = {"used": st.extend_tips}
     if tips["used"] and hasattr(field, "volume"):
         t0 = time.perf_counter()
-        xt, stats = extend_tips(field.volume, ops, x, h, min_curvature=st.tip_curvature,
-                                phi=lambda pt: field.sample_t(pt, 0)[0])
+        xt, stats = extend_tips(field, ops, x, h, min_curvature=st.tip_curvature)
         tips.update(stats)
         x, tips = _kept(ops, xt, x, h, guard, tips, local=True)
         timings["tips"] = timings.get("tips", 0.0) + time.perf_counter() - t0

@@ -10,8 +10,8 @@ these balls.  On a smooth or concave part that is no move at all, or a move into
 balls (a groove's), so only vertices of sharply convex, thin parts move (mean curvature above ``min_curvature``
 per voxel; 1.5 voxels inside along the normal φ is above −1 voxel): on a thick part the balls, about a voxel
 apart, leave gaps the surface would bulge into wherever the samples' distance is a little short.  The move also
-stops where the interpolated φ reaches ``max_phi``.  d(q) = φ(q)/g, g the median |∇φ| of the samples near the
-zero set (1 for a distance volume), so the rule reads a level set that is not a distance too.
+stops where the interpolated φ reaches ``max_phi``.  d(q) = φ(q)/g, g the median |∇φ| (interpolated) 1.5 voxels
+outside the mesh (1 for a distance volume), so the rule reads a level set that is not a distance too.
 """
 
 from __future__ import annotations
@@ -26,16 +26,20 @@ _BLOCK = 16384        # vertices per block: (block, 64) arrays of the nearby sam
 _NEAR_ZERO_VOXELS = 0.5   # only vertices this near φ = 0 move (a surface that reached the data)
 _THIN_PROBE_VOXELS = 1.5  # a part is thin where φ this far inside along the normal ...
 _THIN_DEPTH_VOXELS = 1.0  # ... is still above minus this: thick convex ends (a bone's) keep their zero set
+_SCALE_POINTS = 20_000   # vertices (at most, evenly strided) where the distance scale is read
 _BISECTIONS = 8       # of the move where φ would pass max_phi: to 1/256 of it
 
 
-def extend_tips(volume, ops: MeshOperators, x: np.ndarray, h: float, *, min_curvature: float = 0.3,
-                max_move: float = 1.0, max_phi: float = 0.25, phi) -> tuple[np.ndarray, dict]:
+def extend_tips(field, ops: MeshOperators, x: np.ndarray, h: float, *, min_curvature: float = 0.3,
+                max_move: float = 1.0, max_phi: float = 0.25) -> tuple[np.ndarray, dict]:
     """Move the vertices where the mean curvature exceeds ``min_curvature``/h outwards along their normal, up
     to ``max_move`` voxels, until each touches the empty ball of an outside sample among the 4×4×4 samples
-    around it (see the module docstring), and not past where ``phi`` (points (3, P) → φ (P,), the flow's
-    interpolated field) exceeds ``max_phi`` voxels (bisection).  Returns the new vertices (V, 3) and counts
-    for ``info``."""
+    around it (see the module docstring), and not past where the interpolated φ exceeds ``max_phi`` voxels
+    (bisection).  ``field``: the flow's sampler (``sample_t``, and ``volume`` for the samples).  Returns the
+    new vertices (V, 3) and counts for ``info``."""
+    def phi(pt):
+        return field.sample_t(pt, 0)[0]
+
     x = np.asarray(x, float)
     geo = ops.geometry(x)
     H, _ = ops.curvature(geo)
@@ -49,15 +53,16 @@ def extend_tips(volume, ops: MeshOperators, x: np.ndarray, h: float, *, min_curv
     stats = {"candidates": int(len(sel)), "moved": 0, "max_move_voxels": 0.0}
     if len(sel) == 0:
         return x.copy(), stats
-    v = np.asarray(volume.values, float)
+    volume = field.volume
+    v = volume.values                                   # read where needed: no copy of an MRI-sized grid
     spacing = np.asarray(volume.spacing, float) * np.ones(3)
     origin = np.asarray(volume.origin, float)
-    # distance = φ / |∇φ|, one scale for the whole volume (the median |∇φ| near the zero set): per sample,
-    # central differences across a part thinner than two voxels read |∇φ| far below 1 and inflate the balls
-    gnorm = np.linalg.norm(np.stack(np.gradient(v, *spacing), -1), axis=-1)
-    band = np.abs(v) < 2.0 * h
-    scale = float(np.median(gnorm[band])) if band.any() else 1.0
-    d = v / (scale if np.isfinite(scale) and scale > 0 else 1.0)
+    # distance = φ / g, one scale g for the whole volume: the median |∇φ| 1.5 voxels outside the mesh.  Per
+    # sample — or on the mesh — differences across a part thinner than two voxels read |∇φ| far below 1 and
+    # would inflate the balls; the raw samples' differences, not the flow's (pre-smoothed on noisy volumes)
+    stride = max(1, len(x) // _SCALE_POINTS)
+    scale = _gradient_scale(v, origin, spacing, x[::stride] + _THIN_PROBE_VOXELS * h * nu[::stride])
+    scale = scale if np.isfinite(scale) and scale > 0 else 1.0
     shape = np.asarray(v.shape)
     offs = np.stack(np.meshgrid(*[np.arange(-1, 3)] * 3, indexing="ij"), -1).reshape(-1, 3)
     t = np.zeros(len(x))
@@ -67,10 +72,11 @@ def extend_tips(volume, ops: MeshOperators, x: np.ndarray, h: float, *, min_curv
         inside_grid = ((idx >= 0) & (idx < shape)).all(-1)
         idx = np.clip(idx, 0, shape - 1)
         i, j, k = idx[..., 0], idx[..., 1], idx[..., 2]
-        ball = inside_grid & (v[i, j, k] > 0)                      # outside samples: empty balls
+        vq = np.asarray(v[i, j, k], float)
+        ball = inside_grid & (vq > 0)                              # outside samples: empty balls
         w = x[b, None, :] - (origin + idx * spacing)
         bb = np.einsum("vkd,vd->vk", w, nu[b])                      # |x + τν − q|² = τ² + 2bτ + c
-        c = (w * w).sum(-1) - d[i, j, k] ** 2
+        c = (w * w).sum(-1) - (vq / scale) ** 2
         disc = bb * bb - c
         enter = -bb - np.sqrt(np.maximum(disc, 0.0))               # where the ray enters the ball
         limit = np.where(ball & (c < 0), 0.0, np.where(ball & (disc > 0) & (enter >= 0), enter, np.inf))
@@ -88,3 +94,17 @@ def extend_tips(volume, ops: MeshOperators, x: np.ndarray, h: float, *, min_curv
     stats["moved"] = int((t > 0).sum())
     stats["max_move_voxels"] = float(t.max() / h)
     return out, stats
+
+
+def _gradient_scale(v, origin: np.ndarray, spacing: np.ndarray, points: np.ndarray) -> float:
+    """The median |∇φ| by central differences of the samples at the grid samples nearest ``points``."""
+    shape = np.asarray(v.shape)
+    idx = np.clip(np.rint((points - origin) / spacing).astype(np.int64), 1, shape - 2)
+    g2 = np.zeros(len(idx))
+    for axis in range(3):
+        up, down = idx.copy(), idx.copy()
+        up[:, axis] += 1
+        down[:, axis] -= 1
+        diff = (np.asarray(v[tuple(up.T)], float) - np.asarray(v[tuple(down.T)], float)) / (2.0 * spacing[axis])
+        g2 += diff * diff
+    return float(np.median(np.sqrt(g2))) if len(g2) else 1.0

@@ -168,7 +168,7 @@ class ShapeGradient(Method):
         "extend_tips": Param(True, "tip extension of the final mesh (tips.py): vertices of sharply convex parts "
                              "(mean curvature above tip_curvature per voxel) move outwards along their normal, up "
                              "to a voxel, until they touch the empty ball |x − q| < φ(q)/|∇φ(q)| of an outside "
-                             "sample q; kept back where faces would meet", bool),
+                             "sample q; halved, then kept back, where faces would meet", bool),
         "tip_curvature": Param(0.3, "tip extension: the least mean curvature, per voxel, of a vertex that may move",
                                float, min=0.0),
         "strict_topology": Param(False, "refuse (error) when the region φ < 0 is not compatible with one genus-0 "

@@ -25,24 +25,29 @@ __all__ = ["post_steps", "keep_back"]
 _PROJECTION_STEPS = 3          # final Newton projection onto φ = 0: steps ...
 _PROJECTION_MAX_VOXELS = 0.5   # ... each capped at this many voxels
 _REVERT_ROUNDS = 4             # rounds of putting back the vertices whose move made faces intersect
+_TIP_HALVINGS = 3              # the tip extension first halves such moves, up to this many times
 
 
-def keep_back(ops: MeshOperators, xq: np.ndarray, x: np.ndarray, *, local: bool = False
+def keep_back(ops: MeshOperators, xq: np.ndarray, x: np.ndarray, *, local: bool = False, halve: int = 0
               ) -> tuple[np.ndarray, int, bool]:
     """(xq, vertices kept back, intersection-free): where moving x (intersection-free) to xq made faces meet,
-    their vertices and 1-rings stay at x, a few rounds (putting back can expose more); ``local``: only the
-    moved patch is checked (a step that moved few vertices)."""
+    their vertices and 1-rings stay at x, a few rounds (putting back can expose more); the first ``halve``
+    rounds only halve those vertices' moves.  ``local``: only the moved patch is checked (a step that moved few
+    vertices)."""
     def check():
         moved = np.flatnonzero(np.any(xq != x, axis=1)) if local else None
         return count_intersections(xq, ops.faces, moved=moved)
 
     xq, kept = xq.copy(), 0
-    for _ in range(_REVERT_ROUNDS):
+    for round_ in range(_REVERT_ROUNDS + halve):
         n, bad = check()
         if n == 0:
             return xq, kept, True
         back = unique_ints(ops.faces[bad])
         back = unique_ints(np.concatenate([back, ops.ring[back][ops.ring_valid[back]]]))
+        if round_ < halve:
+            xq[back] = 0.5 * (xq[back] + x[back])
+            continue
         kept += int(np.any(xq[back] != x[back], axis=1).sum())
         xq[back] = x[back]
     return xq, kept, check()[0] == 0                      # the last round's repair is checked too
@@ -77,14 +82,14 @@ def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSetti
         t0 = time.perf_counter()
         xt, stats = extend_tips(field, ops, x, h, min_curvature=st.tip_curvature)
         tips.update(stats)
-        x, tips = _kept(ops, xt, x, h, guard, tips, local=True)
+        x, tips = _kept(ops, xt, x, h, guard, tips, local=True, halve=_TIP_HALVINGS)
         timings["tips"] = timings.get("tips", 0.0) + time.perf_counter() - t0
     return x, polish, projection, tips
 
 
-def _kept(ops, xq, x, h, guard, info, *, local):
+def _kept(ops, xq, x, h, guard, info, *, local, halve=0):
     """xq with what made faces meet kept back (guard on), else x if that fails; the step's info updated."""
-    xq, info["kept_back"], ok = keep_back(ops, xq, x, local=local) if guard else (xq, 0, True)
+    xq, info["kept_back"], ok = keep_back(ops, xq, x, local=local, halve=halve) if guard else (xq, 0, True)
     info["max_move_voxels"] = float(np.linalg.norm(xq - x, axis=1).max() / h) if ok and len(x) else 0.0
     if not ok:
         info["rejected"] = "it made faces intersect"

@@ -384,6 +384,8 @@ class ShapeGradientFlow:
         energy = (lambda xe: evaluate_state(self.field, self.ops, xe, self.alpha, self.beta, density=self.density).E)
         x, polish, projection, tips = post_steps(self.field, self.ops, self.state.x, h, st, guard=guard,
                                                  energy=energy, timings=self.timings)
+        if polish.get("used") and polish["energy"] is None:           # nothing polished: the flow's last energy
+            polish["energy"] = float(self.state.E)
         return self.ops.geometry(x), polish, projection, tips
 
     def _check_result(self, geo) -> dict:

@@ -1,8 +1,8 @@
 """The post-steps of the final mesh: crease polish, Newton projection onto φ = 0, tip extension.
 
 Each is a geometric step on the flow's last iterate (nothing here changes where the flow went).  With the guard on,
-a step that makes faces meet keeps those faces' vertices back (the projection and the tip extension) or is dropped
-(the polish: keeping back part of it made the cortex worse, docs/NOTES.md).
+a step that makes faces meet keeps those faces' vertices back (the projection; the tip extension halves their moves
+first) or is dropped (the polish: keeping back part of it made the cortex worse, docs/NOTES.md).
 """
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSetti
             polish["rejected"] = "it made faces intersect"
         else:
             x = xp
-        polish["energy"] = float(energy(x))
+        polish["energy"] = float(energy(x)) if stats["zone_vertices"] else None   # None: the flow's own
         timings["polish"] = timings.get("polish", 0.0) + time.perf_counter() - t0
     projection = {"used": st.projection}
     if projection["used"]:
@@ -77,8 +77,8 @@ def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSetti
         xq = np.where(np.isfinite(xq).all(axis=1, keepdims=True), xq, x)
         x, projection = _kept(ops, xq, x, h, guard, projection, local=False)
         timings["projection"] = timings.get("projection", 0.0) + time.perf_counter() - t0
-    tips = {"used": st.extend_tips}
-    if tips["used"] and hasattr(field, "volume"):
+    tips = {"used": st.extend_tips and hasattr(field, "volume")}     # it reads the samples: not on a callable field
+    if tips["used"]:
         t0 = time.perf_counter()
         xt, stats = extend_tips(field, ops, x, h, min_curvature=st.tip_curvature)
         tips.update(stats)

@@ -10,8 +10,9 @@ these balls.  On a smooth or concave part that is no move at all, or a move into
 balls (a groove's), so only vertices of sharply convex, thin parts move (mean curvature above ``min_curvature``
 per voxel; 1.5 voxels inside along the normal φ is above −1 voxel): on a thick part the balls, about a voxel
 apart, leave gaps the surface would bulge into wherever the samples' distance is a little short.  The move also
-stops where the interpolated φ reaches ``max_phi``.  d(q) = φ(q)/g, g the median |∇φ| (interpolated) 1.5 voxels
-outside the mesh (1 for a distance volume), so the rule reads a level set that is not a distance too.
+stops where the interpolated φ reaches ``max_phi``.  d(q) = φ(q)/g, g the median |∇φ| of the samples (central
+differences) 1.5 voxels outside the mesh (1 for a distance volume), so the rule reads a level set that is not a
+distance too.
 """
 
 from __future__ import annotations
@@ -81,15 +82,16 @@ def extend_tips(field, ops: MeshOperators, x: np.ndarray, h: float, *, min_curva
         enter = -bb - np.sqrt(np.maximum(disc, 0.0))               # where the ray enters the ball
         limit = np.where(ball & (c < 0), 0.0, np.where(ball & (disc > 0) & (enter >= 0), enter, np.inf))
         t[b] = np.minimum(limit.min(1), max_move * h)
-    if np.isfinite(max_phi):                 # no farther than where the interpolated φ reaches max_phi voxels
-        lo, hi = np.zeros(len(sel)), t[sel].copy()
-        end = phi(np.ascontiguousarray((x[sel] + hi[:, None] * nu[sel]).T)) <= max_phi * h
+    go = sel[t[sel] > 0]
+    if np.isfinite(max_phi) and len(go):     # no farther than where the interpolated φ reaches max_phi voxels
+        lo, hi = np.zeros(len(go)), t[go].copy()
+        end = phi(np.ascontiguousarray((x[go] + hi[:, None] * nu[go]).T)) <= max_phi * h
         lo[end] = hi[end]
         for _ in range(_BISECTIONS):
             mid = 0.5 * (lo + hi)
-            ok = phi(np.ascontiguousarray((x[sel] + mid[:, None] * nu[sel]).T)) <= max_phi * h
+            ok = phi(np.ascontiguousarray((x[go] + mid[:, None] * nu[go]).T)) <= max_phi * h
             lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
-        t[sel] = lo
+        t[go] = lo
     out = x + t[:, None] * nu
     stats["moved"] = int((t > 0).sum())
     stats["max_move_voxels"] = float(t.max() / h)

@@ -22,39 +22,20 @@ from geometry import kernels
 from geometry.errors import InputError
 from geometry.grid_derivatives import derivative_stack
 
-__all__ = ["Volume", "Sample", "VolumeSampler", "trilinear_channels", "check_grid", "check_memory", "available_memory"]
+from .memory import available_memory, check_memory
+
+__all__ = ["VOLUME_KINDS", "Volume", "Sample", "VolumeSampler", "trilinear_channels", "check_grid", "check_memory", "available_memory"]
 
 
-def available_memory() -> int | None:
-    """Bytes of memory available for new allocations (``MemAvailable`` of /proc/meminfo), None if unknown."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return None
+#: what a volume's input was (:attr:`Volume.kind`)
+VOLUME_KINDS = ("sdf", "mask", "intensity")
 
 
-def check_memory(shape, channels: int, itemsize: int = 8, what: str = "the volume") -> None:
-    """Refuse, before allocating, a grid of ``shape`` that needs ``channels`` arrays of ``itemsize`` bytes per
-    point (N³ × channels × itemsize) when that exceeds the available memory: an :class:`InputError` that
-    gives the need and the largest N (N³ grid) that fits, instead of a MemoryError after seconds of work."""
-    avail = available_memory()
-    points = float(np.prod([float(s) for s in shape]))
-    need = points * channels * itemsize
-    if avail is None or need <= avail:
-        return
-    n_max = int((avail / (channels * itemsize)) ** (1 / 3))
-    while (n_max + 1) ** 3 * channels * itemsize <= avail:
-        n_max += 1
-    while n_max > 1 and n_max ** 3 * channels * itemsize > avail:
-        n_max -= 1
-    dims = "×".join(str(int(s)) for s in shape)
-    raise InputError(f"{what} on a {dims} grid needs about {need / 2**30:.1f} GiB ({channels} arrays of "
-                     f"{itemsize}-byte values per grid point) but {avail / 2**30:.1f} GiB of memory are "
-                     f"available; the largest N³ grid that fits is N = {n_max}")
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """A read-only view of ``array`` (the caller's own array keeps its flags)."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 def check_grid(origin, spacing, shape) -> tuple[np.ndarray, np.ndarray]:
@@ -227,11 +208,26 @@ class Volume:
         World position of ``values[0, 0, 0]``.
     spacing : float or array_like, shape (3,)
         Grid spacing per axis (positive).
+    kind : {'sdf', 'mask', 'intensity'}
+        What the input was before it became φ: a signed distance (or any level set) sampled directly, a binary
+        mask, or an intensity image (a partial-volume image, a scan) read at an iso-level.  ``values`` is φ in
+        every case (for a mask, its signed distance: :func:`phantoms.masks.mask_to_sdf`), so a level-set method
+        needs nothing else; a mask-native method reads ``raw`` and ``level``.
+    raw : array_like, shape (nx, ny, nz), optional
+        The image as it came (0/1 for a mask, the intensity otherwise); required unless ``kind`` is ``'sdf'``.
+    level : float, optional
+        The iso-level of ``raw``: inside where ``raw > level`` (0.5 for a mask and a partial-volume image).
+
+    Both ``values`` and ``raw`` are read-only: a method that writes to its input would change what the suite
+    checks its mesh against.
     """
 
     values: np.ndarray
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     spacing: np.ndarray = field(default_factory=lambda: np.ones(3))
+    kind: str = "sdf"
+    raw: np.ndarray | None = None
+    level: float | None = None
 
     def __post_init__(self) -> None:
         values = np.asarray(self.values)
@@ -253,10 +249,38 @@ class Volume:
                 f"out of {values.size}; first at index {tuple(int(i) for i in np.argwhere(bad)[0])}"
             )
         origin, spacing = check_grid(self.origin, self.spacing, values.shape)
-        self.values, self.origin, self.spacing = values, origin, spacing
+        self.values, self.origin, self.spacing = _read_only(values), origin, spacing
+        self._check_kind()
         self._channels: dict[tuple[int, str], np.ndarray] = {}
 
+    def _check_kind(self) -> None:
+        """Validate ``kind``, ``raw`` and ``level`` (see the class docstring)."""
+        if self.kind not in VOLUME_KINDS:
+            raise InputError(f"volume kind must be one of {', '.join(VOLUME_KINDS)}; got {self.kind!r}")
+        if self.kind == "sdf":
+            if self.raw is not None or self.level is not None:
+                raise InputError("a volume of kind 'sdf' takes no raw image or level")
+            return
+        if self.raw is None or self.level is None:
+            raise InputError(f"a volume of kind {self.kind!r} needs its raw image and its iso-level")
+        raw = np.asarray(self.raw)
+        if raw.shape != self.values.shape:
+            raise InputError(f"the raw image's shape {raw.shape} differs from the values' {self.values.shape}")
+        raw = np.ascontiguousarray(raw, dtype=np.float64)
+        level = float(self.level)
+        if not (np.isfinite(raw).all() and np.isfinite(level)):
+            raise InputError("the raw image and its level must be finite")
+        self.raw, self.level = _read_only(raw), level
+
     # ------------------------------------------------------------------ geometry of the grid
+    @property
+    def inside_raw(self) -> np.ndarray:
+        """The inside voxels (bool): ``raw > level`` for a mask or an intensity image, ``values < 0`` for a
+        signed distance — what a mask-native method meshes."""
+        if self.raw is None:
+            return self.values < 0
+        return self.raw > self.level
+
     @property
     def shape(self) -> tuple[int, int, int]:
         return tuple(self.values.shape)  # type: ignore[return-value]
@@ -403,8 +427,9 @@ class Volume:
 
     # ------------------------------------------------------------------ misc
     def with_values(self, values) -> "Volume":
-        """A new volume on the same grid with other values."""
-        return Volume(values, self.origin.copy(), self.spacing.copy())
+        """A new volume on the same grid with other values (φ); the kind, raw image and level are kept."""
+        return Volume(values, self.origin.copy(), self.spacing.copy(), kind=self.kind, raw=self.raw,
+                      level=self.level)
 
     def summary(self) -> dict:
         """Facts about the volume, as printed by ``python -m bench info``."""
@@ -416,6 +441,7 @@ class Volume:
             "max": float(self.values.max()),
             "zero_crossing": self.has_zero_crossing(),
             "closed": self.is_closed(),
+            "kind": self.kind if self.kind == "sdf" else f"{self.kind} (inside where raw > {self.level:g})",
         }
 
     def __repr__(self) -> str:

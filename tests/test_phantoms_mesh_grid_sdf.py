@@ -114,7 +114,7 @@ def test_bunny_volume_memory_is_bounded_by_four_outputs():
 
 
 def test_a_mesh_volume_larger_than_the_memory_is_refused_before_it_is_computed(monkeypatch):
-    import phantoms.volume as pv
+    import phantoms.memory as pv
     from phantoms import InputError
 
     m = trimesh.creation.icosphere(subdivisions=2, radius=1.5)

@@ -145,7 +145,7 @@ def test_sampler_is_sample_with_clamp_without_the_checks():
 # ---------------------------------------------------------------------------------------------- memory estimate
 def test_a_volume_too_large_for_memory_is_refused_before_allocating_with_the_largest_n(monkeypatch):
     """With 100³ × 8 arrays × 8 bytes available, N = 100 is the largest grid that fits: an analytic answer."""
-    import phantoms.volume as pv
+    import phantoms.memory as pv
 
     avail = 100 ** 3 * 8 * 8
     monkeypatch.setattr(pv, "available_memory", lambda: avail)

@@ -57,11 +57,9 @@ from phantoms.user import spec_from_table
 
 from .run.estimate import check_force
 from .run.limits import check_gb, check_seconds
-from .textspec import parse_value as _parse_value
-from .textspec import split_top as _split_top
 
 __all__ = ["NoiseSpec", "MethodSpec", "RunConfig", "load_config", "config_from_dict", "builtin_config",
-           "parse_method_spec", "parse_noise_spec", "BUILTIN_CONFIGS"]
+           "parse_noise_spec", "BUILTIN_CONFIGS"]
 
 #: where the shipped configurations live (package data)
 CONFIG_DIR = Path(__file__).resolve().parent / "configs"
@@ -449,34 +447,6 @@ def builtin_config(name: str) -> RunConfig:
         raise InputError(f"unknown built-in config {name!r}; valid: {', '.join(BUILTIN_CONFIGS)}")
     text = (CONFIG_DIR / f"{name}.toml").read_text(encoding="utf-8")
     return config_from_dict(tomllib.loads(text), source=f"bench/configs/{name}.toml")
-
-
-# ---------------------------------------------------------------------- command-line specs
-def parse_method_spec(text: str) -> MethodSpec:
-    """``[LABEL=]NAME[:key=value,key=value...]`` → :class:`MethodSpec` (values in TOML syntax or plain text).
-
-    >>> parse_method_spec("sg0=shape_gradient:beta=0,alpha=5").params
-    {'beta': 0, 'alpha': 5}
-    """
-    spec = text.strip()
-    label = None
-    head, sep, rest = spec.partition(":")
-    if "=" in head:
-        label, _, head = head.partition("=")
-        label = label.strip()
-    name = head.strip()
-    if not name:
-        raise InputError(f"method spec {text!r}: expected [LABEL=]NAME[:key=value,...]")
-    params: dict = {}
-    if sep:
-        for item in _split_top(rest):
-            k, eq, v = item.partition("=")
-            if not eq or not k.strip():
-                raise InputError(f"method spec {text!r}: expected key=value, got {item!r}")
-            params[k.strip()] = _parse_value(v.strip())
-    if label is None:
-        label = name if not params else f"{name}[{','.join(f'{k}={_fmt_value(v)}' for k, v in params.items())}]"
-    return MethodSpec(name=name, label=label, params=params)
 
 
 def parse_noise_spec(text: str) -> list[NoiseSpec]:

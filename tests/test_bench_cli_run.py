@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
-from bench.config import builtin_config, parse_method_spec
+from bench.config import builtin_config
+from bench.specs import parse_method_spec
 from bench.run import expand_grid
 
 from bench.metrics import METRIC_NAMES

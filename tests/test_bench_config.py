@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from bench.config import builtin_config, config_from_dict, parse_method_spec, parse_noise_spec
+from bench.config import builtin_config, config_from_dict, parse_noise_spec
+from bench.specs import parse_method_spec
 from phantoms import InputError
 
 

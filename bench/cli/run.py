@@ -11,8 +11,8 @@ from pathlib import Path
 from geometry.files import WriteError, atomic_write
 from phantoms import InputError
 
-from ..config import (RunConfig, builtin_config, config_from_dict, load_config, parse_method_spec,
-                     parse_noise_spec)
+from ..config import RunConfig, builtin_config, config_from_dict, load_config, parse_noise_spec
+from ..specs import parse_method_spec
 from ..terminal import printable
 
 RUN_HELP = """\

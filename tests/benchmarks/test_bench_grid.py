@@ -22,7 +22,8 @@ from bench.perf import rounds
 
 @pytest.mark.benchmark(group="grid")
 def test_quick_grid_end_to_end(benchmark, tmp_path):
-    from bench.config import builtin_config, parse_method_spec
+    from bench.config import builtin_config
+    from bench.specs import parse_method_spec
     from bench.report import write_report
     from bench.run import run_grid
 

@@ -16,6 +16,7 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
       { kind = "none" },                    # snr = "paper" (the phantom's paper SNR), a number
       { kind = "gaussian", snr = "paper" }, # or a list of numbers (dB)
     ]
+    degrade = ["none", "mask", "thick_slices@3+partial_volume"]   # optional (docs/PHANTOMS.md, "Degradations")
 
     [[methods]]
     name = "shape_gradient"                 # a registered method (`python -m bench methods`)
@@ -59,7 +60,7 @@ from .run.estimate import check_force
 from .run.limits import check_gb, check_seconds
 
 __all__ = ["NoiseSpec", "MethodSpec", "RunConfig", "load_config", "config_from_dict", "builtin_config",
-           "parse_noise_spec", "BUILTIN_CONFIGS"]
+           "parse_noise_spec", "parse_degrade_list", "BUILTIN_CONFIGS"]
 
 #: where the shipped configurations live (package data)
 CONFIG_DIR = Path(__file__).resolve().parent / "configs"
@@ -67,7 +68,7 @@ CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 BUILTIN_CONFIGS = ("paper", "quick")
 
 _TOP_KEYS = {"name", "description", "grid", "methods", "metrics", "run", "report"}
-_GRID_KEYS = {"phantoms", "variants", "n", "extent", "seeds", "noise", "vary"}
+_GRID_KEYS = {"phantoms", "variants", "n", "extent", "seeds", "noise", "vary", "degrade"}
 #: grid.vary: "all" (the full product) or "one_at_a_time" (the noise list at the first N, the N list at the first
 #: noise setting — a robustness sweep without the product's cost)
 VARY = ("all", "one_at_a_time")
@@ -191,6 +192,7 @@ class RunConfig:
     extent: float = 2.5
     seeds: list[int] = field(default_factory=lambda: [0])
     noise: list[NoiseSpec] = field(default_factory=lambda: [NoiseSpec("none")])
+    degrade: list[str] = field(default_factory=lambda: ["none"])    # canonical degradation texts
     vary: str = "all"
     methods: list[MethodSpec] = field(default_factory=list)
     n_samples: int = 100_000
@@ -213,6 +215,7 @@ class RunConfig:
                 "phantoms": list(self.phantoms), "variants": list(self.variants), "n": list(self.n),
                 "extent": self.extent, "seeds": list(self.seeds),
                 "noise": [s.to_dict() for s in self.noise], **({"vary": self.vary} if self.vary != "all" else {}),
+                **({"degrade": list(self.degrade)} if self.degrade != ["none"] else {}),
             },
             "methods": [m.to_dict() for m in self.methods],
             "metrics": {"n_samples": self.n_samples},
@@ -336,6 +339,8 @@ def config_from_dict(data: dict, source: str = "") -> RunConfig:
                 continue
             item = _check_keys(item, _NOISE_KEYS, f"grid.noise[{i}]")
             cfg.noise.extend(_noise_from(item.get("kind"), item.get("snr", "paper"), f"grid.noise[{i}]"))
+    if "degrade" in grid:
+        cfg.degrade = parse_degrade_list(_as_list(grid["degrade"], "grid.degrade"), "grid.degrade")
     methods = data.get("methods", [])
     if not isinstance(methods, list):
         raise InputError(f"{where}: methods must be an array of tables ([[methods]])")
@@ -467,4 +472,25 @@ def parse_noise_spec(text: str) -> list[NoiseSpec]:
         out.extend(_noise_from(kind.strip(), value, f"noise {item!r}"))
     if not out:
         raise InputError(f"noise {text!r}: no noise settings")
+    return out
+
+
+def parse_degrade_list(items, where: str = "--degrade") -> list[str]:
+    """Degradations (``"none"``, ``"mask"``, ``"thick_slices@3+mask"``; a comma-separated text on the command
+    line) as their canonical texts, each checked (:func:`phantoms.parse_degradation`), none repeated."""
+    from phantoms.degrade import parse_degradation
+
+    if isinstance(items, str):
+        items = [t for t in items.split(",") if t.strip()]
+    out = []
+    for item in items:
+        try:
+            text = str(parse_degradation(item))
+        except InputError as exc:
+            raise InputError(f"{where}: {exc}") from None
+        if text in out:
+            raise InputError(f"{where}: {text!r} is listed twice")
+        out.append(text)
+    if not out:
+        raise InputError(f"{where}: no degradations")
     return out

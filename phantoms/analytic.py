@@ -31,6 +31,10 @@ class Sphere(Phantom):
     def params(self):
         return {"radius": self.radius}
 
+    @property
+    def solid_volume(self):
+        return 4.0 / 3.0 * np.pi * self.radius ** 3
+
     def sdf(self, points):
         return np.linalg.norm(as_points(points), axis=1) - self.radius
 
@@ -98,6 +102,10 @@ class Ellipsoid(Phantom):
     @property
     def params(self):
         return {"axes": tuple(float(a) for a in self.axes)}
+
+    @property
+    def solid_volume(self):
+        return 4.0 / 3.0 * np.pi * float(np.prod(self.axes))
 
     def paper(self, points):
         p = as_points(points)
@@ -234,6 +242,12 @@ class FusedSpheres(Phantom):
         return {"radius": self.radius, "offset": self.offset}
 
     @property
+    def solid_volume(self):
+        """Two balls minus their lens (the overlap of two balls of radius r, centres d apart: π(4r + d)(2r − d)²/12)."""
+        r, d = self.radius, 2 * self.offset
+        return 2 * 4.0 / 3.0 * np.pi * r ** 3 - np.pi * (4 * r + d) * (2 * r - d) ** 2 / 12
+
+    @property
     def crease_length(self):
         return 2 * np.pi * self.crease_radius
 
@@ -319,6 +333,10 @@ class Cylinder(Phantom):
         return {"radius": self.radius, "half_height": self.half_height}
 
     @property
+    def solid_volume(self):
+        return np.pi * self.radius ** 2 * 2 * self.half_height
+
+    @property
     def crease_length(self):
         return 4 * np.pi * self.radius
 
@@ -397,6 +415,10 @@ class Torus(Phantom):
     @property
     def params(self):
         return {"major": self.major, "minor": self.minor}
+
+    @property
+    def solid_volume(self):
+        return 2 * np.pi ** 2 * self.major * self.minor ** 2
 
     def paper(self, points):
         p = as_points(points)

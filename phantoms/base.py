@@ -263,6 +263,9 @@ class Phantom:
         or None without one)."""
         return self
 
+    #: the volume the true surface encloses (world units³); None where unknown
+    solid_volume: float | None = None
+
     #: total length of the true crease / rim curves (0 on smooth phantoms)
     crease_length: float = 0.0
 

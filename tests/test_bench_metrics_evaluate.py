@@ -318,3 +318,15 @@ def test_evaluate_derives_each_mesh_quantity_once(monkeypatch, sphere, with_trut
     vol = sphere.volume(24)
     evaluate(mesh, sphere if with_truth else None, 0.05, volume=vol, n_samples=2000)
     assert calls == {"_face_cross": 1, "signed_volume": 1, "_vertex_normals": 1, "face_edge_keys": 1}, calls
+
+
+def test_volume_error_is_the_signed_relative_volume_against_the_exact_ball(fine, fine_eval):
+    """The icosphere is inscribed in the unit ball: its volume is short by exactly its polyhedral volume's
+    deficit; a shrunk copy reads the shrink (0.9³ − 1 = −27.1 %)."""
+    exact = 100 * (abs(fine.volume) / (4 / 3 * np.pi) - 1)
+    assert fine_eval["volume_err_pct"] == pytest.approx(exact, abs=1e-9) and -0.1 < exact < 0
+    small = icosphere(3, radius=0.9)
+    out = evaluate(small, get_phantom("sphere"), mean_edge(small), n_samples=5000)
+    assert out["volume_err_pct"] == pytest.approx(100 * (abs(small.volume) / (4 / 3 * np.pi) - 1), abs=1e-9)
+    assert -28.5 < out["volume_err_pct"] < -27.1      # the shrink plus the coarser polyhedron's deficit
+    assert np.isnan(evaluate(small, None, 0.1, n_samples=5000).get("volume_err_pct", np.nan))

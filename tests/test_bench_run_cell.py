@@ -130,3 +130,14 @@ def test_small_snapshots_get_their_mean_curvature_in_the_cell_large_ones_are_lef
     assert abs(float(np.median(art["snap1_H"])) - 1 / 1.8) < 0.02               # H = 1/r of the scaled sphere
     monkeypatch.setattr(cell_mod, "SNAPSHOT_H_MAX_VERTICES", len(v) - 1)
     assert "snap1_H" not in cell_mod._artifacts(rec, 0.1)
+
+
+def test_a_degraded_cell_names_its_input_kind_and_scores_the_volume_error():
+    cfg = config_from_dict({"grid": {"phantoms": ["sphere"], "n": 40, "degrade": ["thick_slices@3+mask"]},
+                            "methods": [{"name": "marching_cubes"}]})
+    (cell,) = expand_grid(cfg)
+    row = run_cell(cell).row
+    assert row["status"] == "ok", row["error"]
+    assert row["degrade"] == "thick_slices@3+mask" and row["input_kind"] == "mask"
+    assert row["h"] == pytest.approx(5 / 39)                     # the in-plane spacing
+    assert abs(row["volume_err_pct"]) < 10 and row["hausdorff_h"] < 3

@@ -103,3 +103,20 @@ def test_user_volumes_run_native_once_and_a_changed_file_changes_the_cell_ids(tm
     os.utime(tmp_path / "b.npy", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
     again = expand_grid(cfg)
     assert again[0].cell_id == cells[0].cell_id and again[1].cell_id != cells[1].cell_id
+
+
+def test_degradations_are_an_axis_beside_noise_with_their_own_ids():
+    base = {"grid": {"phantoms": ["sphere"], "n": 32, "seeds": [0, 1],
+                     "noise": [{"kind": "none"}, {"kind": "gaussian", "snr": 30}]},
+            "methods": [{"name": "marching_cubes"}]}
+    plain = expand_grid(config_from_dict(base))
+    base["grid"]["degrade"] = ["none", "mask", "label_noise@0.1+mask"]
+    cells = expand_grid(config_from_dict(base))
+    assert [c.cell_id for c in cells[:len(plain)]] == [c.cell_id for c in plain]   # undegraded ids unchanged
+    extra = cells[len(plain):]
+    # a degradation runs without noise; only label noise is random, so only it runs every seed
+    assert [(c.degrade, c.noise, c.seed) for c in extra] == [("mask", "none", 0), ("mask+label_noise@0.1", "none", 0),
+                                                             ("mask+label_noise@0.1", "none", 1)]
+    assert "_mask_" in extra[0].cell_id and len({c.cell_id for c in cells}) == len(cells)
+    with pytest.raises(InputError, match="grid.degrade: .*unknown step 'maks'"):
+        config_from_dict({**base, "grid": {**base["grid"], "degrade": ["maks"]}})

@@ -11,7 +11,7 @@ from pathlib import Path
 from geometry.files import WriteError, atomic_write
 from phantoms import InputError
 
-from ..config import RunConfig, builtin_config, config_from_dict, load_config, parse_noise_spec
+from ..config import RunConfig, builtin_config, config_from_dict, load_config, parse_degrade_list, parse_noise_spec
 from ..specs import parse_method_spec
 from ..terminal import printable
 
@@ -87,6 +87,8 @@ def register(subparsers) -> None:
     g.add_argument("--phantoms", metavar="A,B", help="comma-separated phantoms")
     g.add_argument("--n", type=_int_list, metavar="N[,N]", help="grid points per axis")
     g.add_argument("--noise", metavar="SPEC", help="e.g. none,gaussian,uniform@40 (no @: the paper's SNR)")
+    g.add_argument("--degrade", metavar="SPEC", help="input degradations, e.g. none,mask,partial_volume,"
+                   "thick_slices@3+mask,label_noise@0.1+mask (docs/PHANTOMS.md)")
     g.add_argument("--seeds", type=_int_list, metavar="S[,S]", help="noise seeds")
     g.add_argument("--method", action="append", metavar="SPEC", default=None,
                    help="replace the config's methods; SPEC = [LABEL=]NAME[:key=value,...]; repeatable")
@@ -133,6 +135,8 @@ def _resolve_config(args) -> RunConfig:
         cfg.n = args.n
     if args.noise:
         cfg.noise = parse_noise_spec(args.noise)
+    if args.degrade:
+        cfg.degrade = parse_degrade_list(args.degrade)
     if args.seeds:
         if any(s < 0 for s in args.seeds):
             raise InputError("--seeds: seeds must be >= 0")
@@ -146,7 +150,7 @@ def _resolve_config(args) -> RunConfig:
         cfg.methods = cfg.methods + [parse_method_spec(s) for s in args.add_method]
     if args.n_samples:
         cfg.n_samples = args.n_samples
-    overrides = [f"--{k.replace('_', '-')}" for k in ("phantoms", "n", "noise", "seeds", "method", "add_method",
+    overrides = [f"--{k.replace('_', '-')}" for k in ("phantoms", "n", "noise", "degrade", "seeds", "method", "add_method",
                                                        "imports", "n_samples") if getattr(args, k)]
     note = f"Changed on the command line ({', '.join(o.replace('--imports', '--import') for o in overrides)})."
     if overrides and note not in cfg.description:

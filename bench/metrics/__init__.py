@@ -291,4 +291,7 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     lap("edges")
     out["iou"] = iou(scored, None, truth, h, true_pts, seed=seed)
     lap("iou")
+    true_volume = getattr(truth, "solid_volume", None)
+    out["volume_err_pct"] = (100.0 * (float(scored.signed_volume) - true_volume) / true_volume
+                             if true_volume else math.nan)
     return {k: out[k] for k in METRIC_NAMES if k in out}

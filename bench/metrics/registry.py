@@ -66,6 +66,8 @@ _ROWS = [
     Metric("coverage_pct", "max", "float", "share of the true surface's samples within 2h of the mesh", "%"),
     Metric("edge_fscore", "max", "float", "F-score of the sharp-edge samples at threshold h", ""),
     Metric("iou", "max", "float", "volumetric intersection over union of the inside regions", ""),
+    Metric("volume_err_pct", ("target", 0), "float",
+           "enclosed volume of the mesh minus the true volume, relative to it (signed: smoothing shrinks)", "%"),
     Metric("H_rms_err", "min", "float", "RMS error of the vertex mean curvature away from creases", "1/world units"),
     Metric("H_max_err", "min", "float", "max error of the vertex mean curvature away from creases", "1/world units"),
     Metric("K_rms_err", "min", "float", "RMS error of the vertex Gaussian curvature away from creases",

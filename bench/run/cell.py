@@ -27,6 +27,7 @@ import numpy as np
 from geometry.files import WriteError
 from methods import as_reconstruction, get_method, import_plugins, run_reconstruct
 from phantoms import Volume, add_noise, get_phantom
+from phantoms.degrade import degrade
 
 from ..metrics.flags import result_flags
 from ..metrics.validity import check_mesh
@@ -212,6 +213,7 @@ def _id_row(cell: Cell) -> dict[str, Any]:
         "noise": cell.noise, "snr_requested": cell.snr_requested, "snr_achieved": None,
         "seed": cell.seed, "method": cell.method, "label": cell.label,
         "parameters": canonical_json(plain(cell.params)),
+        "degrade": cell.degrade or "none", "input_kind": "sdf",
         **({"source": cell.source} if cell.source else {}),
     }
 
@@ -232,6 +234,27 @@ def method_info(info: dict) -> dict:
     """The method's ``info`` as plain values for the cell's json (``row["method_info"]``): every key, the
     author's own ones included; the arrays the artifacts hold (energy history, snapshots) left out."""
     return {str(k): plain(v) for k, v in (info or {}).items() if k not in ("snapshots", "energy_history")}
+
+
+def _input_volume(cell: Cell, cache_dir: str | None, row: dict, lap):
+    """``(truth, clean volume, the volume the method gets)``: the phantom's volume, degraded and noised as the
+    cell says; the row gets N, h, whether there is a truth, the input kind and the achieved SNR."""
+    ph, vol = build_volume(cell, cache_dir)
+    if not cell.n:
+        row["N"] = int(max(vol.shape))           # a user volume on its native grid
+    truth = ph.ground_truth()
+    row["h"], row["has_truth"] = float(vol.h), truth is not None
+    clean = vol
+    lap("volume")
+    if cell.degrade:
+        vol = degrade(ph, cell.degrade, cell.n, cell.extent, seed=cell.seed, clean=vol)
+        row["input_kind"], row["h"] = vol.kind, float(vol.h)
+        lap("degrade")
+    if cell.noise != "none":
+        vol, achieved = add_noise(vol, cell.noise, cell.snr_requested, seed=cell.seed)
+        row["snr_achieved"] = float(achieved)
+        lap("noise")
+    return truth, clean, vol
 
 
 def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> CellResult:
@@ -265,17 +288,7 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
     try:
         import_plugins(cell.imports)
         stage = "volume"
-        ph, vol = build_volume(cell, cache_dir)
-        if not cell.n:
-            row["N"] = int(max(vol.shape))           # a user volume on its native grid
-        truth = ph.ground_truth()
-        row["h"], row["has_truth"] = float(vol.h), truth is not None
-        clean = vol
-        lap("volume")
-        if cell.noise != "none":
-            vol, achieved = add_noise(vol, cell.noise, cell.snr_requested, seed=cell.seed)
-            row["snr_achieved"] = float(achieved)
-            lap("noise")
+        truth, clean, vol = _input_volume(cell, cache_dir, row, lap)
         stage = "method setup"
         method = get_method(cell.method, **cell.params)
         row["parameters"] = canonical_json(plain(getattr(method, "config", cell.params)))

@@ -17,7 +17,7 @@ from typing import Any
 __all__ = ["Cell", "CellResult"]
 
 #: the optional keys a cell dict carries only when set, and where expand_grid puts them
-_OPTIONAL = ("source", "input", "method_code")
+_OPTIONAL = ("source", "input", "method_code", "degrade")
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,9 @@ class Cell:
         Fingerprint of a file phantom's files (part of the id).
     method_code : dict, optional
         A plug-in method's code fingerprint (:func:`bench.run.method_code.method_fingerprint`; not in the id).
+    degrade : str, optional
+        The degradation of the phantom's volume (:func:`phantoms.parse_degradation`, e.g. ``thick_slices@3+mask``);
+        None or absent: the volume as the variant gives it.
     extra : dict
         Keys of a stored cell dict this suite does not know (kept so :meth:`to_dict` gives them back).
     """
@@ -82,6 +85,7 @@ class Cell:
     source: str | None = None
     input: str | None = None
     method_code: dict | None = None
+    degrade: str | None = None
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
@@ -97,6 +101,8 @@ class Cell:
             d["source"] = self.source
         if self.input is not None:
             d["input"] = self.input
+        if self.degrade is not None:
+            d["degrade"] = self.degrade
         d.update(variant=self.variant, n=self.n, extent=self.extent, noise=self.noise,
                  snr_requested=self.snr_requested, seed=self.seed, method=self.method, label=self.label,
                  params=self.params, n_samples=self.n_samples, imports=list(self.imports))

@@ -37,7 +37,7 @@ def canonical_json(obj: Any) -> str:
 
 
 def cell_id(cell: Cell | dict) -> str:
-    """A readable, stable identifier: ``<phantom>_<variant>_n<N>_<noise>[<snr>dB]_s<seed>_<label>_<hash>``.
+    """A readable, stable identifier: ``<phantom>_<variant>_n<N>[_<degradation>]_<noise>[<snr>dB]_s<seed>_<label>_<hash>``.
 
     The hash covers every parameter of the cell, so sweeps and changed settings never collide.
 
@@ -58,9 +58,12 @@ def cell_id(cell: Cell | dict) -> str:
         key["source"] = cell["source"]
     if cell.get("input"):
         key["input"] = cell["input"]
+    if cell.get("degrade"):
+        key["degrade"] = cell["degrade"]
     digest = hashlib.sha1(canonical_json(key).encode()).hexdigest()[:8]
     noise = cell["noise"] if cell["noise"] == "none" else f"{cell['noise']}{cell['snr_requested']:g}dB"
-    return "_".join([slug(cell["phantom"]), cell["variant"], f"n{cell['n']}", slug(noise),
+    degrade = [slug(cell["degrade"])] if cell.get("degrade") else []
+    return "_".join([slug(cell["phantom"]), cell["variant"], f"n{cell['n']}", *degrade, slug(noise),
                      f"s{cell['seed']}", slug(cell["label"]), digest])
 
 
@@ -127,6 +130,24 @@ def method_codes(names) -> dict[str, dict | None]:
     return {name: (method_fingerprint(registry[name]) if name in registry else None) for name in names}
 
 
+def _inputs(cfg):
+    """(index, noise setting, degradation) of the grid's inputs: each noise setting undegraded, then each
+    degradation without noise (a degradation is the input's own error model; noise is not added to it)."""
+    degrades = [d for d in getattr(cfg, "degrade", ["none"]) if d != "none"]
+    plain_too = "none" in getattr(cfg, "degrade", ["none"])
+    out = [(k, noise, "none") for k, noise in enumerate(cfg.noise)] if plain_too else []
+    none = next((s for s in cfg.noise if s.kind == "none"), None)
+    none = none or replace(cfg.noise[0], kind="none", snr=None)
+    out += [(0, none, d) for d in degrades]
+    return out
+
+
+def _seeds(seeds, noise_kind: str, degrade: str) -> list:
+    """The seeds a cell runs at: every seed with noise or label noise, else the first (nothing else is random
+    but the metric sampling)."""
+    return list(seeds) if noise_kind != "none" or "label_noise" in degrade else list(seeds[:1])
+
+
 def expand_grid(cfg) -> list[Cell]:
     """All cells of a run config, in order phantom → variant → N → noise → seed → method.
 
@@ -159,12 +180,11 @@ def expand_grid(cfg) -> list[Cell]:
         fingerprint = input_fingerprint(source)
         for variant in cfg.variants:
             for n in grid_sizes(source, cfg.n):
-                for k, noise in enumerate(cfg.noise):
+                for k, noise, degrade in _inputs(cfg):
                     if one and n != cfg.n[0] and k != 0:
                         continue
                     snr = noise.snr_for(source)
-                    seeds = cfg.seeds[:1] if noise.kind == "none" else cfg.seeds
-                    for seed in seeds:
+                    for seed in _seeds(cfg.seeds, noise.kind, degrade):
                         for spec in cfg.methods:
                             if not spec.runs_on(noise.kind):
                                 continue
@@ -172,6 +192,7 @@ def expand_grid(cfg) -> list[Cell]:
                                 cell = {
                                     "phantom": phantom, **({"source": source} if source != phantom else {}),
                                     **({"input": fingerprint} if fingerprint else {}),
+                                    **({"degrade": degrade} if degrade != "none" else {}),
                                     "variant": variant, "n": int(n),
                                     "extent": float(cfg.extent), "noise": noise.kind,
                                     "snr_requested": snr, "seed": int(seed), "method": spec.name,

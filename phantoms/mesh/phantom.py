@@ -230,6 +230,13 @@ class MeshPhantom(Phantom):
                 "scale": round(float(self.scale), 8)}
 
     # ------------------------------------------------------------------ exact queries
+    @property
+    def solid_volume(self) -> float:
+        """The volume the mesh encloses."""
+        from geometry.mesh import signed_volume
+
+        return abs(float(signed_volume(self.vertices, self.faces)))
+
     def closest(self, points, chunk: int = 20000, max_pairs: int = 1_000_000):
         """Exact closest point on the mesh: ``(closest (P,3), distance (P,), face (P,), bary (P,3),
         feature (P,))`` (certified candidate search, :meth:`phantoms.mesh.index.TriangleIndex.closest`)."""

@@ -1,0 +1,274 @@
+"""Degradations with exact truth: what a scanner and a segmentation make of a phantom (docs/PHANTOMS.md,
+"Degradations").
+
+A degradation is written as steps joined by ``+`` (order does not matter), each ``name`` or ``name@value``:
+
+* ``mask`` — binary occupancy at the voxel centres (the sign of the exact φ there): what a segmentation gives;
+* ``partial_volume`` — each voxel's inside fraction, an intensity image whose boundary is at 0.5.  Voxels whose
+  centre is farther than half the voxel diagonal from the surface are wholly in or out; the others are
+  supersampled on a ``PV_SAMPLES``³ sub-grid of the exact φ (the sphere's summed fraction at N = 64 is within
+  0.1 % of its exact volume: tests/test_phantoms_degrade.py);
+* ``thick_slices@K`` — the spacing along z is K times the others over the same world box: every K-th z-plane
+  of the N-grid, centred (the box is (N − 1) mod K in-plane steps shorter in z at most), applied before the
+  steps above;
+* ``blur@σ`` — a Gaussian point spread of σ in-plane voxels (isotropic in world units) applied to the inside
+  fraction before it is read as a mask or an intensity (the partial-volume fraction is the box-filtered
+  indicator, so the total spread is σ² + 1/12 voxel² per axis);
+* ``label_noise@p`` — after ``mask``: each boundary voxel (one of its six neighbours has the other label) flips
+  with probability p, seeded.
+
+Exactly one of ``mask`` and ``partial_volume`` ends a degradation unless it is ``thick_slices`` alone (the exact
+φ on the thick grid).  A method receives a :class:`~phantoms.volume.Volume` whose ``kind`` says what it is
+(``mask`` / ``intensity``), whose ``raw`` is the image and ``level`` 0.5, and whose ``values`` is φ for level-set
+methods: the mask's signed distance (:func:`phantoms.masks.mask_to_sdf`, the same conversion as a user's
+``volume:`` mask); for a partial-volume image the same, with each boundary voxel's value replaced by
+h·(0.5 − fraction), which keeps the image's sub-voxel position of the 0.5 level.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from geometry.errors import InputError
+
+from .base import DEFAULT_EXTENT, check_extent, check_n
+from .masks import mask_to_sdf
+from .volume import Volume, check_memory
+
+__all__ = ["Degradation", "parse_degradation", "degrade", "partial_volume_fraction", "flip_boundary",
+           "thick_grid", "DEGRADATION_STEPS", "PV_SAMPLES"]
+
+#: sub-samples per axis of a boundary voxel of the partial-volume image
+PV_SAMPLES = 5
+#: the steps a degradation is made of
+DEGRADATION_STEPS = ("mask", "partial_volume", "thick_slices", "blur", "label_noise")
+_VALUED = {"thick_slices", "blur", "label_noise"}
+
+
+@dataclass(frozen=True)
+class Degradation:
+    """One degradation (see the module docstring); ``Degradation()`` is none."""
+
+    mask: bool = False
+    partial_volume: bool = False
+    thick_slices: int = 1
+    blur: float = 0.0
+    label_noise: float = 0.0
+
+    @property
+    def is_none(self) -> bool:
+        return self == Degradation()
+
+    @property
+    def kind(self) -> str:
+        """The input kind a method receives: ``mask``, ``intensity`` or ``sdf``."""
+        return "mask" if self.mask else "intensity" if self.partial_volume else "sdf"
+
+    @property
+    def needs_subvoxel_truth(self) -> bool:
+        """Whether it needs the exact φ between the voxel centres (not available from a user's image)."""
+        return self.partial_volume or self.blur > 0 or self.thick_slices > 1
+
+    def __str__(self) -> str:
+        if self.is_none:
+            return "none"
+        parts = []
+        if self.thick_slices > 1:
+            parts.append(f"thick_slices@{self.thick_slices}")
+        if self.blur > 0:
+            parts.append(f"blur@{self.blur:g}")
+        if self.partial_volume:
+            parts.append("partial_volume")
+        if self.mask:
+            parts.append("mask")
+        if self.label_noise > 0:
+            parts.append(f"label_noise@{self.label_noise:g}")
+        return "+".join(parts)
+
+
+def _step_value(name: str, value: str, where: str):
+    try:
+        x = float(value)
+    except ValueError:
+        raise InputError(f"{where}: {name}@{value}: {value!r} is not a number") from None
+    if not math.isfinite(x):
+        raise InputError(f"{where}: {name}@{value}: must be finite")
+    if name == "thick_slices":
+        if x != int(x) or x < 1:
+            raise InputError(f"{where}: thick_slices@{value}: K must be an integer >= 1 (the slice spacing is K "
+                             "times the in-plane spacing)")
+        return int(x)
+    if name == "blur" and x < 0:
+        raise InputError(f"{where}: blur@{value}: sigma must be >= 0 (voxels)")
+    if name == "label_noise" and not 0 <= x <= 1:
+        raise InputError(f"{where}: label_noise@{value}: p must be in [0, 1] (a probability)")
+    return x
+
+
+def parse_degradation(text) -> Degradation:
+    """``'thick_slices@3+mask'`` → :class:`Degradation`; ``'none'`` (or ``''``) → none.
+
+    Raises
+    ------
+    InputError
+        An unknown step, a step given twice, a bad value, or steps that do not combine (both ``mask`` and
+        ``partial_volume``; ``blur`` or ``label_noise`` without what they act on).
+    """
+    if isinstance(text, Degradation):
+        return text
+    if not isinstance(text, str):
+        raise InputError(f"degradation {text!r}: expected text such as 'mask' or 'thick_slices@3+partial_volume'")
+    where = f"degradation {text!r}"
+    spec = text.strip()
+    if spec in ("", "none"):
+        return Degradation()
+    fields: dict = {}
+    for part in spec.split("+"):
+        name, at, value = part.strip().partition("@")
+        if name not in DEGRADATION_STEPS:
+            raise InputError(f"{where}: unknown step {name!r}; valid steps: {', '.join(DEGRADATION_STEPS)} "
+                             "(joined by +, a value after @: thick_slices@3, blur@1, label_noise@0.1)")
+        if name in fields:
+            raise InputError(f"{where}: {name} is given twice")
+        if name in _VALUED and not at:
+            raise InputError(f"{where}: {name} needs a value: {name}@VALUE")
+        if name not in _VALUED and at:
+            raise InputError(f"{where}: {name} takes no value")
+        fields[name] = _step_value(name, value, where) if at else True
+    d = Degradation(**fields)
+    if d.mask and d.partial_volume:
+        raise InputError(f"{where}: mask and partial_volume exclude each other (a mask is binary, a partial-volume "
+                         "image is not)")
+    if d.label_noise and not d.mask:
+        raise InputError(f"{where}: label_noise flips mask voxels; add +mask")
+    if d.blur and not (d.mask or d.partial_volume):
+        raise InputError(f"{where}: blur acts on the image a scanner reads; add +mask or +partial_volume")
+    return d
+
+
+def thick_grid(n: int, extent: float, k: int) -> tuple[tuple[int, int, int], np.ndarray, np.ndarray, int]:
+    """(shape, origin, spacing, first) of the N-grid over [−extent, extent]³ with z spacing K times the others:
+    every K-th z-plane of the N-grid from plane ``first``, centred in the box ((N − 1) mod K in-plane steps
+    short of it at most, split between the two ends)."""
+    h = 2.0 * extent / (n - 1)
+    nz = (n - 1) // k + 1
+    first = ((n - 1) - (nz - 1) * k) // 2
+    origin = np.array([-extent, -extent, -extent + first * h])
+    return (n, n, nz), origin, np.array([h, h, k * h]), first
+
+
+def _exact_grid(phantom, n: int, extent: float, k: int, first: int) -> np.ndarray:
+    """The exact φ (sign exact; a mesh phantom's distance exact near the surface) at the thick grid's points:
+    planes of the phantom's N³ volume."""
+    from .mesh import MeshPhantom
+
+    full = (MeshPhantom.volume(phantom, n, extent) if isinstance(phantom, MeshPhantom)
+            else phantom.volume(n=n, extent=extent))          # MeshPhantom's: the exact distance (brain_mri too)
+    return np.ascontiguousarray(full.values[:, :, first::k]) if k > 1 else np.asarray(full.values)
+
+
+def partial_volume_fraction(phantom, phi: np.ndarray, origin, spacing, samples: int = PV_SAMPLES) -> np.ndarray:
+    """Each voxel's inside fraction (voxel = the box of ``spacing`` centred on the grid point): 0 / 1 where
+    the centre's |φ| exceeds half the voxel diagonal, else the share of a ``samples``³ sub-grid of the exact φ
+    that is inside (the phantom's exact inside test: the sign of its φ, a mesh's winding number)."""
+    origin, spacing = np.asarray(origin, float), np.asarray(spacing, float)
+    frac = (phi < 0).astype(np.float64)
+    band = np.argwhere(np.abs(phi) < 0.5 * float(np.linalg.norm(spacing)))
+    if len(band) == 0:
+        return frac
+    offs = (np.arange(samples) + 0.5) / samples - 0.5
+    sub = np.stack(np.meshgrid(offs, offs, offs, indexing="ij"), axis=-1).reshape(-1, 3) * spacing
+    chunk = max(1, (1 << 21) // len(sub))
+    for c0 in range(0, len(band), chunk):
+        ijk = band[c0:c0 + chunk]
+        centres = origin + ijk * spacing
+        pts = (centres[:, None, :] + sub[None, :, :]).reshape(-1, 3)
+        inside = np.asarray(phantom.inside(pts), bool).reshape(len(ijk), len(sub))
+        frac[tuple(ijk.T)] = inside.mean(axis=1)
+    return frac
+
+
+def flip_boundary(mask: np.ndarray, p: float, seed: int) -> np.ndarray:
+    """``mask`` with each boundary voxel (a six-neighbour has the other label) flipped with probability ``p``
+    (PCG64 seeded with ``seed``: the same seed flips the same voxels)."""
+    m = np.asarray(mask, bool)
+    if p <= 0:
+        return m.copy()
+    boundary = (ndimage.binary_dilation(m) & ~m) | (m & ~ndimage.binary_erosion(m, border_value=1))
+    idx = np.flatnonzero(boundary)
+    flip = idx[np.random.default_rng(int(seed)).random(len(idx)) < p]
+    out = m.copy().reshape(-1)
+    out[flip] = ~out[flip]
+    return out.reshape(m.shape)
+
+
+def _level_set_of(image: np.ndarray, kind: str, origin, spacing) -> np.ndarray:
+    """φ for level-set methods: the mask's signed distance; for an intensity its boundary voxels get
+    h·(0.5 − fraction)."""
+    inside = image > 0.5
+    if not inside.any() or inside.all():
+        raise InputError(f"the degraded {kind} has no {'inside' if not inside.any() else 'outside'} voxels: "
+                         "there is no surface to reconstruct (a larger N or a milder degradation)")
+    phi = np.array(mask_to_sdf(inside, origin, spacing).values)
+    if kind == "intensity":
+        part = (image > 0) & (image < 1)
+        phi[part] = float(np.min(spacing)) * (0.5 - image[part])
+    return phi
+
+
+def degrade(phantom, degradation, n: int, extent: float = DEFAULT_EXTENT, seed: int = 0,
+            clean: Volume | None = None) -> Volume:
+    """The phantom's volume at N as the degradation makes it (module docstring), in world units.
+
+    Parameters
+    ----------
+    phantom : Phantom
+        A phantom with an exact φ (analytic or mesh); a user's volume (``volume:``) takes only ``mask`` and
+        ``label_noise`` (its voxels are all there is).
+    degradation : Degradation or str
+        What to do (:func:`parse_degradation`).
+    n, extent : int, float
+        The grid (N³ over [−extent, extent]³ before ``thick_slices``).
+    seed : int
+        Seed of ``label_noise``.
+    clean : Volume, optional
+        A user volume's own level set (its native grid), needed for such a phantom.
+
+    Raises
+    ------
+    InputError
+        Bad grid or degradation, sub-voxel steps on a user volume, or nothing left inside / outside.
+    """
+    d = parse_degradation(degradation)
+    if d.is_none:
+        raise InputError("degrade: no degradation given")
+    if getattr(phantom, "level_set", None) is not None:     # a user's volume: only its voxels are known
+        if d.needs_subvoxel_truth:
+            raise InputError(f"degradation {d}: a user volume has no sub-voxel truth (partial_volume, blur and "
+                             "thick_slices need the exact surface between voxels); use mask or label_noise")
+        vol = clean if clean is not None else phantom.volume()
+        shape, origin, spacing, phi = vol.shape, vol.origin, vol.spacing, vol.values
+    else:
+        n, extent = check_n(n), check_extent(extent)
+        shape, origin, spacing, first = thick_grid(n, extent, d.thick_slices)
+        check_memory(shape, 4, what=f"the degraded N = {n} volume")
+        phi = _exact_grid(phantom, n, extent, d.thick_slices, first)
+    if d.kind == "sdf":                                        # thick slices alone: the exact φ, coarser in z
+        return Volume(phi, origin, spacing)
+    if d.partial_volume or d.blur:
+        image = partial_volume_fraction(phantom, phi, origin, spacing)
+        if d.blur:
+            h = float(np.min(spacing))
+            image = ndimage.gaussian_filter(image, sigma=[d.blur * h / s for s in spacing], mode="nearest")
+        if d.mask:
+            image = (image > 0.5).astype(np.float64)
+    else:
+        image = (phi < 0).astype(np.float64)
+    if d.label_noise:
+        image = flip_boundary(image > 0.5, d.label_noise, seed).astype(np.float64)
+    values = _level_set_of(image, d.kind, origin, spacing)
+    return Volume(values, origin, spacing, kind=d.kind, raw=image, level=0.5)

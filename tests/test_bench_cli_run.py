@@ -138,8 +138,8 @@ def test_index_html_has_a_summary_table_per_phantom_and_noise_and_pictures(quick
     page.close()
     titles = page.summary_titles
     for phantom in ("sphere", "ellipsoid"):
-        assert any(t.startswith(f"{phantom} — clean") for t in titles), titles
-        assert any(t.startswith(f"{phantom} — gaussian noise") for t in titles), titles
+        assert any(t.startswith(f"{phantom} — signed distance, clean") for t in titles), titles
+        assert any(t.startswith(f"{phantom} — signed distance, gaussian noise") for t in titles), titles
     assert len(titles) == 4
     assert page.images >= 1
     assert page.best >= 4  # a best value marked in every summary table

@@ -107,7 +107,7 @@ def test_an_invalid_output_is_an_invalid_row_never_best_and_reconstruct_says_so(
     # the metrics are kept — and an inward mesh scores like the correct one (only the samples' order differs)
     assert float(rows["inward"]["hausdorff"]) == pytest.approx(float(rows["marching_cubes"]["hausdorff"]), rel=0.01)
     page = (out / "index.html").read_text()
-    table = page[page.index("sphere — clean"):]
+    table = page[page.index("sphere — signed distance, clean"):]
     table = table[:table.index("</table>")]
     rows_html = {}
     for chunk in table.split("<tr>")[1:]:
@@ -157,7 +157,7 @@ def test_every_invalid_class_is_invalid_in_the_grid_never_best_and_in_reconstruc
     rows = {r["label"]: r for r in csv.DictReader(open(out / "results.csv"))}
     assert rows["marching_cubes"]["status"] == "ok"
     page = (out / "index.html").read_text()
-    table = page[page.index("sphere — clean"):]
+    table = page[page.index("sphere — signed distance, clean"):]
     table = table[:table.index("</table>")]
     for kind, reason in _BROKEN_REASONS.items():
         assert rows[kind]["status"] == "invalid", (kind, rows[kind]["status"], rows[kind]["error"])

@@ -67,7 +67,7 @@ def test_one_table_per_phantom_and_noise_with_the_best_marked():
         _row("b", noise="gaussian", hausdorff=0.4, normal_consistency=0.7, euler=2, n_vertices=100),
     ])
     tables = summary_tables(df)
-    assert [t["title"] for t in tables] == ["sphere — clean", "sphere — gaussian noise, SNR 40 dB"]
+    assert [t["title"] for t in tables] == ["sphere — signed distance, clean", "sphere — signed distance, gaussian noise, SNR 40 dB"]
     assert [t["n_methods"] for t in tables] == [2, 2]
     # clean: b has the smaller distance, a the higher normal consistency and the sphere's Euler characteristic
     assert sorted(_marked(tables[0]["html"])) == sorted(["0.1", "0.99", "2"])

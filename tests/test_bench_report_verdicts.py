@@ -69,3 +69,18 @@ def test_few_cells_give_no_bar_and_boards_split_by_truth():
     assert [b["title"].split(" ")[1] for b in boards] == ["with", "without"]
     assert boards[0]["significance"]["cliques"] == [] and str(MIN_BLOCKS) in boards[0]["significance"]["note"]
     assert boards[1]["metric"] == "sdf_rms_h" and boards[1]["rows"][0]["label"] == "A"
+
+
+def test_each_degradation_gets_its_own_board_first_and_volume_error_ranks_by_its_size():
+    base = np.linspace(0.5, 2.0, 12)
+    plain = _rows({"A": list(base), "B": list(base * 1.5)})
+    # from a mask B is the better one; A shrinks the volume by 8 %, B grows it by 2 %: |2| < |−8|
+    mask = _rows({"A": list(base * 2), "B": list(base)}, degrade="mask", input_kind="mask")
+    for r in mask:
+        r["volume_err_pct"] = -8.0 if r["label"] == "A" else 2.0
+    boards = leaderboards(plain + mask)
+    assert [b["title"] for b in boards] == ["From a mask: mask", "Cells with ground truth (undegraded inputs)"]
+    first = boards[0]
+    assert [r["label"] for r in first["rows"]] == ["B", "A"] and first["n_blocks"] == 12
+    assert dict(first["keys"])["volume_err_pct"] and first["rows"][0]["volume_err_pct"] == 1.0
+    assert [r["label"] for r in boards[1]["rows"]] == ["A", "B"]      # the undegraded cells are not mixed in

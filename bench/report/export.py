@@ -17,7 +17,7 @@ import numpy as np
 from bench.metrics.registry import METRICS
 from phantoms import InputError
 
-from .tables import best_mask, best_rule, noise_title
+from .tables import best_mask, best_rule, input_title, noise_title
 
 __all__ = ["DEFAULT_METRICS", "GROUP_KEYS", "DIGITS", "GroupTable", "group_tables", "leaderboard_tables",
            "phantom_genus",
@@ -27,7 +27,7 @@ __all__ = ["DEFAULT_METRICS", "GROUP_KEYS", "DIGITS", "GroupTable", "group_table
 DEFAULT_METRICS = ("hausdorff_h", "mean_dist_h", "fscore@h", "roughness_deg", "self_intersections", "wall_s")
 #: ``--by`` names → the columns they group on
 GROUP_KEYS = {"phantom": ("phantom",), "variant": ("variant",), "N": ("N",), "noise": ("noise", "snr_requested"),
-              "seed": ("seed",)}
+              "seed": ("seed",), "input": ("input_kind", "degrade")}
 #: significant digits of the numbers in markdown and LaTeX
 DIGITS = 4
 FORMATS = ("markdown", "latex", "csv")
@@ -66,7 +66,8 @@ def _as_float(series):
 
 def _by_columns(df, by) -> list[str]:
     if by is None:
-        by = ["phantom", "noise"] + [k for k in ("variant", "N") if k in df.columns and df[k].nunique() > 1]
+        by = ["phantom", *(["input"] if "degrade" in df.columns and set(df["degrade"].dropna()) - {"none"} else []),
+              "noise"] + [k for k in ("variant", "N") if k in df.columns and df[k].nunique() > 1]
     unknown = [k for k in by if k not in GROUP_KEYS]
     if unknown:
         raise InputError(f"--by {','.join(unknown)}: unknown (choose from {', '.join(GROUP_KEYS)})")
@@ -88,6 +89,8 @@ def _title(group: dict) -> str:
     for k, v in group.items():
         if k == "noise":
             parts.append(noise_title(v[0], v[1]))
+        elif k == "input":
+            parts.append(input_title(v[0], v[1]))
         elif k == "N":
             parts.append(f"N = {v}")
         elif k == "seed":
@@ -119,6 +122,8 @@ def group_tables(df, metrics=None, by=None) -> list[GroupTable]:
     metrics, by = _metrics(df, metrics), _by_columns(df, by)
     cols = [c for k in by for c in GROUP_KEYS[k]]
     d = df.copy()
+    for col, default in (("degrade", "none"), ("input_kind", "sdf")):      # runs from before degradations
+        d[col] = d[col].fillna(default) if col in d.columns else default
     if cols:
         d["_group"] = list(zip(*(d[c].astype(object).where(d[c].notna(), None) for c in cols)))
     else:
@@ -126,7 +131,7 @@ def group_tables(df, metrics=None, by=None) -> list[GroupTable]:
     tables = []
     for values, sub in d.groupby("_group", sort=False):
         it = iter(values)
-        group = {k: (tuple(next(it) for _ in GROUP_KEYS[k]) if k == "noise" else next(it)) for k in by}
+        group = {k: (tuple(next(it) for _ in GROUP_KEYS[k]) if len(GROUP_KEYS[k]) > 1 else next(it)) for k in by}
         t = _method_frame(sub, metrics)
         phantoms = sub["phantom"].unique()
         genus = phantom_genus(str(phantoms[0])) if len(phantoms) == 1 else 0
@@ -251,7 +256,7 @@ def to_csv(tables: list[GroupTable]) -> str:
         f = t.frame.copy()
         pos = 0
         for k, v in t.group.items():
-            for col, value in zip(GROUP_KEYS[k], v if k == "noise" else (v,)):
+            for col, value in zip(GROUP_KEYS[k], v if len(GROUP_KEYS[k]) > 1 else (v,)):
                 f.insert(pos, col, value)
                 pos += 1
         frames.append(f)

@@ -13,14 +13,15 @@ import numpy as np
 
 from bench.metrics.registry import METRICS
 
-__all__ = ["ci_half_width", "NO_TRUTH_NOTE", "BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables", "fmt_value", "noise_title", "is_nan", "best_mask", "best_rule"]
+__all__ = ["ci_half_width", "NO_TRUTH_NOTE", "BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables", "fmt_value", "noise_title", "input_title", "is_nan", "best_mask", "best_rule"]
 
 #: how a metric's best value is chosen ("min", "max", ("target", value)); unranked metrics are absent
 BEST_DIRECTION: dict[str, Any] = {k: m.best for k, m in METRICS.items() if m.best is not None}
 
 #: columns that identify a cell or describe its outcome, never shown as metrics
 _ID_COLUMNS = {"cell_id", "phantom", "variant", "N", "noise", "snr_requested", "snr_achieved", "seed", "method",
-               "label", "parameters", "status", "error", "stop_reason", "source", "h", "has_truth"}
+               "label", "parameters", "status", "error", "stop_reason", "source", "h", "has_truth", "degrade",
+               "input_kind"}
 
 #: the note above a table whose phantom has no ground truth (a user volume without ``truth=``)
 NO_TRUTH_NOTE = "no ground truth: data fidelity and mesh quality only"
@@ -56,6 +57,16 @@ def is_nan(x) -> bool:
         return math.isnan(float(x))
     except (TypeError, ValueError):
         return False
+
+
+#: a table's name for the input a method received (:attr:`phantoms.Volume.kind`)
+INPUT_TITLES = {"sdf": "signed distance", "mask": "mask", "intensity": "intensity image"}
+
+
+def input_title(kind: str, degrade: str = "none") -> str:
+    """What the methods of a table were given: ``signed distance`` or ``mask (thick_slices@3+mask)``."""
+    name = INPUT_TITLES.get(str(kind), str(kind))
+    return name if str(degrade) in ("none", "", "nan") else f"{name} ({degrade})"
 
 
 def noise_title(noise: str, snr) -> str:
@@ -266,8 +277,10 @@ def summary_tables(df) -> list[dict]:
     from bench.metrics.registry import METRICS
 
     metrics = _metric_columns(df)
-    keys = ["phantom", "noise", "snr_requested", "variant", "N"]
+    keys = ["phantom", "degrade", "input_kind", "noise", "snr_requested", "variant", "N"]
     d = df.reset_index(drop=True).copy()
+    for col, default in (("degrade", "none"), ("input_kind", "sdf")):      # runs from before degradations
+        d[col] = d[col].fillna(default).astype(str) if col in d.columns else default
     d["snr_requested"] = d["snr_requested"].astype(object).where(d["snr_requested"].notna(), None)
     num = {m: _numeric(d[m]).to_numpy(float) for m in metrics if m in d.columns}
     groups: dict[tuple, list[int]] = {}
@@ -276,13 +289,13 @@ def summary_tables(df) -> list[dict]:
     multi_variant = d["variant"].nunique() > 1 or d["N"].nunique() > 1
     truth_kinds = ("distance", "distance_h", "truth")
     tables = []
-    for (phantom, noise, snr, variant, n), idx in groups.items():
+    for (phantom, degrade, kind, noise, snr, variant, n), idx in groups.items():
         idx = np.asarray(idx)
         sub = d.iloc[idx]
         no_truth = _without_truth(sub)
         shown = [m for m in metrics if not (no_truth and m in METRICS and METRICS[m].kind in truth_kinds)]
         t = _method_rows(d, idx, num, shown)
-        title = f"{phantom} — {noise_title(noise, snr)}"
+        title = f"{phantom} — {input_title(kind, degrade)}, {noise_title(noise, snr)}"
         if multi_variant:
             title += f" — {variant}, N = {n}"
         cells = {}

@@ -8,8 +8,9 @@ Ranking (:func:`block_ranks`)
     are then averaged over blocks, so a shape with large distances does not outweigh one with small ones.
 
 Boards (:func:`leaderboards`)
-    One board for the cells with ground truth (key metrics: Hausdorff and mean distance, SDF agreement,
-    roughness) and one for truth-free cells (SDF agreement, |φ| on the mesh, roughness).  A method's row: its
+    One board per degradation of the input (a mask, a partial-volume image ...: Hausdorff and mean distance,
+    |volume error|, roughness), then one for the undegraded cells with ground truth (key metrics: Hausdorff
+    and mean distance, SDF agreement, roughness) and one for truth-free cells (SDF agreement, |φ| on the mesh, roughness).  A method's row: its
     mean rank per key metric, wins / ties / losses against the best on the board's first metric (win: alone at
     the best value; tie: the best value shared), the share of its cells that are valid and unflagged, its median
     time.  Only blocks every listed method has enter.
@@ -32,13 +33,17 @@ import numpy as np
 from bench.metrics.registry import METRICS
 from bench.perf.quality import same_within_tolerance
 
-__all__ = ["BLOCK_KEYS", "TRUTH_KEYS", "FREE_KEYS", "MIN_BLOCKS", "ALPHA", "block_ranks", "leaderboards",
+__all__ = ["BLOCK_KEYS", "TRUTH_KEYS", "DEGRADED_KEYS", "FREE_KEYS", "MIN_BLOCKS", "ALPHA", "block_ranks", "leaderboards",
            "significance", "cd_figure", "board_html"]
 
-BLOCK_KEYS = ("phantom", "variant", "N", "noise", "snr_requested", "seed")
+BLOCK_KEYS = ("phantom", "variant", "N", "degrade", "noise", "snr_requested", "seed")
 #: key metrics of the board with ground truth: (column, what it measures)
 TRUTH_KEYS = (("hausdorff_h", "distance (Hausdorff)"), ("mean_dist_h", "distance (mean)"),
               ("sdf_rms_h", "data fidelity"), ("roughness_deg", "smoothness"))
+#: key metrics of a degraded input's board (a mask, a partial-volume image): the distances, the volume error
+#: (smoothing shrinks, dilation grows), roughness; SDF agreement is left out (φ is the mask's distance, not the truth)
+DEGRADED_KEYS = (("hausdorff_h", "distance (Hausdorff)"), ("mean_dist_h", "distance (mean)"),
+                 ("volume_err_pct", "volume error (|%|)"), ("roughness_deg", "smoothness"))
 #: key metrics of the truth-free board
 FREE_KEYS = (("sdf_rms_h", "data fidelity (SDF)"), ("phi_mean_h", "data fidelity (|φ|)"),
              ("roughness_deg", "smoothness"))
@@ -98,7 +103,11 @@ def _blocks(rows: list[dict], labels: list[str]) -> dict[tuple, dict[str, dict]]
 
 
 def _value(r: dict, metric: str) -> float:
-    return _num(r.get(metric)) if r.get("status") == "ok" else math.nan
+    """The cell's value on ``metric`` (NaN unless ok); a ``("target", t)`` metric as its distance to t."""
+    if r.get("status") != "ok":
+        return math.nan
+    best = METRICS[metric].best if metric in METRICS else "min"
+    return abs(_num(r.get(metric)) - best[1]) if isinstance(best, tuple) else _num(r.get(metric))
 
 
 def block_ranks(rows: list[dict], metric: str, labels: list[str] | None = None) -> tuple[list[str], np.ndarray]:
@@ -194,12 +203,35 @@ def _board(rows: list[dict], keys, title: str) -> dict | None:
             "significance": significance(ranks0, labels, values), "metric": first}
 
 
+def _degrade(r: dict) -> str:
+    d = r.get("degrade")
+    return "none" if d is None or str(d) in ("", "nan", "None") else str(d)
+
+
+#: how a board names a degraded input's kind
+KIND_TITLES = {"mask": "a mask", "intensity": "an intensity image", "sdf": "a signed distance"}
+
+
 def leaderboards(rows: list[dict]) -> list[dict]:
-    """The boards of a run (see the module docstring): with ground truth, and truth-free (cells without)."""
-    truth = [r for r in rows if not _no_truth(r)]
-    free = [r for r in rows if _no_truth(r)]
+    """The boards of a run (see the module docstring): with ground truth, and truth-free (cells without).
+
+    A run with degraded inputs (``degrade``) gets one board per degradation first, each answering "from this
+    input, which method?" on :data:`DEGRADED_KEYS`; the undegraded cells follow as usual."""
     boards = []
-    for sub, keys, title in ((truth, TRUTH_KEYS, "Cells with ground truth"),
+    degrades = list(dict.fromkeys(_degrade(r) for r in rows))
+    for d in [d for d in degrades if d != "none"]:
+        sub = [r for r in rows if _degrade(r) == d and not _no_truth(r)]
+        kinds = sorted({str(r.get("input_kind")) for r in sub if r.get("input_kind") not in (None, "")})
+        kind = " / ".join(KIND_TITLES.get(k, k) for k in kinds) or "a degraded volume"
+        b = _board(sub, DEGRADED_KEYS, f"From {kind}: {d}") if sub else None
+        if b is not None:
+            b["degrade"] = d
+            boards.append(b)
+    plain = [r for r in rows if _degrade(r) == "none"]
+    truth = [r for r in plain if not _no_truth(r)]
+    free = [r for r in rows if _no_truth(r)]
+    for sub, keys, title in ((truth, TRUTH_KEYS, "Cells with ground truth" + (" (undegraded inputs)" if len(degrades) > 1
+                                                                            else "")),
                              (free, FREE_KEYS, "Cells without ground truth (data fidelity only)")):
         if sub:
             b = _board(sub, keys, title)

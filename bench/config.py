@@ -96,7 +96,8 @@ def _as_list(value: Any, where: str) -> list:
 
 
 def _int(value: Any, where: str, minimum: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or float(value) != int(value):
+    if (isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value))
+            or float(value) != int(value)):
         raise InputError(f"{where}: expected an integer, got {value!r}")
     value = int(value)
     if minimum is not None and value < minimum:

@@ -67,7 +67,7 @@ class Param:
                 if isinstance(value, bool):
                     raise ValueError(value)
                 f = float(value)
-                if f != int(f):
+                if not np.isfinite(f) or f != int(f):      # inf / nan: not an integer (no OverflowError)
                     raise ValueError(value)
                 value = int(f)
             elif t is float:

@@ -87,6 +87,8 @@ def _check_options(opts: dict, where: str) -> dict:
             raise InputError(f"{where}: option {key}={value!r}: {exc}") from None
         except (TypeError, ValueError):
             raise InputError(f"{where}: option {key}={value!r}: expected a number") from None
+        except OverflowError:                                      # int(inf), int(float("1e400"))
+            raise InputError(f"{where}: option {key}={value!r}: expected a finite number") from None
     if "label" in out and "threshold" in out:
         raise InputError(f"{where}: give either label= or threshold=, not both")
     if out.get("mask") == "no" and ("label" in out or "threshold" in out):

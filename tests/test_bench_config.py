@@ -105,3 +105,13 @@ def test_a_method_can_be_limited_to_some_noise_kinds():
     data["methods"][0]["noise"] = ["pink"]
     with pytest.raises(InputError, match=r"noise: expected a list of noise kinds"):
         config_from_dict(data)
+
+
+@pytest.mark.parametrize("grid, metrics", [({"n": [float("inf")]}, {}), ({"seeds": [1e400]}, {}),
+                                           ({"n": [float("nan")]}, {}), ({}, {"n_samples": float("nan")}),
+                                           ({}, {"n_samples": float("inf")})])
+def test_non_finite_numbers_where_an_integer_is_expected_are_one_line(grid, metrics):
+    from phantoms import InputError
+
+    with pytest.raises(InputError, match="expected an integer, got (inf|nan)"):
+        config_from_dict({"grid": {"phantoms": ["sphere"], **grid}, "metrics": metrics})

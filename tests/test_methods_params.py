@@ -23,3 +23,12 @@ def test_param_converts_command_line_strings_and_checks_choices_and_bounds():
     assert b.convert("m", "b", "false") is False and b.convert("m", "b", "true") is True
     auto = Param(None, "auto by default", int, min=2)
     assert auto.convert("m", "a", "auto") is None and auto.convert("m", "a", "7") == 7
+
+
+@pytest.mark.parametrize("value", [float("inf"), "inf", float("-inf"), 1e400, "1e400", float("nan")])
+def test_a_non_finite_integer_parameter_is_an_input_error_not_an_overflow(value):
+    from methods import get_method
+    from phantoms import InputError
+
+    with pytest.raises(InputError, match="parameter 'max_iter': expected int"):
+        get_method("shape_gradient", max_iter=value)

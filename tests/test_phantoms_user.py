@@ -137,3 +137,11 @@ def test_globs_expand_to_one_phantom_per_file_named_by_stem(tmp_path):
     trimesh.creation.icosphere(1).export(str(tmp_path / "sub" / "a.obj"))
     with pytest.raises(InputError, match="two phantoms are named 'a'"):
         expand_phantoms([f"mesh:{tmp_path}/*.obj", f"mesh:{tmp_path}/sub/*.obj"])
+
+
+@pytest.mark.parametrize("opts", [{"pad": "inf"}, {"label": "inf"}, {"pad": "1e400"}, {"label": "-inf"}])
+def test_a_non_finite_integer_option_is_one_line(opts):
+    from phantoms.user import _check_options
+
+    with pytest.raises(InputError, match="expected a finite number"):
+        _check_options(opts, "volume:x.nii")

@@ -58,6 +58,7 @@ from phantoms.user import spec_from_table
 
 from .run.estimate import check_force
 from .run.limits import check_gb, check_seconds
+from .textspec import read_toml
 
 __all__ = ["NoiseSpec", "MethodSpec", "RunConfig", "load_config", "config_from_dict", "builtin_config",
            "parse_noise_spec", "parse_degrade_list", "BUILTIN_CONFIGS"]
@@ -436,14 +437,7 @@ def _method_from(m: Any, where: str) -> MethodSpec:
 def load_config(path: str | Path) -> RunConfig:
     """Read a TOML config file (structure only; call :meth:`RunConfig.validate` before running)."""
     path = Path(path)
-    try:
-        text = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"cannot read config {str(path)!r}: {exc.strerror or exc}") from None
-    try:
-        data = tomllib.loads(text.decode("utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"config {str(path)!r} is not valid TOML: {exc}") from None
+    data = read_toml(path, "config")
     return config_from_dict(data, source=str(path))
 
 

@@ -115,3 +115,21 @@ def test_non_finite_numbers_where_an_integer_is_expected_are_one_line(grid, metr
 
     with pytest.raises(InputError, match="expected an integer, got (inf|nan)"):
         config_from_dict({"grid": {"phantoms": ["sphere"], **grid}, "metrics": metrics})
+
+
+def test_a_config_that_cannot_end_or_nests_too_deeply_is_one_line(tmp_path):
+    import os
+
+    from bench.config import load_config
+    from phantoms import InputError
+
+    deep = tmp_path / "deep.toml"
+    deep.write_text("x = " + "[" * 4000 + "]" * 4000 + "\n")
+    with pytest.raises(InputError, match="nests tables or arrays too deeply"):
+        load_config(deep)
+    with pytest.raises(InputError, match="not a regular file"):
+        load_config("/dev/zero")
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match="not a regular file"):
+        load_config(fifo)

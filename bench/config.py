@@ -37,9 +37,8 @@ A configuration is a TOML file (read with :mod:`tomllib`)::
     [report]                                # optional: paper_columns = [{ title, label, noise }, ...] (the
     uniform_label = "shape_gradient"        # paper-style tables: a column per entry), the uniform-noise label(s)
 
-Everything is validated before any work starts (:func:`load_config` / :func:`RunConfig.validate`): unknown
-keys, phantoms, variants, noise kinds, methods and parameters raise :class:`phantoms.InputError`, which the
-command line turns into a one-line message and exit code 2.
+Everything is validated before any work starts (:func:`RunConfig.validate`): unknown keys, phantoms, ..., bad
+parameters and grids over :data:`MAX_CELLS` raise :class:`phantoms.InputError` (one line, exit code 2).
 """
 
 from __future__ import annotations
@@ -68,6 +67,8 @@ CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 #: shipped configurations (``bench/configs/<name>.toml``)
 BUILTIN_CONFIGS = ("paper", "quick")
 
+#: the most cells one run takes (a grid beyond it is refused before it is expanded)
+MAX_CELLS = 100_000
 _TOP_KEYS = {"name", "description", "grid", "methods", "metrics", "run", "report"}
 _GRID_KEYS = {"phantoms", "variants", "n", "extent", "seeds", "noise", "vary", "degrade"}
 #: grid.vary: "all" (the full product) or "one_at_a_time" (the noise list at the first N, the N list at the first
@@ -231,6 +232,13 @@ class RunConfig:
         return d
 
     # ------------------------------------------------------------------ validation
+    def check_size(self, n_phantoms: int) -> None:
+        """Refuse a grid of more than :data:`MAX_CELLS` cells (an upper bound counted without expanding it)."""
+        inputs = len(self.noise) * ("none" in self.degrade) + len([d for d in self.degrade if d != "none"])
+        bound = n_phantoms * len(self.variants) * len(self.n) * inputs * len(self.seeds) * sum(
+            math.prod(len(v) for v in m.sweep.values()) for m in self.methods)
+        if bound > MAX_CELLS:
+            raise InputError(f"the grid has up to {bound:.3g} cells; at most {MAX_CELLS:,} are run at once: split it")
     def import_plugins(self) -> None:
         """Import the ``run.imports`` modules (which may register methods); InputError if one fails."""
         from methods import import_plugins
@@ -275,6 +283,7 @@ class RunConfig:
         for s in self.noise:
             for _, p in expanded:
                 s.snr_for(p)
+        self.check_size(len(expanded))
         if self.n_samples < 1000:
             raise InputError(f"metrics.n_samples: must be >= 1000, got {self.n_samples}")
         self.import_plugins()

@@ -133,3 +133,16 @@ def test_a_config_that_cannot_end_or_nests_too_deeply_is_one_line(tmp_path):
     os.mkfifo(fifo)
     with pytest.raises(InputError, match="not a regular file"):
         load_config(fifo)
+
+
+def test_a_grid_too_large_to_run_is_refused_before_it_is_expanded():
+    import time
+
+    from phantoms import InputError
+
+    cfg = config_from_dict({"grid": {"phantoms": ["sphere"], "seeds": list(range(1000))},
+                            "methods": [{"name": "marching_cubes", "sweep": {"step_size": list(range(1, 1001))}}]})
+    t0 = time.perf_counter()
+    with pytest.raises(InputError, match=r"up to 1e\+06 cells; at most 100,000"):
+        cfg.validate()
+    assert time.perf_counter() - t0 < 5

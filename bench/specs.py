@@ -33,6 +33,8 @@ def parse_method_spec(text: str) -> MethodSpec:
             k, eq, v = item.partition("=")
             if not eq or not k.strip():
                 raise InputError(f"method spec {text!r}: expected key=value, got {item!r}")
+            if k.strip() in params:
+                raise InputError(f"method spec {text!r}: parameter {k.strip()!r} is given twice")
             params[k.strip()] = _parse_value(v.strip())
     if label is None:
         label = name if not params else f"{name}[{','.join(f'{k}={_fmt_value(v)}' for k, v in params.items())}]"

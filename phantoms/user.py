@@ -69,12 +69,16 @@ def _check_options(opts: dict, where: str) -> dict:
                     raise InputError("expected auto, yes or no")
                 out[key] = text
             elif key == "threshold":
+                if isinstance(value, bool):
+                    raise InputError("expected a number, not a boolean")
                 t = float(value)
                 if not math.isfinite(t):
                     raise InputError("expected a finite number")
                 out[key] = t
             elif key in ("label", "pad"):
-                if isinstance(value, bool) or float(value) != int(float(value)):
+                if isinstance(value, bool):
+                    raise InputError("expected an integer, not a boolean")
+                if float(value) != int(float(value)):
                     raise InputError("expected an integer")
                 out[key] = int(float(value))
                 if key == "pad" and out[key] < 0:
@@ -214,6 +218,9 @@ def level_set_from_image(image, opts: dict, where: str, require_surface: bool = 
     inside = _inside(values, opts, where)
     origin, spacing = np.asarray(image.origin, float), np.asarray(image.spacing, float)
     pad = int(opts.get("pad", 0))
+    if inside is None and "pad" in opts:
+        raise InputError(f"{where}: pad= adds outside voxels to a mask, but the values are read as a level set "
+                         "(mask=no, or more than two values without threshold= / label=)")
     if inside is None:
         phi = -values.astype(np.float64) if opts.get("invert") else values.astype(np.float64)
         if not require_surface:
@@ -239,7 +246,8 @@ def level_set_from_image(image, opts: dict, where: str, require_surface: bool = 
         raise InputError(f"{where}: the mask touches the image border (faces {', '.join(border)}), so its zero "
                          "level set is open; add pad=1 (one outside voxel on every face)")
     check_memory(inside.shape, 6, what=f"the signed distance of {where}")
-    return mask_to_sdf(inside, origin, spacing)
+    sdf = mask_to_sdf(inside, origin, spacing)
+    return Volume(sdf.values, sdf.origin, sdf.spacing, kind="mask", raw=inside.astype(np.float64), level=0.5)
 
 
 # ---------------------------------------------------------------------------------------------- truth

@@ -146,3 +146,11 @@ def test_a_grid_too_large_to_run_is_refused_before_it_is_expanded():
     with pytest.raises(InputError, match=r"up to 1e\+06 cells; at most 100,000"):
         cfg.validate()
     assert time.perf_counter() - t0 < 5
+
+
+def test_a_method_parameter_given_twice_is_refused():
+    from bench.specs import parse_method_spec
+    from phantoms import InputError
+
+    with pytest.raises(InputError, match="parameter 'k' is given twice"):
+        parse_method_spec("mc=marching_cubes:k=5,k=6")

@@ -54,6 +54,7 @@ def test_bad_options_and_values_are_one_line(tmp_path):
         (f"volume:{q}?mask=yes", "mask=yes but the image holds more than two values"),
         (f"volume:{q}?threshold=100&truth={tmp_path / 'none.obj'}", "no such truth file"),
         (f"volume:{tmp_path / 'missing.nii.gz'}", "no such file"),
+        (f"volume:{q}?mask=no&pad=2", "pad= adds outside voxels to a mask, but the values are read as a level set"),
     ]
     for spec, message in cases:
         with pytest.raises(InputError) as err:
@@ -145,3 +146,19 @@ def test_a_non_finite_integer_option_is_one_line(opts):
 
     with pytest.raises(InputError, match="expected a finite number"):
         _check_options(opts, "volume:x.nii")
+
+
+@pytest.mark.parametrize("opts", [{"threshold": True}, {"label": False}, {"pad": True}])
+def test_a_boolean_where_a_number_is_expected_is_refused_not_read_as_one(opts):
+    from phantoms.user import _check_options
+
+    with pytest.raises(InputError, match="not a boolean"):
+        _check_options(opts, "grid.phantoms[0]")
+
+
+def test_a_users_mask_reaches_the_method_as_a_mask_with_its_voxels(tmp_path):
+    m = sphere_mask()
+    p = _nifti(tmp_path / "seg.nii.gz", m.astype(np.uint8))
+    vol = get_phantom(f"volume:{p}").volume()
+    assert vol.kind == "mask" and vol.level == 0.5 and np.array_equal(vol.raw > 0.5, m)
+    assert np.array_equal(vol.values < 0, m)                     # φ is the mask's signed distance

@@ -67,14 +67,17 @@ def build_volume(cell: Cell | dict, cache_dir: str | None = None):
     if path is not None and path.exists():
         try:
             with np.load(path) as z:
-                return ph, Volume(z["values"], z["origin"], z["spacing"])
+                kind = str(z["kind"]) if "kind" in z.files else "sdf"
+                extra = {"raw": z["raw"], "level": float(z["level"])} if kind != "sdf" else {}
+                return ph, Volume(z["values"], z["origin"], z["spacing"], kind=kind, **extra)
         except Exception:  # a broken cache file is rebuilt
             pass
     vol = ph.volume(n=cell.n or None, extent=cell.extent, variant=cell.variant)
     if path is not None:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            save_npz(path, {"values": vol.values, "origin": vol.origin, "spacing": vol.spacing},
+            kind = {} if vol.kind == "sdf" else {"kind": np.str_(vol.kind), "raw": vol.raw, "level": vol.level}
+            save_npz(path, {"values": vol.values, "origin": vol.origin, "spacing": vol.spacing, **kind},
                      compressed=False)
         except (OSError, WriteError):  # the cache is an optimisation; a full disk must not fail the cell
             pass
@@ -243,7 +246,7 @@ def _input_volume(cell: Cell, cache_dir: str | None, row: dict, lap):
     if not cell.n:
         row["N"] = int(max(vol.shape))           # a user volume on its native grid
     truth = ph.ground_truth()
-    row["h"], row["has_truth"] = float(vol.h), truth is not None
+    row["h"], row["has_truth"], row["input_kind"] = float(vol.h), truth is not None, vol.kind
     clean = vol
     lap("volume")
     if cell.degrade:

@@ -52,7 +52,8 @@ from pathlib import Path
 from typing import Any
 
 from phantoms import (NOISE_KINDS, VARIANTS, InputError, expand_phantoms, get_phantom, is_file_phantom,
-                      is_phantom_name, phantom_names, phantom_path)
+                      is_phantom_name, phantom_names)
+from phantoms.registry import check_phantom_files
 from phantoms.user import spec_from_table
 
 from .run.estimate import check_force
@@ -265,12 +266,7 @@ class RunConfig:
             raise InputError("grid.phantoms: a phantom is listed twice")
         expanded = expand_phantoms(self.phantoms)       # globs: an empty one is an error naming the pattern
         for _, source in expanded:
-            if is_file_phantom(source):
-                path = Path(phantom_path(source)).expanduser()
-                # a file that exists but cannot be read is a failed row of its cells, not a refused config
-                if not (path.is_file() or (source.startswith("volume:") and path.is_dir())):
-                    kind = "mesh" if source.startswith("mesh:") else "volume"
-                    raise InputError(f"phantom {source!r}: no such {kind} file {str(path)!r}")
+            check_phantom_files(source)       # missing files; one that cannot be read is a failed row instead
         known = known + [name for name, _ in expanded]
         for v in self.variants:
             if v not in VARIANTS:

@@ -19,7 +19,7 @@ from .base import Phantom
 from .real import REAL_SHAPES, get_mesh_file_phantom, get_real_phantom, get_volume_phantom
 from .user import VOLUME_PREFIX, parse_spec
 
-__all__ = ["PHANTOMS", "REAL_PHANTOMS", "MESH_PREFIX", "VOLUME_PREFIX", "phantom_names", "is_phantom_name",
+__all__ = ["check_phantom_files", "PHANTOMS", "REAL_PHANTOMS", "MESH_PREFIX", "VOLUME_PREFIX", "phantom_names", "is_phantom_name",
            "get_phantom", "expand_phantoms", "is_file_phantom", "phantom_path"]
 
 #: the analytic phantom classes by name
@@ -182,3 +182,28 @@ def get_phantom(name: str, **params) -> Phantom:
         return PHANTOMS[name](**params)
     except TypeError as exc:
         raise InputError(f"bad parameters for phantom {name!r}: {exc}") from None
+
+
+def check_phantom_files(source: str) -> None:
+    """Refuse, before any work, a ``mesh:`` / ``volume:`` phantom whose file — or ``truth=`` file — does not
+    exist (a file that exists but cannot be read is a failed row of its cells instead).
+
+    Raises
+    ------
+    InputError
+        Naming the spec and the missing path.
+    """
+    from pathlib import Path
+
+    if not is_file_phantom(source):
+        return
+    path = Path(phantom_path(source)).expanduser()
+    if not (path.is_file() or (source.startswith(VOLUME_PREFIX) and path.is_dir())):
+        kind = "mesh" if source.startswith(MESH_PREFIX) else "volume"
+        raise InputError(f"phantom {source!r}: no such {kind} file {str(path)!r}")
+    if source.startswith(VOLUME_PREFIX):
+        from .user import parse_spec
+
+        truth = parse_spec(source)[1].get("truth")
+        if truth is not None and not Path(truth).expanduser().exists():
+            raise InputError(f"phantom {source!r}: no such truth file {truth!r}")

@@ -258,6 +258,10 @@ def _truth_from_labels(path: str, opts: dict, where: str):
     from .mesh import MeshPhantom
 
     img = read_image(path)
+    if not (img.values.dtype.kind in "biu" or bool(np.all(np.mod(img.values, 1) == 0))):
+        raise InputError(f"{where}: the truth image {Path(path).name} holds non-integer values (range "
+                         f"[{float(img.values.min()):g}, {float(img.values.max()):g}]): an intensity image, not a "
+                         "label map; give a label image (inside > 0, or label=L) or a closed surface mesh")
     label = opts.get("label")
     inside = img.values == label if label is not None else img.values > 0
     if not inside.any():
@@ -285,14 +289,43 @@ def _truth_from_mesh(path: str, where: str):
     return ph
 
 
+#: how far (90th percentile of its vertices, in voxels of the largest spacing) a truth surface may lie from the
+#: volume's zero level set: a truth from the same segmentation lies within half a voxel, another rater's within
+#: one or two; a frame mix-up (voxel indices, LPS) or a shift moves most of it further
+TRUTH_TOLERANCE_VOXELS = 2.5
+
+
+def _distance_in_voxels(points: np.ndarray, vol: Volume) -> float:
+    """90th percentile of the first-order distance |φ| / |∇φ| from ``points`` to the zero level set, in voxels
+    (inf when a point is outside the box)."""
+    if len(points) == 0 or not vol.contains(points, margin=-float(vol.spacing.max())).all():
+        return math.inf
+    s = vol.sample(points, derivatives=1, clamp=True)
+    grad = np.maximum(np.linalg.norm(s.grad, axis=1), 1e-12)
+    return float(np.percentile(np.abs(s.phi) / grad, 90)) / float(vol.spacing.max())
+
+
 def _check_truth_inside(truth, vol: Volume, where: str) -> None:
+    """Refuse a truth surface that is not where the volume's surface is: outside its box, or its vertices'
+    distance to the zero level set over :data:`TRUTH_TOLERANCE_VOXELS` (90th percentile) — naming the frame it looks to
+    be in when that frame fits (voxel indices, LPS)."""
+    v = truth.vertices[:: max(1, len(truth.vertices) // 5000)]
+    d = _distance_in_voxels(v, vol)
+    if d <= TRUTH_TOLERANCE_VOXELS:
+        return
+    frames = (("voxel-index coordinates (convert with the image's affine)", vol.index_to_world(v)),
+              ("LPS coordinates (negate x and y for RAS+)", v * np.array([-1.0, -1.0, 1.0])))
+    hint = next((f"; it fits the volume in {name}" for name, w in frames
+                 if _distance_in_voxels(w, vol) <= TRUTH_TOLERANCE_VOXELS), "")
     lo, hi = truth.vertices.min(0), truth.vertices.max(0)
-    tol = vol.spacing
-    if (lo < vol.lower - tol).any() or (hi > vol.upper + tol).any():
-        raise InputError(f"{where}: the truth surface lies outside the volume (truth box {lo.round(3).tolist()} – "
-                         f"{hi.round(3).tolist()}, volume box {vol.lower.round(3).tolist()} – "
-                         f"{vol.upper.round(3).tolist()}); it must be in the same world coordinates (RAS+, "
-                         "docs/PHANTOMS.md)")
+    if not np.isfinite(d):
+        what = (f"lies outside the volume (truth box {lo.round(3).tolist()} – {hi.round(3).tolist()}, volume box "
+                f"{vol.lower.round(3).tolist()} – {vol.upper.round(3).tolist()})")
+    else:
+        what = (f"is not on the volume's surface: 10 % of its vertices lie {d:.1f} voxels or more from the zero "
+                f"level set (tolerance {TRUTH_TOLERANCE_VOXELS:g})")
+    raise InputError(f"{where}: the truth surface {what}{hint}; it must be in the volume's world coordinates (RAS+, "
+                     "docs/PHANTOMS.md)")
 
 
 class VolumePhantom(Phantom):

@@ -154,3 +154,18 @@ def test_a_method_parameter_given_twice_is_refused():
 
     with pytest.raises(InputError, match="parameter 'k' is given twice"):
         parse_method_spec("mc=marching_cubes:k=5,k=6")
+
+
+def test_a_missing_truth_file_is_refused_before_any_cell(tmp_path):
+    import numpy as np
+
+    from phantoms import InputError
+
+    seg = tmp_path / "seg.npy"
+    m = np.zeros((12, 12, 12), np.uint8)
+    m[3:9, 3:9, 3:9] = 1
+    np.save(seg, m)
+    cfg = config_from_dict({"grid": {"phantoms": [f"volume:{seg}?truth={tmp_path / 'ref.obj'}"]},
+                            "methods": [{"name": "marching_cubes"}]})
+    with pytest.raises(InputError, match="no such truth file"):
+        cfg.validate()

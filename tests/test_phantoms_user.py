@@ -162,3 +162,29 @@ def test_a_users_mask_reaches_the_method_as_a_mask_with_its_voxels(tmp_path):
     vol = get_phantom(f"volume:{p}").volume()
     assert vol.kind == "mask" and vol.level == 0.5 and np.array_equal(vol.raw > 0.5, m)
     assert np.array_equal(vol.values < 0, m)                     # φ is the mask's signed distance
+
+
+def test_a_truth_in_the_wrong_frame_is_refused_naming_the_frame_it_fits(tmp_path):
+    m = sphere_mask()
+    origin, spacing = np.array([6.0, -31.0, -9.0]), np.array([1.0, 1.0, 1.0])
+    nii = _nifti(tmp_path / "seg.nii.gz", m.astype(np.uint8), spacing=tuple(spacing), origin=tuple(origin))
+    v, f = voxel_surface(m, origin, spacing)                       # the right truth, in world coordinates
+    trimesh.Trimesh(v, f, process=False).export(str(tmp_path / "ok.obj"))
+    assert get_phantom(f"volume:{nii}?truth={tmp_path / 'ok.obj'}").has_truth
+    cases = {"index.obj": ((v - origin) / spacing, "voxel-index coordinates"),
+             "lps.obj": (v * [-1, -1, 1], "LPS coordinates"),
+             "shifted.obj": (v + [4.0, 0, 0], "voxels or more from the zero level set (tolerance 2.5)")}
+    for name, (w, words) in cases.items():
+        trimesh.Trimesh(w, f, process=False).export(str(tmp_path / name))
+        with pytest.raises(InputError, match="the truth surface") as err:
+            get_phantom(f"volume:{nii}?truth={tmp_path / name}")
+        assert words in str(err.value) and "\n" not in str(err.value), str(err.value)
+
+
+def test_an_intensity_image_as_truth_is_refused(tmp_path):
+    m = sphere_mask()
+    nii = _nifti(tmp_path / "seg.nii.gz", m.astype(np.uint8))
+    ct = _nifti(tmp_path / "ct.nii.gz", (np.where(m, 300.0, 20.0) + np.random.default_rng(0).random(m.shape))
+                .astype(np.float32))
+    with pytest.raises(InputError, match="non-integer values .*an intensity image, not a label map"):
+        get_phantom(f"volume:{nii}?truth={ct}")

@@ -7,13 +7,16 @@ The image is read with its geometry (:mod:`phantoms.images`: NIfTI, NRRD, MetaIm
   inside), a **threshold** (``threshold=T``: values above T are inside) or a **label** (``label=L``: voxels equal
   to L are inside) becomes a signed distance by :func:`phantoms.io.mask_to_sdf` — zero half-way between an inside
   and an outside voxel centre, world units with the real spacing;
+* an **intensity at an iso-level** (``level=T``: values above T are inside) becomes φ = T − I, the intensity
+  itself as a level set: its sub-voxel boundary is kept (a threshold makes a mask of it first); the volume says
+  so (kind ``intensity``, raw = the image, level = T) and its fidelity metrics are read on φ / |∇φ|;
 * otherwise the values are the level set φ as given (negative inside).
 
 ``invert=yes`` swaps inside and outside; ``pad=K`` adds K outside voxels on every face (a mask that touches the
 image border has an open zero level set and is refused without it).
 
 Options
-    ``mask`` auto | yes | no; ``threshold`` number; ``label`` integer; ``invert`` yes | no; ``pad`` integer ≥ 0;
+    ``mask`` auto | yes | no; ``threshold`` number; ``label`` integer; ``level`` number; ``invert`` yes | no; ``pad`` integer ≥ 0;
     ``truth`` a closed mesh file in the same world coordinates (every truth metric is computed against it) or a
     label image (its voxels > 0, or equal to ``label`` when given, are the reference segmentation; its surface is
     the zero level set of that mask's signed distance, extracted by marching cubes: vertices on the grid edges
@@ -41,7 +44,7 @@ from .volume import Volume, check_grid, check_memory
 __all__ = ["VOLUME_PREFIX", "VolumePhantom", "parse_spec", "format_spec", "spec_from_table", "level_set_from_image"]
 
 VOLUME_PREFIX = "volume:"
-_OPTIONS = ("mask", "threshold", "label", "invert", "pad", "truth", "resample", "series")
+_OPTIONS = ("mask", "threshold", "label", "level", "invert", "pad", "truth", "resample", "series")
 _SPEC = re.compile(r"^(?P<path>.*?)(?:\?(?P<opts>[A-Za-z_]+=.*))?$", re.S)
 _YES = {"yes": True, "true": True, "1": True, "on": True, "no": False, "false": False, "0": False, "off": False}
 
@@ -68,7 +71,7 @@ def _check_options(opts: dict, where: str) -> dict:
                 if text not in ("auto", "yes", "no"):
                     raise InputError("expected auto, yes or no")
                 out[key] = text
-            elif key == "threshold":
+            elif key in ("threshold", "level"):
                 if isinstance(value, bool):
                     raise InputError("expected a number, not a boolean")
                 t = float(value)
@@ -93,8 +96,12 @@ def _check_options(opts: dict, where: str) -> dict:
             raise InputError(f"{where}: option {key}={value!r}: expected a number") from None
         except OverflowError:                                      # int(inf), int(float("1e400"))
             raise InputError(f"{where}: option {key}={value!r}: expected a finite number") from None
-    if "label" in out and "threshold" in out:
-        raise InputError(f"{where}: give either label= or threshold=, not both")
+    given = [k for k in ("label", "threshold", "level") if k in out]
+    if len(given) > 1:
+        raise InputError(f"{where}: give one of label=, threshold= and level=, not {' and '.join(given)}")
+    if "level" in out and out.get("mask") == "yes":
+        raise InputError(f"{where}: level= reads an intensity image as a level set; it cannot be combined with "
+                         "mask=yes")
     if out.get("mask") == "no" and ("label" in out or "threshold" in out):
         raise InputError(f"{where}: mask=no reads the values as a level set; it cannot be combined with "
                          "label= or threshold=")
@@ -202,6 +209,24 @@ def _border_faces(inside: np.ndarray) -> list[str]:
     return faces
 
 
+def _intensity_level_set(image, opts: dict, where: str, require_surface: bool) -> Volume:
+    """``level=T``: φ = T − I (inside above T; ``invert``: below), kind ``intensity`` with raw I and level T."""
+    values = np.asarray(image.values, np.float64)
+    lo, hi = float(values.min()), float(values.max())
+    level = float(opts["level"])
+    if not lo < level < hi:
+        raise InputError(f"{where}: level={level:g} is outside the image's values (range [{lo:g}, {hi:g}]): "
+                         "nothing would be inside or outside")
+    if "pad" in opts:
+        raise InputError(f"{where}: pad= adds outside voxels to a mask; with level= the intensity is the level set")
+    raw, lev = (-values, -level) if opts.get("invert") else (values, level)
+    vol = Volume(lev - raw, image.origin, image.spacing, kind="intensity", raw=raw, level=lev)
+    if require_surface and not vol.is_closed():
+        raise InputError(f"{where}: at level={level:g} the inside reaches the image border: the surface is open; "
+                         "crop or extend the volume")
+    return vol
+
+
 def level_set_from_image(image, opts: dict, where: str, require_surface: bool = True) -> Volume:
     """The level-set :class:`Volume` of an :class:`phantoms.images.Image` under the spec's options.
 
@@ -215,6 +240,8 @@ def level_set_from_image(image, opts: dict, where: str, require_surface: bool = 
             Volume(values, image.origin, image.spacing)             # names the NaN / inf
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
+    if "level" in opts:
+        return _intensity_level_set(image, opts, where, require_surface)
     inside = _inside(values, opts, where)
     origin, spacing = np.asarray(image.origin, float), np.asarray(image.spacing, float)
     pad = int(opts.get("pad", 0))

@@ -50,11 +50,14 @@ def test_bad_options_and_values_are_one_line(tmp_path):
         (f"volume:{q}?colour=red", "unknown option 'colour'"),
         (f"volume:{q}?pad=-1", "option pad='-1': expected an integer >= 0"),
         (f"volume:{q}?threshold=abc", "option threshold='abc': expected a number"),
-        (f"volume:{q}?label=1&threshold=2", "either label= or threshold="),
+        (f"volume:{q}?label=1&threshold=2", "give one of label=, threshold= and level=, not label and threshold"),
         (f"volume:{q}?mask=yes", "mask=yes but the image holds more than two values"),
         (f"volume:{q}?threshold=100&truth={tmp_path / 'none.obj'}", "no such truth file"),
         (f"volume:{tmp_path / 'missing.nii.gz'}", "no such file"),
         (f"volume:{q}?mask=no&pad=2", "pad= adds outside voxels to a mask, but the values are read as a level set"),
+        (f"volume:{q}?level=150&threshold=100", "give one of label=, threshold= and level=, not threshold and level"),
+        (f"volume:{q}?level=5000", "level=5000 is outside the image's values (range [20, 300.775])"),
+        (f"volume:{q}?level=150&mask=yes", "cannot be combined with mask=yes"),
     ]
     for spec, message in cases:
         with pytest.raises(InputError) as err:

@@ -13,7 +13,9 @@ Computed for every cell — phantoms with a truth and user scans without — so 
   winding number on the grid, :func:`geometry.raster.grid_winding`, non-zero = inside): a dropped or an extra
   part shows here whatever its distance.
 
-They read the volume the method was given: on a noisy volume that is the noisy φ (all a user has), so even a
+A φ that is not a distance (an intensity read at ``level=``: its |∇φ| at the zero set is the intensity's slope)
+is read as φ / |∇φ| (:func:`as_distance`), a first-order distance in world units; the row's ``phi_gradient``
+gives the median |∇φ| found.  They read the volume the method was given: on a noisy volume that is the noisy φ (all a user has), so even a
 perfect surface scores about the noise's std in ``sdf_*`` and ``phi_*`` and a few per cent of ``sign_err_pct``
 near the surface; compare methods on the same volume, not across noise levels.  h is the smallest spacing.
 """
@@ -25,7 +27,7 @@ import numpy as np
 from geometry.mesh import scored_mesh
 from geometry.raster import grid_winding
 
-__all__ = ["fidelity_metrics", "band_query", "BAND_SAMPLES", "MESH_SAMPLES", "FIDELITY_NAMES"]
+__all__ = ["fidelity_metrics", "band_query", "zero_set_gradient", "as_distance", "DISTANCE_LIKE", "BAND_SAMPLES", "MESH_SAMPLES", "FIDELITY_NAMES"]
 
 #: at most this many grid samples of the band |φ| < 3h enter the SDF agreement.  Each costs an exact
 #: point-to-mesh distance at up to 3h from the surface (~3 µs, four times an on-surface point's); with 10,000
@@ -34,6 +36,49 @@ BAND_SAMPLES = 5_000
 #: at most this many of the mesh's surface samples are read for |φ| (i.i.d., so the first ones are a uniform subset)
 MESH_SAMPLES = 25_000
 FIDELITY_NAMES = ("sdf_rms_h", "sdf_p95_h", "phi_mean_h", "phi_p95_h", "sign_err_pct")
+
+
+#: the range of the median |∇φ| at the zero set within which φ is read as a distance as it is
+DISTANCE_LIKE = (0.8, 1.25)
+
+
+def zero_set_gradient(volume) -> float:
+    """The median |∇φ| (central differences, world units) at the grid points next to a sign change of φ: 1 for a
+    signed distance, the intensity's slope across the boundary for an intensity image; NaN without a zero set."""
+    phi = volume.values
+    near = np.zeros(phi.shape, bool)
+    neg = phi < 0
+    for axis in range(3):
+        change = np.diff(neg, axis=axis)
+        lo = [slice(None)] * 3
+        hi = [slice(None)] * 3
+        lo[axis], hi[axis] = slice(0, -1), slice(1, None)
+        near[tuple(lo)] |= change
+        near[tuple(hi)] |= change
+    if not near.any():
+        return float("nan")
+    idx = np.argwhere(near)
+    shape = np.asarray(phi.shape)
+    sq = np.zeros(len(idx))
+    for axis in range(3):                                     # central differences (one-sided at the border)
+        up, down = idx.copy(), idx.copy()
+        up[:, axis] = np.minimum(idx[:, axis] + 1, shape[axis] - 1)
+        down[:, axis] = np.maximum(idx[:, axis] - 1, 0)
+        step = (up[:, axis] - down[:, axis]) * volume.spacing[axis]
+        sq += ((phi[tuple(up.T)] - phi[tuple(down.T)]) / step) ** 2
+    return float(np.median(np.sqrt(sq)))
+
+
+def as_distance(volume):
+    """``(volume, g)``: φ as it is when its median |∇φ| at the zero set ``g`` is within :data:`DISTANCE_LIKE` (a
+    distance), else φ / max(|∇φ|, g/10) (central differences): a first-order distance near the zero set, so
+    that the fidelity columns and the validity check read world units on an intensity image too."""
+    g = zero_set_gradient(volume)
+    if not np.isfinite(g) or DISTANCE_LIKE[0] <= g <= DISTANCE_LIKE[1]:
+        return volume, g
+    grads = np.gradient(volume.values, *volume.spacing, edge_order=2)
+    norm = np.sqrt(sum(c * c for c in grads))
+    return volume.with_values(volume.values / np.maximum(norm, 0.1 * g)), g
 
 
 def band_query(volume, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -260,6 +260,16 @@ def _input_volume(cell: Cell, cache_dir: str | None, row: dict, lap):
     return truth, clean, vol
 
 
+def _read_as_distance(clean, vol, row: dict):
+    """The clean and the given volume as the validity check and the fidelity metrics read them: φ / |∇φ| when φ
+    is not a distance (:func:`bench.metrics.fidelity.as_distance`); the row gets the median |∇φ| found."""
+    from bench.metrics.fidelity import as_distance
+
+    scored, g = as_distance(vol)
+    row["phi_gradient"] = g
+    return (scored if clean is vol else as_distance(clean)[0]), scored
+
+
 def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> CellResult:
     """Compute one cell from its parameters; never raises for a failing method (see the module docstring).
 
@@ -308,6 +318,7 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         lap("method")
         stage = "validity"
         # against the clean level set the grid knows (and, with noise, the one the method was given)
+        clean, vol = _read_as_distance(clean, vol, row)
         invalid = check_mesh(rec.mesh, clean, given=None if vol is clean else vol)
         lap("validity")
         stage = "metrics"

@@ -272,3 +272,24 @@ def test_unwritable_or_occupied_output_folder_exits_2(tmp_path, capsys, quick_ru
     assert "cannot read config" in capsys.readouterr().err
     assert main(["report", str(tmp_path)]) == 2
     assert "not a run folder" in capsys.readouterr().err
+
+
+def test_a_run_and_its_resume_show_progress_with_a_time_estimate_when_not_on_a_terminal(tmp_path):
+    out = tmp_path / "run"
+    args = ["--quick", "--phantoms", "sphere,ellipsoid,torus,cylinder,fused_spheres", "--n", "16",
+            "--degrade", "none,mask", "--noise", "none", "--method", "marching_cubes", "--method", "mc_taubin",
+            "--no-report", "--jobs", "2", "--out", str(out)]
+    proc = _bench(*args)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("progress:")]
+    assert lines[0] == "progress: 0/20 cells done, 20 to run"
+    assert any(re.fullmatch(r"progress: \d+/20 cells, 0 not ok, about \d+ s left", ln) for ln in lines), lines
+    assert lines[-1] == "progress: 20/20 cells, 0 not ok"
+    records = sorted((out / "cells").glob("*.json"))
+    for rec in records[:8]:                                    # an interrupted run: 8 cells never finished
+        rec.unlink()
+    proc = _bench("--resume", "--no-report", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("progress:")]
+    assert lines[0] == "progress: 12/20 cells done, 8 to run" and lines[-1] == "progress: 20/20 cells, 0 not ok"
+    assert any("left" in ln for ln in lines), lines

@@ -135,22 +135,50 @@ class RunLog:
 
 
 class _Progress:
-    """A tqdm bar over the cells (on a terminal), naming the cell running and reporting failures."""
+    """Progress over the cells: on a terminal a tqdm bar naming the cell running, the failures so far and the time
+    left; otherwise (a log file, a pipe) a plain line ``progress: 12/72 cells, 1 not ok, about 4 min left`` at
+    each tenth of the cells, at least every :data:`LOG_EVERY_S` seconds and at the end — a long run or
+    ``--resume`` never runs in silence."""
 
-    def __init__(self, total: int, done: int, show: bool) -> None:
+    #: seconds between two plain progress lines when stderr is not a terminal
+    LOG_EVERY_S = 30.0
+
+    def __init__(self, total: int, done: int, show: bool, log: bool = True) -> None:
         from tqdm import tqdm
 
-        self.show = show
+        self.show, self.log = show, log and not show
+        self.total, self.done, self.start_done, self.failed = total, done, done, 0
+        self.t0 = self.last_log = time.monotonic()
         self.bar = tqdm(total=total, initial=done, unit="cell", disable=not show, dynamic_ncols=True,
                         desc="cells", file=sys.stderr)
+        if self.log and total > done:
+            print(f"progress: {done}/{total} cells done, {total - done} to run", file=sys.stderr, flush=True)
 
     def start(self, cell: Cell) -> None:
-        self.bar.set_postfix_str(f"{cell.phantom}/{cell.noise}/{cell.label}", refresh=True)
+        self.bar.set_postfix_str(printable(f"{cell.phantom}/{cell.noise}/{cell.label}")
+                                 + (f", {self.failed} failed" if self.failed else ""), refresh=True)
 
     def finish(self, cell: Cell, row: dict) -> None:
-        if row.get("status") != "ok" and self.show:
-            self.bar.write(printable(f"{row.get('status')}: {cell.cell_id}: {row.get('error', '')}"))
+        self.done += 1
+        if row.get("status") != "ok":
+            self.failed += 1
+            if self.show:
+                self.bar.write(printable(f"{row.get('status')}: {cell.cell_id}: {row.get('error', '')}"))
         self.bar.update(1)
+        now = time.monotonic()
+        tenth = max(1, (self.total - self.start_done) // 10)
+        if self.log and (now - self.last_log >= self.LOG_EVERY_S or self.done == self.total
+                         or (self.done - self.start_done) % tenth == 0):
+            self.last_log = now
+            print(self.line(now), file=sys.stderr, flush=True)
+
+    def line(self, now: float) -> str:
+        """``progress: done/total cells, failed, time left`` (the rate of this session's cells)."""
+        ran = self.done - self.start_done
+        left = (now - self.t0) / ran * (self.total - self.done) if ran else None
+        eta = ("" if left is None or self.done >= self.total else
+               f", about {left / 60:.0f} min left" if left >= 90 else f", about {left:.0f} s left")
+        return f"progress: {self.done}/{self.total} cells, {self.failed} not ok{eta}"
 
     def close(self) -> None:
         self.bar.close()
@@ -241,7 +269,7 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
     save_meshes : bool
         Also write each cell's final mesh as a PLY file.
     progress : bool, optional
-        Show a progress bar (default: when stderr is a terminal).
+        Show a progress bar (default: when stderr is a terminal, else plain progress lines; False: neither).
     argv : list of str, optional
         The command line recorded in run.json.
     executor : bench.run.inputs.ExecutorSpec or object, optional
@@ -332,7 +360,8 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     log = RunLog(out, cfg, len(cells), session, resume)
     log.mixed_code = mixed
     log.write(records, end=False)
-    bar = _Progress(len(cells), summary.skipped, sys.stderr.isatty() if progress is None else progress)
+    bar = _Progress(len(cells), summary.skipped, sys.stderr.isatty() if progress is None else progress,
+                    log=progress is None)
     if bar.show:
         bar.bar.write(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
 

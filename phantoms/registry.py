@@ -120,7 +120,8 @@ def expand_phantoms(specs) -> list[tuple[str, str]]:
     -------
     list of (str, str)
         ``[(name, source), ...]``, each spec once: a globbed spec as one phantom per matching file (sorted,
-        named by the file's stem, its options kept), any other spec as ``(spec, spec)``.  Files are not read.
+        named by the file's stem, its options kept), a ``labels=`` spec as one phantom per label (the image is
+        read for its labels), any other spec as ``(spec, spec)``.  Files are not read otherwise.
 
     Raises
     ------
@@ -140,6 +141,10 @@ def expand_phantoms(specs) -> list[tuple[str, str]]:
             raise InputError(f"phantom {spec!r}: no file matches the pattern {pattern!r}")
         for m in matches:
             out.append((_stem(Path(m)), f"{prefix}{m}{query}"))
+    from .labels import expand_labels
+
+    out = [pair for name, source in out for pair in (expand_labels(name, source) if source.startswith(VOLUME_PREFIX)
+                                                     and "labels=" in source else [(name, source)])]
     seen: dict[str, str] = {}
     for name, source in out:
         if name in seen and seen[name] != source:

@@ -44,7 +44,7 @@ from .volume import Volume, check_grid, check_memory
 __all__ = ["VOLUME_PREFIX", "VolumePhantom", "parse_spec", "format_spec", "spec_from_table", "level_set_from_image"]
 
 VOLUME_PREFIX = "volume:"
-_OPTIONS = ("mask", "threshold", "label", "level", "invert", "pad", "truth", "resample", "series")
+_OPTIONS = ("mask", "threshold", "label", "labels", "level", "invert", "pad", "truth", "resample", "series")
 _SPEC = re.compile(r"^(?P<path>.*?)(?:\?(?P<opts>[A-Za-z_]+=.*))?$", re.S)
 _YES = {"yes": True, "true": True, "1": True, "on": True, "no": False, "false": False, "0": False, "off": False}
 
@@ -86,6 +86,8 @@ def _check_options(opts: dict, where: str) -> dict:
                 out[key] = int(float(value))
                 if key == "pad" and out[key] < 0:
                     raise InputError("expected an integer >= 0")
+            elif key == "labels":
+                out[key] = _labels_option(value)
             elif key in ("invert", "resample"):
                 out[key] = _bool(key, value)
             else:
@@ -96,9 +98,9 @@ def _check_options(opts: dict, where: str) -> dict:
             raise InputError(f"{where}: option {key}={value!r}: expected a number") from None
         except OverflowError:                                      # int(inf), int(float("1e400"))
             raise InputError(f"{where}: option {key}={value!r}: expected a finite number") from None
-    given = [k for k in ("label", "threshold", "level") if k in out]
+    given = [k for k in ("label", "labels", "threshold", "level") if k in out]
     if len(given) > 1:
-        raise InputError(f"{where}: give one of label=, threshold= and level=, not {' and '.join(given)}")
+        raise InputError(f"{where}: give one of label=, labels=, threshold= and level=, not {' and '.join(given)}")
     if "level" in out and out.get("mask") == "yes":
         raise InputError(f"{where}: level= reads an intensity image as a level set; it cannot be combined with "
                          "mask=yes")
@@ -123,6 +125,20 @@ def parse_spec(spec: str) -> tuple[str, dict]:
             raise InputError(f"{spec!r}: option {item!r} is not key=value")
         opts[key.strip()] = value.strip()
     return path, _check_options(opts, spec)
+
+
+def _labels_option(value) -> str:
+    """``labels=all`` or a comma list of integer labels, as canonical text."""
+    text = str(value).strip().lower()
+    if text == "all":
+        return text
+    try:
+        labels = [float(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise InputError("expected all or a comma-separated list of integer labels") from None
+    if not labels or not all(math.isfinite(x) and x == int(x) for x in labels):
+        raise InputError("expected all or a comma-separated list of integer labels")
+    return ",".join(str(int(x)) for x in dict.fromkeys(labels))
 
 
 def format_spec(path: str, options: dict) -> str:

@@ -165,9 +165,9 @@ class MethodSpec:
         return out
 
     def params_for(self, params: dict, phantom: str) -> dict:
-        out = dict(params)
-        out.update(self.phantom_params.get(phantom, {}))
-        return out
+        """The parameters of one phantom's cells: its phantom_params applied, ``{phantom}`` in text filled in."""
+        out = {**params, **self.phantom_params.get(phantom, {})}
+        return {k: v.replace("{phantom}", phantom) if isinstance(v, str) else v for k, v in out.items()}
 
     def to_dict(self) -> dict:
         d: dict = {"name": self.name, "label": self.label, "params": copy.deepcopy(self.params)}

@@ -47,6 +47,7 @@ BUILTIN_METHODS: dict[str, str] = {
     "reach_for_the_arcs": "methods.reach_for_the_arcs:ReachForTheArcs",
     "dual_contouring": "methods.dual_contouring:DualContouring",
     "flying_edges": "methods.flying_edges:FlyingEdges",
+    "mesh_file": "methods.mesh_file:MeshFile",
 }
 
 

@@ -1,0 +1,57 @@
+"""A surface made elsewhere as a row: ``mesh_file`` reads a mesh file (an STL / OBJ / PLY export of 3D Slicer,
+ITK-SNAP, your current pipeline) instead of computing one, so the grid scores it like every other method and
+answers "is my current pipeline better than these?".
+
+``path`` names the file; in a grid ``{phantom}`` in it is replaced by each cell's phantom name (e.g.
+``--add-method slicer_export=mesh_file:path=exports/{phantom}.stl``).  The mesh must already be in the
+volume's world coordinates (RAS+ for a user's image) and closed; the suite's validity check then judges it as
+it judges any method's output (outward orientation, on the zero set, inside the box).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from phantoms import InputError, Volume
+
+from .base import Method, Param, Reconstruction
+
+__all__ = ["MeshFile"]
+
+
+class MeshFile(Method):
+    name = "mesh_file"
+    description = "a surface exported by another tool, read from a file (path may hold {phantom})"
+    params = {"path": Param("", "the mesh file (STL, OBJ, PLY, OFF ...); {phantom}: the cell's phantom name",
+                            type=str)}
+    relative_cost = 0.1
+
+    def reconstruct(self, volume: Volume) -> Reconstruction:
+        t0 = time.perf_counter()
+        text = self.config["path"]
+        if not text:
+            raise InputError("method 'mesh_file' needs path=FILE (e.g. path=exports/{phantom}.stl)")
+        if "{phantom}" in text:
+            raise InputError(f"method 'mesh_file': {text!r} still holds {{phantom}} (a grid fills it in per phantom; "
+                             "give the file itself here)")
+        path = Path(text).expanduser()
+        if not path.is_file():
+            raise InputError(f"method 'mesh_file': no such mesh file {str(path)!r}")
+        try:
+            mesh = trimesh.load(str(path), force="mesh", process=True)
+        except Exception as exc:  # noqa: BLE001 — trimesh raises many kinds for a bad file
+            raise InputError(f"method 'mesh_file': cannot read {str(path)!r} as a mesh: {exc}") from None
+        if len(mesh.faces) == 0:
+            raise InputError(f"method 'mesh_file': {str(path)!r} holds no triangles")
+        mesh.merge_vertices()
+        if not mesh.is_watertight:
+            raise InputError(f"method 'mesh_file': {str(path)!r} is not a closed mesh (an edge in fewer or more than "
+                             "two faces); the suite scores closed surfaces")
+        v = np.asarray(mesh.vertices, float)
+        f = np.asarray(mesh.faces, np.int64)
+        return Reconstruction(trimesh.Trimesh(v, f, process=False),
+                              {"iterations": 0, "source_file": str(path), "read_s": time.perf_counter() - t0})

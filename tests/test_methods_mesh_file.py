@@ -1,0 +1,43 @@
+"""methods/mesh_file.py: a surface exported elsewhere, entered as a row and scored like the others."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from bench.config import config_from_dict
+from bench.run import expand_grid
+from bench.run.cell import run_cell
+from methods import get_method
+from phantoms import InputError, get_phantom
+
+
+def test_an_exported_surface_is_a_row_scored_like_the_others(tmp_path):
+    exports = tmp_path / "exports"
+    exports.mkdir()
+    trimesh.creation.icosphere(subdivisions=4, radius=1.0).export(str(exports / "sphere.stl"))
+    cfg = config_from_dict({"grid": {"phantoms": ["sphere", "ellipsoid"], "n": 32},
+                            "metrics": {"n_samples": 5000},
+                            "methods": [{"name": "mesh_file", "label": "slicer_export",
+                                         "params": {"path": str(exports / "{phantom}.stl")}},
+                                        {"name": "marching_cubes"}]})
+    cfg.validate()
+    rows = {(c.phantom, c.label): run_cell(c).row for c in expand_grid(cfg)}
+    ok = rows["sphere", "slicer_export"]
+    assert ok["status"] == "ok", ok["error"]
+    assert ok["hausdorff_h"] < 0.2 and abs(ok["volume_err_pct"]) < 1      # an icosphere of the unit sphere
+    missing = rows["ellipsoid", "slicer_export"]
+    assert missing["status"] == "failed" and f"no such mesh file '{exports / 'ellipsoid.stl'}'" in missing["error"]
+    assert rows["ellipsoid", "marching_cubes"]["status"] == "ok"
+
+
+def test_an_open_or_unreadable_surface_is_one_line(tmp_path):
+    box = trimesh.creation.box(extents=(1, 1, 1))
+    trimesh.Trimesh(box.vertices, box.faces[:-1]).export(str(tmp_path / "open.stl"))
+    (tmp_path / "junk.stl").write_text("not a mesh")
+    vol = get_phantom("sphere").volume(n=16)
+    for path, words in ((tmp_path / "open.stl", "is not a closed mesh"), (tmp_path / "nope.stl", "no such mesh file"),
+                        (tmp_path / "junk.stl", "holds no triangles"), ("", "needs path=FILE")):
+        with pytest.raises(InputError) as err:
+            get_method("mesh_file", path=str(path)).reconstruct(vol)
+        assert words in str(err.value) and "\n" not in str(err.value), str(err.value)
+    assert np.isfinite(vol.h)

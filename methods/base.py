@@ -47,6 +47,9 @@ BUILTIN_METHODS: dict[str, str] = {
     "reach_for_the_arcs": "methods.reach_for_the_arcs:ReachForTheArcs",
     "dual_contouring": "methods.dual_contouring:DualContouring",
     "flying_edges": "methods.flying_edges:FlyingEdges",
+    "surface_nets": "methods.surface_nets:SurfaceNets",
+    "slicer": "methods.slicer:Slicer",
+    "mc_smoothed_mask": "methods.mc_smoothed_mask:MCSmoothedMask",
     "mesh_file": "methods.mesh_file:MeshFile",
 }
 

@@ -12,8 +12,7 @@ dimensions (nz, ny, nx) with the spacing and origin reversed; the output points'
 edge's vertex between its cells, so no vertex merging is needed (only exact zeros are nudged, as for
 marching cubes, so no vertex sits on a grid point shared by several edges).
 
-VTK is an optional dependency (``pip install "levelset-bench[vtk]"``); without it :meth:`reconstruct`
-fails with one line saying so.
+VTK is a core dependency; were it missing, :meth:`reconstruct` fails with one line saying so.
 """
 
 from __future__ import annotations
@@ -30,8 +29,7 @@ from .marching_cubes import _nudge_zeros, orient_outward
 
 __all__ = ["FlyingEdges", "flying_edges_arrays", "VTK_MISSING"]
 
-VTK_MISSING = ('method {name!r} needs VTK, which is not installed: pip install "levelset-bench[vtk]" '
-               '(or pip install "vtk>=9.2")')
+VTK_MISSING = 'method {name!r} needs VTK, which is not installed: pip install "vtk>=9.3"'
 
 
 def _vtk_modules(name: str):
@@ -82,7 +80,7 @@ def flying_edges_arrays(volume: Volume, level: float = 0.0, name: str = "flying_
 class FlyingEdges(Method):
     name = "flying_edges"
     description = ("Flying Edges (Schroeder et al. 2015, VTK vtkFlyingEdges3D): marching-cubes vertices, "
-                   "several times faster; needs the [vtk] extra")
+                   "several times faster")
     params = {
         "level": Param(0.0, "the iso-value extracted (0 = the zero level set; the surface must stay closed "
                             "inside the grid)", type=float, min=-1e6, max=1e6),

@@ -33,7 +33,10 @@ def broken(monkeypatch):
 
 #: built-ins that check-method fails, for limits of the method itself (measured; the failure is asserted, so a fix
 #: shows up as an unexpected pass)
-KNOWN_FAILURES: dict[str, str] = {}      # none at the moment (dual contouring and Reach for the Spheres were)
+KNOWN_FAILURES: dict[str, str] = {
+    "surface_nets": "VTK's SurfaceNets leaves holes where two mask voxels touch only along an edge (the noisy "
+                    "case's speckled mask: 12 boundary edges); in a grid such a mesh is an invalid row",
+}
 
 
 #: built-ins whose five cases take over 10 s (iterative peers): their check runs with the heavy tests

@@ -180,3 +180,39 @@ def test_reconstruct_refuses_a_diverged_mesh_instead_of_writing_inf(sphere_file,
     err = capsys.readouterr().err
     assert "returned non-finite vertex coordinates" in err and "nothing written" in err
     assert not out.exists()
+
+
+def test_reconstruct_with_a_failing_plugin_is_one_line_and_writes_nothing(sphere_file, tmp_path, capsys):
+    out = tmp_path / "x.ply"
+    rc = main(["reconstruct", str(sphere_file), "-m", "broken_raises", "-o", str(out), "--import", "broken_methods"])
+    err = capsys.readouterr().err
+    assert rc == 1 and "method 'broken_raises' failed: " in err and "Traceback" not in err, err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_reconstruct_with_faces_naming_missing_vertices_writes_nothing(sphere_file, tmp_path, capsys, monkeypatch):
+    from methods import Reconstruction
+    from methods.marching_cubes import MarchingCubes
+
+    def bad_faces(self, volume):
+        mesh = trimesh.Trimesh(np.eye(3), np.array([[0, 1, 2], [0, 1, 7]]), process=False)
+        return Reconstruction(mesh, {})
+
+    monkeypatch.setattr(MarchingCubes, "reconstruct", bad_faces)
+    out = tmp_path / "x.ply"
+    rc = main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 1 and "bad indices" in err and "nothing written" in err and "Traceback" not in err, err
+    assert not out.exists()
+
+
+def test_reconstruct_with_a_plugin_out_of_memory_is_one_line(sphere_file, tmp_path, capsys, monkeypatch):
+    from methods.marching_cubes import MarchingCubes
+
+    def boom(self, volume):
+        raise MemoryError()
+
+    monkeypatch.setattr(MarchingCubes, "reconstruct", boom)
+    rc = main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(tmp_path / "x.ply")])
+    err = capsys.readouterr().err
+    assert rc == 1 and err.strip() == "error: method 'marching_cubes' ran out of memory"

@@ -108,6 +108,22 @@ def _fmt(value) -> str:
     return str(value)
 
 
+def _guarded(fn, method, volume):
+    """``fn(method, volume)``; a plug-in's own exception (MemoryError, a bug, a missing ``reconstruct``) becomes
+    one :class:`methods.ReconstructionFailed` line naming the method instead of a traceback."""
+    from methods import ReconstructionFailed
+
+    try:
+        return fn(method, volume)
+    except (InputError, ReconstructionFailed, KeyboardInterrupt):
+        raise
+    except MemoryError:
+        raise ReconstructionFailed(f"method {method.name!r} ran out of memory") from None
+    except Exception as exc:  # noqa: BLE001 — a plug-in may raise anything
+        text = " ".join(str(exc).split()) or "(no message)"
+        raise ReconstructionFailed(f"method {method.name!r} failed: {type(exc).__name__}: {text}") from None
+
+
 def _cmd_reconstruct(args) -> int:
     from methods import as_reconstruction, get_method, run_reconstruct
     from geometry.mesh import mesh_facts
@@ -122,14 +138,16 @@ def _cmd_reconstruct(args) -> int:
     volume = load_volume(args.input, mask=True if args.mask else None)
     check_outputs(out, args.info_json)  # a bad output path fails before the method runs
     t0 = time.perf_counter()
-    rec = as_reconstruction(run_reconstruct(method, volume), args.method)  # wrong type, sys.exit: one line, exit 1
+    rec = as_reconstruction(_guarded(run_reconstruct, method, volume), args.method)  # wrong type, sys.exit: exit 1
     wall = time.perf_counter() - t0
     mesh = getattr(rec, "mesh", None)
     if mesh is None:
         raise InputError(f"method {args.method!r} returned no mesh")
     invalid = check_mesh(mesh, volume)
-    # an empty mesh or one with NaN / infinite vertices is invalid too, and there is nothing sensible to write
-    if len(mesh.faces) == 0 or len(mesh.vertices) == 0 or not np.isfinite(np.asarray(mesh.vertices)).all():
+    # an empty mesh, one with NaN / infinite vertices or faces naming vertices that do not exist is invalid too,
+    # and there is nothing sensible to write
+    unusable = any(r.startswith(("empty", "non-finite", "bad indices")) for r in invalid)
+    if unusable or len(mesh.faces) == 0 or len(mesh.vertices) == 0 or not np.isfinite(np.asarray(mesh.vertices)).all():
         print(f"error: method {args.method!r} returned an invalid mesh: {'; '.join(invalid)} — nothing written",
               file=sys.stderr)
         return 1

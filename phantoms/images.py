@@ -17,9 +17,9 @@ Orientation
     An image whose direction matrix is a signed permutation (axes swapped or flipped, the usual case for DICOM
     and for NIfTI files written by ITK) is re-oriented — array axes permuted and flipped with
     :func:`nibabel.orientations.apply_orientation` — so that array axis 0 runs along +x with positive spacing.
-    Nothing is resampled.  A direction matrix that rotates or shears the grid (an oblique acquisition: an
-    off-axis component above :data:`AXIS_TOLERANCE`) is refused with a message; resample such an image onto
-    an axis-aligned grid first.
+    Nothing is resampled.  A direction matrix that rotates or shears the grid (an oblique acquisition: an axis
+    more than :data:`AXIS_TOLERANCE_DEG` degrees off its nearest world axis, or two axes that far from
+    perpendicular) is refused with the angle; resample such an image onto an axis-aligned grid first.
 """
 
 from __future__ import annotations
@@ -32,12 +32,13 @@ import numpy as np
 
 from geometry.errors import InputError
 
-__all__ = ["Image", "read_image", "image_suffix", "IMAGE_SUFFIXES", "ITK_SUFFIXES", "AXIS_TOLERANCE"]
+__all__ = ["Image", "read_image", "image_suffix", "IMAGE_SUFFIXES", "ITK_SUFFIXES", "AXIS_TOLERANCE_DEG"]
 
 ITK_SUFFIXES = (".nrrd", ".nhdr", ".mha", ".mhd")
 IMAGE_SUFFIXES = (".npz", ".npy", ".nii", ".nii.gz") + ITK_SUFFIXES
-#: largest off-axis direction-cosine component still read as axis-aligned
-AXIS_TOLERANCE = 1e-4
+#: largest angle (degrees) between a grid axis and the nearest world axis, or between two grid axes and 90°,
+#: still read as axis-aligned (float32 headers round a direction cosine to ~1e-7: 0.01° is far above that)
+AXIS_TOLERANCE_DEG = 0.01
 
 
 @dataclass(frozen=True)
@@ -68,12 +69,16 @@ def _reorient(values: np.ndarray, affine: np.ndarray, path: Path) -> tuple[np.nd
     if not (np.isfinite(A).all() and (norms > 0).all()):
         raise InputError(f"{path}: the image geometry is degenerate (voxel-to-world matrix {R.round(6).tolist()})")
     cosines = R / norms
-    off = np.abs(cosines) * (np.abs(cosines) < 0.5)
-    if off.max() > AXIS_TOLERANCE:
-        angle = float(np.degrees(np.arcsin(min(1.0, off.max()))))
-        raise InputError(f"{path}: the image grid is not axis-aligned (its direction matrix rotates the axes by "
-                         f"about {angle:.2g}°); levelset-bench reads axis-aligned grids only — resample it onto an "
-                         "axis-aligned grid first (e.g. SimpleITK.Resample with an identity direction)")
+    # each grid axis's angle to the world axis nearest it, and the grid axes' angles to each other (a shear)
+    tilt = np.degrees(np.arccos(np.clip(np.abs(cosines).max(axis=0), 0.0, 1.0)))
+    gram = np.clip(np.abs(cosines.T @ cosines) - np.eye(3), 0.0, 1.0)
+    shear = 90.0 - np.degrees(np.arccos(gram.max()))
+    if max(tilt.max(), shear) > AXIS_TOLERANCE_DEG:
+        what = (f"its axes are sheared ({shear:.3g}° from perpendicular)" if shear > AXIS_TOLERANCE_DEG else
+                f"its direction matrix rotates an axis by {tilt.max():.3g}° from the nearest world axis")
+        raise InputError(f"{path}: the image grid is not axis-aligned ({what}; tolerance {AXIS_TOLERANCE_DEG:g}°); "
+                         "levelset-bench reads axis-aligned grids only — resample it onto an axis-aligned grid first "
+                         "(e.g. SimpleITK.Resample with an identity direction)")
     ornt = io_orientation(A)
     A2 = A @ inv_ornt_aff(ornt, values.shape)
     values = apply_orientation(values, ornt)

@@ -80,12 +80,43 @@ def test_flipped_and_swapped_axes_are_reoriented_not_refused(tmp_path):
     assert np.allclose(sorted(got.spacing), [0.5, 0.6, 0.8]) and got.values.sum() == m.sum()
 
 
-def test_an_oblique_grid_is_refused_with_the_angle(tmp_path):
-    th = np.radians(10)
-    d = [[np.cos(th), -np.sin(th), 0], [np.sin(th), np.cos(th), 0], [0, 0, 1]]
-    sitk.WriteImage(itk_image(_marked_sphere(), ORIGIN, SPACING, direction=d), str(tmp_path / "o.nrrd"))
-    with pytest.raises(InputError, match=r"o.nrrd: the image grid is not axis-aligned .*about 10°"):
-        read_image(tmp_path / "o.nrrd")
+def _rotation(degrees: float) -> np.ndarray:
+    th = np.radians(degrees)
+    return np.array([[np.cos(th), -np.sin(th), 0], [np.sin(th), np.cos(th), 0], [0, 0, 1]])
+
+
+@pytest.mark.parametrize("degrees", [5, 20, 30, 45, 60, 70])
+@pytest.mark.parametrize("fmt", ["mha", "nii.gz"])
+def test_an_oblique_grid_is_refused_with_the_angle(tmp_path, degrees, fmt):
+    """Every tilt is refused, with its angle to the nearest world axis (70° is 20° from the next axis): between 30°
+    and 60° both direction cosines of an axis are large, which a test of the small ones alone let through."""
+    path = tmp_path / f"o.{fmt}"
+    d = _rotation(degrees)
+    if fmt == "mha":
+        sitk.WriteImage(itk_image(_marked_sphere(), ORIGIN, SPACING, direction=d.tolist()), str(path))
+    else:
+        aff = np.eye(4)
+        aff[:3, :3] = d * np.asarray(SPACING)[None, :]
+        aff[:3, 3] = ORIGIN
+        nib.save(nib.Nifti1Image(_marked_sphere().astype(np.uint8), aff), str(path))
+    shown = min(degrees, 90 - degrees)
+    with pytest.raises(InputError, match=rf"o.{fmt.replace('.', '[.]')}: the image grid is not axis-aligned "
+                                         rf"\(its direction matrix rotates an axis by {shown:g}° .*tolerance 0.01°"):
+        read_image(path)
+
+
+def test_a_sheared_grid_is_refused(tmp_path):
+    aff = np.diag([1.0, 1.0, 1.0, 1.0])
+    aff[0, 1] = 0.3                                     # the y axis leans towards x: not perpendicular
+    nib.save(nib.Nifti1Image(_marked_sphere().astype(np.uint8), aff), str(tmp_path / "s.nii.gz"))
+    with pytest.raises(InputError, match=r"not axis-aligned \(its axes are sheared \(16.7° from perpendicular\)"):
+        read_image(tmp_path / "s.nii.gz")
+
+
+def test_a_tiny_rounding_of_the_direction_is_still_axis_aligned(tmp_path):
+    d = _rotation(0.001)
+    sitk.WriteImage(itk_image(_marked_sphere(), ORIGIN, SPACING, direction=d.tolist()), str(tmp_path / "r.mha"))
+    assert read_image(tmp_path / "r.mha").values.sum() == _marked_sphere().sum()
 
 
 def test_bad_images_are_one_line_naming_the_file(tmp_path):

@@ -122,6 +122,44 @@ def _drop_singleton_4d(values: np.ndarray, path: Path) -> np.ndarray:
     return values
 
 
+#: how far (relative) a gap between two slices may differ from the series' median slice spacing
+SLICE_GAP_TOLERANCE = 0.01
+
+
+def _check_slice_spacing(path: Path, files) -> None:
+    """Refuse a DICOM series whose slices are not evenly spaced along their normal (a slice missing, a truncated
+    file GDCM left out, a mixed acquisition): ITK would stack them at one spacing and put every slice after the
+    gap at the wrong place.  Each file's ImagePositionPatient (0020|0032) is projected on the slice normal from its
+    ImageOrientationPatient (0020|0037)."""
+    import SimpleITK as sitk
+
+    if len(files) < 3:
+        return
+    positions, normal = [], None
+    reader = sitk.ImageFileReader()
+    for f in files:
+        reader.SetFileName(f)
+        try:
+            reader.ReadImageInformation()
+            pos = np.array([float(t) for t in reader.GetMetaData("0020|0032").split("\\")])
+            if normal is None:
+                o = np.array([float(t) for t in reader.GetMetaData("0020|0037").split("\\")])
+                normal = np.cross(o[:3], o[3:])
+        except (RuntimeError, ValueError, IndexError):
+            raise InputError(f"{path}: slice file {Path(f).name} has no readable position (0020|0032) or "
+                             "orientation (0020|0037); the slices cannot be checked for gaps") from None
+        positions.append(float(pos @ normal))
+    z = np.asarray(positions)
+    gaps = np.abs(np.diff(z))
+    step = float(np.median(gaps))
+    bad = np.flatnonzero(np.abs(gaps - step) > SLICE_GAP_TOLERANCE * step)
+    if step <= 0 or len(bad):
+        i = int(bad[0]) if len(bad) else 0
+        raise InputError(f"{path}: the DICOM slices are not evenly spaced: {gaps[i]:.4g} mm between slice {i + 1} "
+                         f"({Path(files[i]).name}, at {z[i]:.4g} mm) and slice {i + 2} ({Path(files[i + 1]).name}) "
+                         f"against {step:.4g} mm elsewhere — a slice missing or unreadable?")
+
+
 def _itk_image(path: Path, series: str | None):
     import SimpleITK as sitk
 
@@ -137,6 +175,7 @@ def _itk_image(path: Path, series: str | None):
         elif series not in ids:
             raise InputError(f"{path}: no DICOM series {series!r} in the folder; series: {', '.join(ids)}")
         files = sitk.ImageSeriesReader.GetGDCMSeriesFileNames(str(path), series)
+        _check_slice_spacing(path, files)
         reader = sitk.ImageSeriesReader()
         reader.SetFileNames(files)
         return reader.Execute()

@@ -155,3 +155,20 @@ def test_a_dicom_folder_with_two_series_names_them_and_series_picks_one(tmp_path
     assert a.values.sum() == _marked_sphere().sum()
     with pytest.raises(InputError, match="no DICOM series '9.9'"):
         read_image(folder, series="9.9")
+
+
+@pytest.mark.parametrize("how", ["missing", "truncated"])
+def test_a_dicom_series_with_a_gap_is_refused_naming_the_slice(tmp_path, how):
+    folder = write_dicom_series(itk_image(_marked_sphere().astype(np.int16), ORIGIN, SPACING), tmp_path / "dcm")
+    assert read_image(folder).values.shape == _marked_sphere().shape       # whole: read
+    victim = folder / "slice010.dcm"
+    if how == "missing":
+        victim.unlink()
+    else:
+        victim.write_bytes(victim.read_bytes()[:200])
+    with pytest.raises(InputError) as err:
+        read_image(folder)
+    msg = str(err.value)
+    assert "\n" not in msg
+    # GDCM leaves a truncated file out of the series: the same gap either way
+    assert "not evenly spaced: 1.6 mm between slice 10 (slice009.dcm" in msg and "against 0.8 mm" in msg, msg

@@ -352,13 +352,22 @@ def import_plugins(modules) -> None:
     ------
     InputError
         ``cannot import module 'name': <the error>`` for any failure to import (a missing module, an exception
-        the module raises): it is the user's to fix.
+        the module raises, a ``sys.exit()`` at import — which would otherwise end the command silently with
+        the module's exit code): it is the user's to fix.  The error is one line.
     """
     for mod in modules:
         try:
             importlib.import_module(mod)
+        except SystemExit as exc:  # not a command-line exit: the plug-in's own, at import
+            raise InputError(f"cannot import module {mod!r}: it called sys.exit({exc.code!r}) at import "
+                             "(a plug-in module must not exit)") from None
         except Exception as exc:  # noqa: BLE001 - whatever the module raised, the user names the module
-            raise InputError(f"cannot import module {mod!r}: {exc}") from None
+            raise InputError(f"cannot import module {mod!r}: {_one_line(exc)}") from None
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception's text on one line (a message with newlines joined by spaces), or its type if it has none."""
+    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def _load(target: str) -> type[Method]:
@@ -390,8 +399,13 @@ def available_methods() -> dict[str, type[Method]]:
     for ep in _ENTRY_POINTS[key]:
         try:
             cls = ep.load()
+        except SystemExit as exc:  # sys.exit() at import must not end the command silently either
+            warnings.warn(f"plug-in method {ep.name!r} ({ep.value}) failed to load: it called "
+                          f"sys.exit({exc.code!r}) at import", stacklevel=2)
+            continue
         except Exception as exc:  # a broken plug-in must not take the suite down
-            warnings.warn(f"plug-in method {ep.name!r} ({ep.value}) failed to load: {exc}", stacklevel=2)
+            warnings.warn(f"plug-in method {ep.name!r} ({ep.value}) failed to load: {_one_line(exc)}",
+                          stacklevel=2)
             continue
         if isinstance(cls, type) and issubclass(cls, Method):
             out[cls.name or ep.name] = cls

@@ -98,3 +98,44 @@ def test_check_volume_accepts_a_volume_with_a_surface_and_names_the_method_other
         check_volume(np.zeros((8, 8, 8)), "m")
     with pytest.raises(InputError, match="'m'"):
         check_volume(Volume(np.ones((8, 8, 8))), "m")
+
+
+# ----------------------------------------------------------------- a plug-in module that exits at import (issue 40)
+EXITS_AT_IMPORT = {"exits_zero": "import sys\nsys.exit(0)\n",
+                   "exits_msg": "raise SystemExit('bye from the plug-in')\n",
+                   "fails_two_lines": "raise RuntimeError('first line\\nsecond line')\n"}
+
+
+@pytest.fixture()
+def exiting_modules(tmp_path, monkeypatch):
+    for name, text in EXITS_AT_IMPORT.items():
+        (tmp_path / f"{name}.py").write_text(text)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return tmp_path
+
+
+@pytest.mark.parametrize("module, says", [("exits_zero", "it called sys.exit(0) at import"),
+                                          ("exits_msg", "it called sys.exit('bye from the plug-in') at import"),
+                                          ("fails_two_lines", "first line second line")])
+def test_a_module_exiting_or_failing_at_import_is_one_input_error_naming_it(exiting_modules, module, says):
+    from methods import import_plugins
+    from phantoms import InputError
+
+    with pytest.raises(InputError) as err:
+        import_plugins(["json", module])
+    assert str(err.value) == f"cannot import module {module!r}: {says}" + (
+        " (a plug-in module must not exit)" if module.startswith("exits") else "")
+
+
+@pytest.mark.parametrize("command", [["methods"], ["run", "--quick", "--dry-run"]])
+@pytest.mark.parametrize("module", ["exits_zero", "exits_msg"])
+def test_methods_and_run_with_such_a_module_exit_2_on_one_line(exiting_modules, tmp_path, command, module):
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(exiting_modules), str(REPO)]), PYTHONWARNINGS="ignore")
+    out = tmp_path / "run"
+    extra = ["--out", str(out)] if command[0] == "run" else []
+    r = subprocess.run([sys.executable, "-m", "bench", *command, "--import", module, *extra], cwd=REPO, env=env,
+                       capture_output=True, text=True, timeout=300)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, (r.returncode, r.stdout, r.stderr)
+    assert lines[0].startswith("error: ") and f"module {module!r}" in lines[0] and "sys.exit(" in lines[0]
+    assert not out.exists()

@@ -27,6 +27,35 @@ def test_help_on_every_subcommand(capsys):
     assert r.returncode == 0 and "usage:" in r.stdout, r.stderr
 
 
+@pytest.mark.parametrize("args, says", [
+    (["run", "--quick", "--dry-run", "--memory-limit", "-1"], "argument --memory-limit: must be a finite number >= 0"),
+    (["run", "--quick", "--dry-run", "--timeout", "-5"], "argument --timeout: must be a finite number >= 0: '-5'"),
+    (["volume", "sphere", "-o", "x.npz", "--snr", "nan"], "argument --snr: must be finite: 'nan'"),
+    (["table", "--format", "xml", "somewhere"], "argument --format: invalid choice: 'xml'"),
+    (["run", "--config", "g.toml", "--quick"], "argument --quick: not allowed with argument --config"),
+    (["info"], "the following arguments are required: file"),
+    (["nosuch"], "argument COMMAND: invalid choice: 'nosuch'"),
+    (["run", "--quick", "--bogus\n\x1b[2J"], "unrecognized arguments: --bogus\\n\\x1b[2J"),
+])
+def test_an_argparse_error_is_one_line_and_exit_2(args, says, capsys):
+    """argparse's own errors as every other error: one line (no usage block), control characters and newlines of
+    the command line shown escaped, exit 2 — and where the usage is."""
+    with pytest.raises(SystemExit) as exc:
+        main(args)
+    captured = capsys.readouterr()
+    lines = captured.err.splitlines()
+    assert exc.value.code == 2 and captured.out == "" and len(lines) == 1, captured.err
+    assert lines[0].startswith("error: ") and says in lines[0] and "usage: python -m bench" in lines[0], lines[0]
+    assert "\x1b" not in captured.err
+
+
+def test_an_argparse_error_through_python_m_bench():
+    r = run("run", "--timeout", "-5")
+    assert r.returncode == 2 and r.stdout == "", r
+    assert r.stderr == ("error: argument --timeout: must be a finite number >= 0: '-5' "
+                        "(usage: python -m bench run --help)\n")
+
+
 def test_phantoms_lists_every_phantom(capsys):
     assert main(["phantoms"]) == 0
     out = capsys.readouterr().out

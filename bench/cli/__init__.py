@@ -3,7 +3,9 @@
 Each room registers its subcommands (``register(subparsers)``): :mod:`.volumes` (phantoms, volume, info),
 :mod:`.run` (run, report), :mod:`.methods` (methods, reconstruct), :mod:`.check` (check-method), :mod:`.perf` (perf),
 :mod:`.compare` (compare), :mod:`.table` (table).  Errors a user can fix
-(:class:`phantoms.InputError`) print one line on stderr and exit with code 2, never a traceback.
+(:class:`phantoms.InputError`) print one line on stderr and exit with code 2, never a traceback; so do argparse's
+own (a bad option value, an unknown choice, two exclusive options): :class:`OneLineParser` prints the error and
+where the usage is, not argparse's usage block.
 """
 
 from __future__ import annotations
@@ -27,10 +29,19 @@ from . import volumes as _volumes
 EXIT_USAGE = 2
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one line on stderr and exit 2, as every other error of the command
+    line (argparse prints a 5–11-line usage block first).  Subcommand parsers inherit the class
+    (``add_subparsers`` makes its parsers of the parent's type); ``--help`` is unchanged."""
+
+    def error(self, message: str):
+        line = printable(message).replace("\n", "\\n").replace("\t", "\\t")  # argv text can hold newlines
+        self.exit(EXIT_USAGE, f"error: {line} (usage: {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m bench",
-                                     description="levelset-bench: benchmark surface reconstruction from "
-                                                 "level-set volumes.")
+    parser = OneLineParser(prog="python -m bench",
+                           description="levelset-bench: benchmark surface reconstruction from level-set volumes.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for room in (_volumes, _run, _methods, _check, _perf, _compare, _table):

@@ -172,3 +172,36 @@ def test_a_dicom_series_with_a_gap_is_refused_naming_the_slice(tmp_path, how):
     assert "\n" not in msg
     # GDCM leaves a truncated file out of the series: the same gap either way
     assert "not evenly spaced: 1.6 mm between slice 10 (slice009.dcm" in msg and "against 0.8 mm" in msg, msg
+
+
+def test_a_sheared_mha_is_refused_too(tmp_path):
+    d = np.eye(3)
+    d[:, 1] = [0.3, 1.0, 0.0]                            # ITK stores any direction matrix: y leans towards x
+    d[:, 1] /= np.linalg.norm(d[:, 1])
+    sitk.WriteImage(itk_image(_marked_sphere(), ORIGIN, SPACING, direction=d.tolist()), str(tmp_path / "s.mha"))
+    with pytest.raises(InputError, match=r"s.mha: .*not axis-aligned \(its axes are sheared \(16.7° from perp"):
+        read_image(tmp_path / "s.mha")
+
+
+def test_a_dicom_series_with_one_slice_out_of_place_is_refused_naming_it(tmp_path):
+    """No slice missing, but slice011.dcm 0.3 mm off its place along the normal (0020|0032 rewritten)."""
+    import locale
+
+    folder = write_dicom_series(itk_image(_marked_sphere().astype(np.int16), ORIGIN, SPACING), tmp_path / "dcm")
+    victim = str(folder / "slice011.dcm")
+    sl = sitk.ReadImage(victim)
+    x, y, z = (float(t) for t in sl.GetMetaData("0020|0032").split("\\"))
+    sl.SetMetaData("0020|0032", f"{x:.6f}\\{y:.6f}\\{z + 0.3:.6f}")
+    saved = locale.setlocale(locale.LC_ALL)
+    try:
+        writer = sitk.ImageFileWriter()
+        writer.KeepOriginalImageUIDOn()
+        writer.SetFileName(victim)
+        writer.Execute(sl)
+    finally:
+        locale.setlocale(locale.LC_ALL, saved)
+    with pytest.raises(InputError) as err:
+        read_image(folder)
+    msg = str(err.value)
+    assert "\n" not in msg and "not evenly spaced: 1.1 mm between slice 11 (slice010.dcm" in msg, msg
+    assert "slice 12 (slice011.dcm)" in msg and "against 0.8 mm" in msg, msg

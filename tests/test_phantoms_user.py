@@ -191,3 +191,47 @@ def test_an_intensity_image_as_truth_is_refused(tmp_path):
                 .astype(np.float32))
     with pytest.raises(InputError, match="non-integer values .*an intensity image, not a label map"):
         get_phantom(f"volume:{nii}?truth={ct}")
+
+
+def _oblique_nifti(path, degrees: float):
+    th = np.radians(degrees)
+    aff = np.eye(4)
+    aff[:3, :3] = [[np.cos(th), -np.sin(th), 0], [np.sin(th), np.cos(th), 0], [0, 0, 1]]
+    nib.save(nib.Nifti1Image(sphere_mask().astype(np.uint8), aff), str(path))
+    return path
+
+
+@pytest.mark.parametrize("degrees", [5, 20, 45, 70])
+def test_an_oblique_volume_or_truth_is_refused_with_its_angle_and_info_exits_2(tmp_path, degrees, capsys):
+    """The user's phantom and ``info`` read through phantoms/images.py: an oblique grid is never a volume with a
+    wrong spacing (issue 40: 45° used to be read at spacing 0.707 × the true one)."""
+    from bench.cli import main
+
+    shown = f"{min(degrees, 90 - degrees):g}°"
+    obl = _oblique_nifti(tmp_path / "obl.nii.gz", degrees)
+    with pytest.raises(InputError, match=rf"obl.nii.gz: the image grid is not axis-aligned .* {shown} .*tolerance"):
+        get_phantom(f"volume:{obl}")
+    seg = _nifti(tmp_path / "seg.nii.gz", sphere_mask().astype(np.uint8))
+    with pytest.raises(InputError, match=rf"obl.nii.gz: the image grid is not axis-aligned .* {shown} "):
+        get_phantom(f"volume:{seg}?truth={obl}")
+    capsys.readouterr()
+    assert main(["info", str(obl)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and shown in err[0], err
+
+
+def test_a_gapped_dicom_series_as_a_volume_is_refused_naming_the_slice(tmp_path, capsys):
+    from _volumes import itk_image, write_dicom_series
+
+    from bench.cli import main
+
+    folder = write_dicom_series(itk_image(sphere_mask().astype(np.int16), (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)),
+                                tmp_path / "dcm")
+    assert get_phantom(f"volume:{folder}").volume().values.shape == sphere_mask().shape
+    (folder / "slice007.dcm").unlink()
+    with pytest.raises(InputError, match=r"not evenly spaced: 2 mm between slice 7 \(slice006.dcm"):
+        get_phantom(f"volume:{folder}")
+    capsys.readouterr()
+    assert main(["info", str(folder)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "slice006.dcm" in err[0], err

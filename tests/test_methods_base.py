@@ -139,3 +139,17 @@ def test_methods_and_run_with_such_a_module_exit_2_on_one_line(exiting_modules, 
     assert r.returncode == 2 and len(lines) == 1, (r.returncode, r.stdout, r.stderr)
     assert lines[0].startswith("error: ") and f"module {module!r}" in lines[0] and "sys.exit(" in lines[0]
     assert not out.exists()
+
+
+def test_an_entry_point_exiting_at_import_is_a_warning_not_the_end(exiting_modules, monkeypatch):
+    from methods import available_methods
+    from methods import base as methods_base
+
+    info = exiting_modules / "exits-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: exits\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[levelset_bench.methods]\nexits = exits_zero:Nope\n")
+    monkeypatch.setattr(methods_base, "_ENTRY_POINTS", {})
+    with pytest.warns(UserWarning, match=r"'exits' \(exits_zero:Nope\) failed to load: it called sys.exit\(0\)"):
+        methods = available_methods()
+    assert "marching_cubes" in methods and "exits" not in methods

@@ -50,6 +50,7 @@ BUILTIN_METHODS: dict[str, str] = {
     "surface_nets": "methods.surface_nets:SurfaceNets",
     "slicer": "methods.slicer:Slicer",
     "mc_smoothed_mask": "methods.mc_smoothed_mask:MCSmoothedMask",
+    "zmesh": "methods.zmesh_mc:ZMesh",
     "mesh_file": "methods.mesh_file:MeshFile",
 }
 

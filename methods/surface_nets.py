@@ -1,12 +1,21 @@
 """3D Slicer's newer label-map option and VTK's: SurfaceNets (Frisken, "SurfaceNets for multi-label
-segmentations with preservation of sharp boundaries", JCGT 2022), VTK's ``vtkSurfaceNets3D``.
+segmentations with preservation of sharp boundaries", JCGT 2022), VTK's ``vtkSurfaceNets3D`` (VTK ≥ 9.3).
 
 One vertex per boundary cell of the label map (voxels are the grid points), placed at the cell's centre and
 then moved by VTK's constrained smoothing — each vertex stays within a box of ``constraint_scale`` ×
-``constraint_distance`` around its cell, so the surface cannot shrink away from the voxels as unconstrained
-smoothing does.  The mask is the volume's ``raw`` image at its ``level`` (a signed distance: φ < 0), padded by
-one outside voxel; the filter works in world units (the real, possibly anisotropic spacing); quads are output
-as triangles.  The defaults are VTK's (16 iterations, relaxation 0.5, constraint distance 0.001 and scale 2).
+``constraint_distance`` around its cell, so the surface cannot drift far from the voxels as unconstrained
+smoothing does.  The label map is 1 on the volume's inside voxels (:attr:`phantoms.Volume.inside_raw`: ``raw >
+level`` for a mask or an intensity image; for a signed distance the mask φ < 0), 0 elsewhere, padded by one
+background voxel; only the boundary between label 1 and the background 0 is extracted, in world units (the real,
+possibly anisotropic spacing), as triangles (VTK's default output is quads).  The defaults are VTK's (16
+iterations, relaxation 0.5, constraint distance 0.001 and scale 2).
+
+Making the mesh closed and manifold: where inside voxels touch only along an edge beside other inside voxels
+(a speckled or noisy mask) VTK splits the shared vertices into copies and leaves a slit — a loop of four boundary
+edges — between them.  Those loops are closed by fans (:func:`methods.labelmap.close_seams`; ``info
+['seams_closed']``); if the mesh is still not closed and edge-manifold, the mask is remeshed with every such edge
+contact filled by one voxel (:func:`methods.labelmap.fill_edge_contacts`; ``info['voxels_added']``, and a
+warning).  The faces are then oriented outward.
 """
 
 from __future__ import annotations
@@ -17,8 +26,8 @@ import numpy as np
 
 from phantoms import Volume
 
-from .base import Method, Param, Reconstruction
-from .labelmap import closed_mesh, from_vtk, padded_labels, vtk_image, vtk_modules
+from .base import Method, Param, Reconstruction, ReconstructionFailed
+from .labelmap import close_seams, closed_mesh, fill_edge_contacts, from_vtk, padded_labels, vtk_image, vtk_modules
 
 __all__ = ["SurfaceNets"]
 
@@ -37,13 +46,11 @@ class SurfaceNets(Method):
     }
     relative_cost = 0.5
 
-    def reconstruct(self, volume: Volume) -> Reconstruction:
-        vtk_modules(self.name)
+    def _nets(self, labels: np.ndarray, origin, spacing) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices, triangles) of vtkSurfaceNets3D on ``labels``: label 1 against background 0, world units."""
         from vtkmodules.vtkFiltersCore import vtkSurfaceNets3D
 
-        t0 = time.perf_counter()
-        labels, origin = padded_labels(volume, self.name)
-        image = vtk_image(labels, origin, volume.spacing)
+        image = vtk_image(labels, origin, spacing)
         nets = vtkSurfaceNets3D()
         nets.SetInputData(image)
         nets.SetNumberOfLabels(1)
@@ -56,9 +63,35 @@ class SurfaceNets(Method):
         nets.SetConstraintDistance(float(self.config["constraint_distance"]))
         nets.SetConstraintScale(float(self.config["constraint_scale"]))
         nets.Update()
-        vertices, faces = from_vtk(nets.GetOutput())
-        mesh = closed_mesh(vertices, faces, self.name)
-        del image, labels
-        return Reconstruction(mesh, {"iterations": int(self.config["iterations"]) if self.config["smoothing"] else 0,
-                                     "stop_reason": "done", "input_kind": volume.kind,
-                                     "wall_nets_s": time.perf_counter() - t0})
+        return from_vtk(nets.GetOutput())
+
+    def _closed(self, labels: np.ndarray, origin, spacing):
+        """(mesh, loops closed, is it closed and edge-manifold) of ``labels``."""
+        vertices, faces = self._nets(labels, origin, spacing)
+        if len(faces):
+            faces, loops = close_seams(faces)
+        else:
+            loops = 0
+        mesh = closed_mesh(vertices, faces, self.name, merge=False)
+        return mesh, loops, bool(mesh.is_watertight and mesh.is_winding_consistent)
+
+    def reconstruct(self, volume: Volume) -> Reconstruction:
+        vtk_modules(self.name)
+        t0 = time.perf_counter()
+        labels, origin = padded_labels(volume, self.name)
+        mesh, loops, ok = self._closed(labels, origin, volume.spacing)
+        added, warnings = 0, []
+        if not ok:
+            filled, added = fill_edge_contacts(labels)
+            mesh, loops, ok = self._closed(filled, origin, volume.spacing)
+            warnings.append(f"the mask's edge contacts left SurfaceNets' mesh open: {added} voxels were added "
+                            f"({added / max(int(labels.sum()), 1):.2%} of the inside) to close it")
+        if not ok:
+            raise ReconstructionFailed(f"method {self.name!r}: VTK's SurfaceNets mesh is not closed and "
+                                       "edge-manifold even after filling the mask's edge contacts")
+        info = {"iterations": int(self.config["iterations"]) if self.config["smoothing"] else 0,
+                "stop_reason": "done", "input_kind": volume.kind, "seams_closed": loops, "voxels_added": added,
+                "wall_nets_s": time.perf_counter() - t0}
+        if warnings:
+            info["warnings"] = warnings
+        return Reconstruction(mesh, info)

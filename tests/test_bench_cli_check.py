@@ -33,10 +33,8 @@ def broken(monkeypatch):
 
 #: built-ins that check-method fails, for limits of the method itself (measured; the failure is asserted, so a fix
 #: shows up as an unexpected pass)
-KNOWN_FAILURES: dict[str, str] = {
-    "surface_nets": "VTK's SurfaceNets leaves holes where two mask voxels touch only along an edge (the noisy "
-                    "case's speckled mask: 12 boundary edges); in a grid such a mesh is an invalid row",
-}
+KNOWN_FAILURES: dict[str, str] = {}      # none at the moment (dual contouring, Reach for the Spheres and surface_nets
+                                         # on a speckled mask were)
 
 
 #: built-ins whose five cases take over 10 s (iterative peers): their check runs with the heavy tests

@@ -9,6 +9,7 @@ import numpy as np
 
 import json
 
+from bench.run.integrity import seal
 from bench.run.store import CELLS_DIR, write_json, write_results_csv
 
 METHODS = ("marching_cubes", "mc_taubin", "poisson", "distmesh", "shape_gradient")
@@ -22,8 +23,10 @@ def _mesh(rng, n_sub: int = 2):
     return v.astype(np.float32), np.asarray(m.faces, np.int32)
 
 
-def write_synthetic_run(out: Path, n_shapes: int = 100, seeds: int = 5, noise=("none", "gaussian")) -> int:
-    """``n_shapes`` × noise settings × ``seeds`` (clean: one) × 5 methods cells; returns the number of cells."""
+def write_synthetic_run(out: Path, n_shapes: int = 100, seeds: int = 5, noise=("none", "gaussian"),
+                        sealed: bool = False) -> int:
+    """``n_shapes`` × noise settings × ``seeds`` (clean: one) × 5 methods cells; returns the number of cells.
+    ``sealed``: each record carries its checksum, as the runner writes it (bench.run.integrity.seal)."""
     rng = np.random.default_rng(0)
     out = Path(out)
     (out / CELLS_DIR).mkdir(parents=True, exist_ok=True)
@@ -53,6 +56,8 @@ def write_synthetic_run(out: Path, n_shapes: int = 100, seeds: int = 5, noise=("
                              H=np.ones(len(v), np.float32))
                     records[cid] = {"row": row, "cell": cell, "traceback": None, "artifacts": ["H", "faces", "vertices"],
                                     "code": None}
+                    if sealed:
+                        records[cid] = seal(records[cid], out / CELLS_DIR / f"{cid}.npz")
                     (out / CELLS_DIR / f"{cid}.json").write_text(json.dumps(records[cid]))
                     rows.append(row)
                     cells.append(cell)

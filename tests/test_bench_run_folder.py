@@ -136,11 +136,90 @@ def test_resume_recomputes_an_edited_cell_and_says_so(run_folder, tmp_path, caps
     assert main(["report", str(out)]) == 0
 
 
-def test_records_without_a_checksum_are_accepted_as_unchecked(run_folder, tmp_path, capsys):
+def _strip_seal(path, hausdorff=None):
+    rec = json.loads(path.read_text())
+    del rec["checksum"]
+    if hausdorff is not None:
+        rec["row"]["hausdorff"] = hausdorff
+    path.write_text(json.dumps(rec, indent=1))
+
+
+def test_a_record_whose_checksum_was_deleted_is_altered_and_accept_unsealed_seals_an_old_folder(
+        run_folder, tmp_path, capsys):
     out = _copy(run_folder, tmp_path)
-    for path in (out / "cells").glob("*.json"):
-        rec = json.loads(path.read_text())
-        del rec["checksum"]
-        path.write_text(json.dumps(rec, indent=1))
+    for path in (out / "cells").glob("*.json"):          # a folder written before seals existed
+        _strip_seal(path)
+    assert main(["report", str(out)]) == 2
+    _one_error(capsys, "has no seal", "--accept-unsealed", "--resume")
+    assert main(["report", str(out), "--accept-unsealed"]) == 0
+    assert "sealed 3 cell record(s) written before seals" in capsys.readouterr().err
+    assert main(["report", str(out)]) == 0                 # sealed for good
+    assert all("sealed_later" in json.loads(p.read_text())["checksum"] for p in (out / "cells").glob("*.json"))
+
+
+def test_accept_unsealed_still_refuses_a_record_that_disagrees_with_the_table(run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    cid = _first_cell(out)
+    for path in (out / "cells").glob("*.json"):          # an old folder, one record edited by hand
+        _strip_seal(path, hausdorff=123 if path.stem == cid else None)
+    assert main(["report", str(out), "--accept-unsealed"]) == 2       # not sealed: its value is not the truth
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2 and "sealed 2 cell record(s)" in err[0] and "left 1 unsealed that disagree" in err[0]
+    assert err[1].startswith("error: ") and f"{cid}.json has no seal" in err[1] and "--resume" in err[1]
+    assert "checksum" not in json.loads((out / "cells" / f"{cid}.json").read_text())
+
+
+def test_resume_recomputes_a_forged_record_without_its_checksum(run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    cid = _first_cell(out)
+    _strip_seal(out / "cells" / f"{cid}.json", hausdorff=123)
+    assert main(["run", "--resume", "--out", str(out), "--jobs", "1", "--no-report"]) == 0
+    assert f"{cid}.json has no seal" in capsys.readouterr().err
+    with open(out / "results.csv", newline="") as fh:
+        assert float({r["cell_id"]: r for r in csv.DictReader(fh)}[cid]["hausdorff"]) != 123
     assert main(["report", str(out)]) == 0
-    assert "3 cell record(s) predate checksums and are unchecked" in capsys.readouterr().err
+
+
+def test_a_stray_record_claiming_an_existing_cell_does_not_win_on_resume(run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    cid = _first_cell(out)
+    with open(out / "results.csv", newline="") as fh:
+        true = float(next(csv.DictReader(fh))["hausdorff"])
+    stray = out / "cells" / "zzz_copy.json"               # sorted after the real one: it read last
+    rec = json.loads((out / "cells" / f"{cid}.json").read_text())
+    stray.write_text(json.dumps(rec))                      # a valid seal, but not this file's cell
+    assert main(["table", str(out)]) == 2
+    _one_error(capsys, f"zzz_copy.json claims cell {cid}")
+    _strip_seal(stray, hausdorff=123)
+    assert main(["run", "--resume", "--out", str(out), "--jobs", "1", "--no-report"]) == 0
+    err = capsys.readouterr().err
+    assert "set aside" in err and "zzz_copy" in err and "the cell will be rerun" not in err
+    with open(out / "results.csv", newline="") as fh:
+        assert float({r["cell_id"]: r for r in csv.DictReader(fh)}[cid]["hausdorff"]) == true
+    assert not stray.exists() and stray.with_name("zzz_copy.json.rejected").exists()
+    assert main(["report", str(out)]) == 0
+
+
+# ---------------------------------------------------------------------------------------------- tables vs records
+def _csv_rows(out):
+    with open(out / "results.csv", newline="") as fh:
+        return list(csv.reader(fh))
+
+
+def _write_csv(out, rows):
+    with open(out / "results.csv", "w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
+
+
+def test_report_refuses_a_results_csv_that_disagrees_with_the_records_and_force_lists_it(
+        run_folder, tmp_path, capsys):
+    out = _copy(run_folder, tmp_path)
+    rows = _csv_rows(out)
+    col = rows[0].index("hausdorff_h")
+    rows[2][col] = str(float(rows[2][col]) / 2)
+    _write_csv(out, rows)
+    assert main(["report", str(out)]) == 2
+    _one_error(capsys, f"{rows[2][0]}: hausdorff_h is", "in results.csv", "in its record", "--force")
+    assert not (out / "index.html").exists()
+    assert main(["report", str(out), "--force"]) == 0
+    assert f"{rows[2][0]}: hausdorff_h is" in (out / "index.html").read_text()

@@ -1,5 +1,5 @@
 """Tests of ``bench.run.integrity``: :func:`seal` and :func:`record_problem` find an altered record, altered or
-missing arrays, and call a record without a checksum unchecked; :func:`file_sha256`."""
+missing arrays, and call a record without a checksum unsealed (altered, not "older"); :func:`file_sha256`."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 
-from bench.run.integrity import UNCHECKED, file_sha256, record_problem, seal
+from bench.run.integrity import UNSEALED, file_sha256, record_problem, seal
 from bench.run.values import plain
 
 
@@ -37,8 +37,9 @@ def test_an_edited_record_and_altered_or_missing_arrays_are_found(tmp_path):
     assert record_problem(rec, npz) == "lost its arrays: cell.npz is missing"
 
 
-def test_a_record_without_checksum_is_unchecked_and_one_without_arrays_needs_none(tmp_path):
-    assert record_problem({"row": {}}, tmp_path / "x.npz") == UNCHECKED
+def test_a_record_without_checksum_is_unsealed_and_one_without_arrays_needs_none(tmp_path):
+    assert record_problem({"row": {}}, tmp_path / "x.npz") == UNSEALED
+    assert "checksum was removed" in UNSEALED
     rec, npz = _written(tmp_path, {"row": {}}, with_npz=False)
     assert rec["checksum"]["npz"] is None and record_problem(rec, npz) is None
     assert "altered" in record_problem({**rec, "checksum": "junk"}, npz)
@@ -49,3 +50,10 @@ def test_file_sha256(tmp_path):
     p.write_bytes(b"abc" * 1000)
     assert file_sha256(p) == hashlib.sha256(b"abc" * 1000).hexdigest()
     assert file_sha256(tmp_path / "missing") is None
+
+
+def test_without_an_npz_path_only_the_record_is_checked(tmp_path):
+    rec, npz = _written(tmp_path, {"row": {"hausdorff": 0.1}})
+    npz.unlink()
+    assert record_problem(rec, None) is None                       # what table / compare need
+    assert "altered" in record_problem({**rec, "row": {"hausdorff": 0.2}}, None)

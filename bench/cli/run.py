@@ -114,7 +114,11 @@ def register(subparsers) -> None:
                                           "DIR/run.json (e.g. after an interrupted run).")
     r.add_argument("dir", metavar="DIR")
     r.add_argument("--force", action="store_true",
-                   help="render even when cell files are missing or altered (the page lists them at the top)")
+                   help="render even when cell files are missing or altered, or the results tables disagree with "
+                        "the sealed cell records (the page lists them at the top)")
+    r.add_argument("--accept-unsealed", action="store_true",
+                   help="seal, once, the cell records of a folder written before seals existed (records with no "
+                        "checksum are otherwise treated as altered)")
     r.set_defaults(func=_cmd_report)
 
 
@@ -270,18 +274,19 @@ def _cmd_report(args) -> int:
         raise InputError(f"{str(out)!r} holds no results.csv (not a run folder)")
     if not os.access(out, os.W_OK):
         raise InputError(f"{str(out)!r} is not writable")
-    from ..run.store import check_run_folder
+    from ..run.audit import check_run_folder, refuse_damaged, seal_unsealed
 
-    problems, unchecked = check_run_folder(out)      # also reads results.csv strictly: exit 2 on a damaged one
-    if problems and not args.force:
-        shown = "; ".join(problems[:10]) + (f"; ... {len(problems) - 10} more" if len(problems) > 10 else "")
-        raise InputError(f"{str(out)!r}: {len(problems)} cell file(s) missing or altered: {shown}; recompute "
-                         f"them with `python -m bench run --resume --out {out}`, or render anyway with --force")
-    path = write_report(out, problems=problems)
-    if unchecked:
-        print(f"note: {unchecked} cell record(s) predate checksums and are unchecked", file=sys.stderr)
-    if problems:
-        print(printable(f"warning: {len(problems)} cell file(s) missing or altered, listed at the top of the page"),
+    if args.accept_unsealed:
+        sealed, refused = seal_unsealed(out)
+        print(f"sealed {len(sealed)} cell record(s) written before seals (--accept-unsealed)"
+              + (f"; left {len(refused)} unsealed that disagree with the results tables" if refused else ""),
               file=sys.stderr)
+    problems = check_run_folder(out)    # records and tables (a malformed results.csv: exit 2 with its line)
+    if not args.force:
+        refuse_damaged(out, problems, ", or render anyway with --force")
+    path = write_report(out, problems=problems)
+    if problems:
+        print(printable(f"warning: {len(problems)} problem(s) against the sealed cell records, listed at the top "
+                        "of the page"), file=sys.stderr)
     print(f"wrote {path}")
     return 0

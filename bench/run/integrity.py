@@ -3,8 +3,10 @@
 :func:`seal` adds ``record["checksum"] = {"record": sha256, "npz": sha256 | None}`` as the record is written:
 ``record`` is the SHA-256 of the canonical JSON (sorted keys, no spaces) of the record without its checksum —
 computed on the record as it reads back from JSON, so the value reads the same after the round trip — and
-``npz`` the SHA-256 of the cell's ``.npz`` file.  :func:`record_problem` checks both; a record written before
-checksums (no ``checksum`` key) is *unchecked*, which is not an error.
+``npz`` the SHA-256 of the cell's ``.npz`` file.  :func:`record_problem` checks both.  A record without a
+``checksum`` key is *unsealed*: treated as altered (deleting the key must not bypass the seal).  A run folder
+written before seals existed is sealed once, explicitly, by ``python -m bench report DIR --accept-unsealed``
+(:func:`bench.run.audit.seal_unsealed`).
 """
 
 from __future__ import annotations
@@ -15,9 +17,10 @@ from pathlib import Path
 
 from .values import plain
 
-__all__ = ["seal", "record_problem", "file_sha256", "UNCHECKED"]
+__all__ = ["seal", "record_problem", "file_sha256", "UNSEALED"]
 
-UNCHECKED = "unchecked"   # record_problem's answer for a record without a checksum
+#: record_problem's answer for a record without a checksum
+UNSEALED = "has no seal (its checksum was removed, or it was written before seals)"
 
 
 def _canonical(record: dict) -> bytes:
@@ -46,16 +49,17 @@ def seal(record: dict, npz: Path | None) -> dict:
     return sealed
 
 
-def record_problem(record: dict, npz: Path) -> str | None:
+def record_problem(record: dict, npz: Path | None) -> str | None:
     """Why ``record`` (read from ``cells/<id>.json``) or its ``npz`` is not what was written — a sentence
-    naming the file — :data:`UNCHECKED` for a record without a checksum, None when both match."""
+    naming the file — :data:`UNSEALED` for a record without a checksum, None when both match (``npz`` None:
+    the record alone is checked)."""
     checksum = record.get("checksum")
     if checksum is None:
-        return UNCHECKED
+        return UNSEALED
     if not isinstance(checksum, dict) or hashlib.sha256(_canonical(record)).hexdigest() != checksum.get("record"):
         return "was altered after it was written (checksum mismatch)"
     want = checksum.get("npz")
-    if want is None:
+    if want is None or npz is None:
         return None
     got = file_sha256(npz)
     if got is None:

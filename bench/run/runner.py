@@ -31,7 +31,10 @@ from .provenance import environment
 from .identity import MixedCodeError, changed_methods, config_fingerprint, code_identity, mixed_code
 from .inputs import ExecutorSpec, check_run_inputs
 from .lock import RunLock
-from .store import CACHE_DIR, clean_temp_files, read_json, save_cell, scan_cells, write_json, write_results_csv
+from .audit import REJECTED, set_aside
+from .integrity import UNSEALED
+from .store import (CACHE_DIR, IGNORED, clean_temp_files, read_json, save_cell, scan_cells, write_json,
+                    write_results_csv)
 
 __all__ = ["run_grid", "RunSummary", "time_limits", "memory_limit"]
 
@@ -212,17 +215,23 @@ def memory_limit(cfg, memory_gb: float | None, jobs: int) -> float | None:
 
 
 def _load_done(out: Path, cells: list[Cell], resume: bool, retry_failed: bool,
-               allow_mixed_code: bool) -> tuple[dict, dict, dict]:
+               allow_mixed_code: bool) -> tuple[dict, dict, dict, dict]:
     """The finished cells to keep (verified: a cell whose json or npz does not load is rerun, with a warning;
     a cell whose plug-in method's code changed since is rerun, with a note per method), ``{code: cells}`` when
     several versions of the code are (or would be) mixed, and ``{method: cells rerun}`` of the changed plug-ins.
-    That the folder's config gives the same grid was checked before the run (:func:`check_run_inputs`)."""
+    That the folder's config gives the same grid was checked before the run (:func:`check_run_inputs`).
+    Last, ``{cell_id: checksum}`` of every sealed record found (:func:`~bench.run.audit.set_aside` keeps those)."""
     if not resume:
-        return {}, {}, {}
+        return {}, {}, {}, {}
     ids = {c.cell_id for c in cells}
     found, problems = scan_cells(out, verify_artifacts=True)
-    for msg in problems:
-        print(printable(f"warning: {msg}; the cell will be rerun"), file=sys.stderr)
+    for msg in problems:   # an unsealed or altered record is recomputed, never copied into results.csv
+        tail = "" if msg.endswith(f"{IGNORED})") else "; the cell will be rerun"
+        print(printable(f"warning: {msg}{tail}"), file=sys.stderr)
+    if any(UNSEALED in msg for msg in problems):
+        print(printable(f"note: records written before seals are sealed once with `python -m bench report {out} "
+                        "--accept-unsealed` (instead of being recomputed)"), file=sys.stderr)
+    known = {cid: rec.get("checksum") for cid, rec in found.items()}
     records = {k: v for k, v in found.items() if k in ids}
     if retry_failed:
         records = {k: v for k, v in records.items() if v["row"].get("status") == "ok"}
@@ -238,7 +247,19 @@ def _load_done(out: Path, cells: list[Cell], resume: bool, retry_failed: bool,
                              "--out, or pass --allow-mixed-code to mix them (run.json and the report say so)")
     for method, entry in changed.items():
         print(printable(_changed_note(method, entry)), file=sys.stderr)
-    return records, mixed, {m: len(e["cells"]) for m, e in changed.items()}
+    return records, mixed, {m: len(e["cells"]) for m, e in changed.items()}, known
+
+
+def _set_aside(out: Path, known: dict, records: dict) -> None:
+    """End of a session: a record file the runner did not write or find sealed (a plug-in's, a stray copy) is
+    set aside as ``.rejected``, with a warning; a cell whose record was replaced is dropped (it reruns)."""
+    gone = set_aside(out, known)
+    for cid in gone:
+        records.pop(cid, None)
+    if gone:
+        shown = ", ".join(gone[:5]) + (f" and {len(gone) - 5} more" if len(gone) > 5 else "")
+        print(printable(f"warning: {len(gone)} cell record(s) not written by the runner (a plug-in's?) set aside "
+                        f"as cells/*.json{REJECTED}: {shown}"), file=sys.stderr)
 
 
 def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = False, retry_failed: bool = False,
@@ -346,7 +367,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     force = bool(force or getattr(cfg, "force", False))
     jobs = jobs or os.cpu_count() or 1
     memory = memory_limit(cfg, memory_gb, jobs) if executor is None else None   # local cells only
-    records, mixed, changed = _load_done(out, cells, resume, retry_failed, allow_mixed_code)
+    records, mixed, changed, known = _load_done(out, cells, resume, retry_failed, allow_mixed_code)
     write_json(out / "config.json", cfg.to_dict())
     code = code_identity()
     todo = sorted((c for c in cells if c.cell_id not in records), key=_expected_cost, reverse=True)
@@ -366,7 +387,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
         bar.bar.write(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
 
     def on_result(cell: Cell, result: CellResult) -> None:
-        save_cell(out, cell, result, save_meshes, code=code)
+        known[cell.cell_id] = save_cell(out, cell, result, save_meshes, code=code)
         # a record as stored (and as read back by --resume): plain dicts
         records[cell.cell_id] = {"row": result.row, "cell": cell.to_dict(), "code": code}
         write_results_csv(out, cells, records)
@@ -385,6 +406,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
         raise
     finally:
         bar.close()
+        _set_aside(out, known, records)
         for r in records.values():
             st = r["row"].get("status")
             if st in STATUSES:
@@ -392,6 +414,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
         summary.seconds = time.time() - log.started
         try:  # after a write error these may fail too: the first error is the one to report
             write_results_csv(out, cells, records)
+            write_json(out / "config.json", cfg.to_dict())     # again: a plug-in may have removed it
             log.write(records, end=True, cells_run=summary.ran)
         except WriteError:
             if error is None:

@@ -39,7 +39,7 @@ from phantoms import InputError
 
 from .contracts import Cell, CellResult
 from .grid import as_cell
-from .integrity import UNCHECKED, record_problem, seal
+from .integrity import record_problem, seal
 from .values import plain
 
 __all__ = [
@@ -47,6 +47,7 @@ __all__ = [
     "RESULTS_CSV", "RESULTS_PARQUET", "TEXT_COLUMNS", "atomic_path", "write_atomic", "save_cell", "load_cells",
     "result_columns", "write_results_csv", "results_table", "read_results", "column_kind",
     "check_output_dir", "write_json", "read_json", "scan_cells", "clean_temp_files", "TMP_GLOB",
+    "frame_of",
 ]
 
 CELLS_DIR = "cells"
@@ -61,6 +62,8 @@ ID_COLUMNS = ["cell_id", "phantom", "variant", "N", "noise", "snr_requested", "s
 #: columns the runner fills from the method's info and the cost measurement
 RUNNER_COLUMNS = ["iterations", "energy_final", "stop_reason", "wall_s", "peak_mem_mb"]
 TAIL_COLUMNS = ["flags", "status", "error"]
+#: how :func:`scan_cells` ends the problem of a record file that is no cell's record
+IGNORED = "ignored"
 #: row keys kept in the cell's json but not in results.csv
 _NOT_IN_CSV = ("cell_s", "cpu_s", "artifact_error", "method_info", "phase_s")
 
@@ -118,10 +121,11 @@ def _mkdir(folder: Path) -> Path:
 
 
 def save_cell(out: Path, cell: Cell | dict, result: CellResult | dict, save_meshes: bool = False,
-              code: dict | None = None) -> None:
+              code: dict | None = None) -> dict:
     """Write one finished cell: artifacts (``.npz``) first, then the row (``.json``, which marks it done and
     lists the arrays the ``.npz`` must hold, and the suite ``code`` that computed it).  The record holds plain
-    dicts (:meth:`Cell.to_dict`): the storage boundary of the stage contracts."""
+    dicts (:meth:`Cell.to_dict`): the storage boundary of the stage contracts.  Returns the record's seal (its
+    ``checksum``), which the runner keeps to tell its own records from any other file."""
     cell = as_cell(cell)
     result = result if isinstance(result, CellResult) else CellResult.from_dict(result)
     cells_dir = _mkdir(Path(out) / CELLS_DIR)
@@ -138,13 +142,16 @@ def save_cell(out: Path, cell: Cell | dict, result: CellResult | dict, save_mesh
     record = {"row": result.row, "cell": cell.to_dict(), "traceback": result.traceback,
               "artifacts": sorted(art), "code": code,
               "finished": _dt.datetime.now().astimezone().isoformat(timespec="seconds")}
-    write_json(cells_dir / f"{cid}.json", seal(record, cells_dir / f"{cid}.npz" if art else None))
+    sealed = seal(record, cells_dir / f"{cid}.npz" if art else None)
+    write_json(cells_dir / f"{cid}.json", sealed)
+    return sealed["checksum"]
 
 
 def scan_cells(out: Path, verify_artifacts: bool = False) -> tuple[dict[str, dict], list[str]]:
     """``({cell_id: record}, problems)`` of the finished cells in ``out/cells``.
 
-    A record that does not load, or (``verify_artifacts``) whose ``.npz`` is missing or does not load with
+    A record that does not load, is not named after the cell it claims (a stray copy: ignored), or
+    (``verify_artifacts``) whose seal is missing or broken or whose ``.npz`` is missing or does not load with
     every array the record lists, is left out and described in ``problems`` — such a cell is not done.
     """
     records: dict[str, dict] = {}
@@ -163,13 +170,16 @@ def scan_cells(out: Path, verify_artifacts: bool = False) -> tuple[dict[str, dic
         except (OSError, ValueError, KeyError, TypeError, IndexError) as exc:
             problems.append(f"{p} is unreadable ({type(exc).__name__}: {exc})")
             continue
+        if p.stem != cid:
+            problems.append(f"{p} claims cell {cid}, whose record is {cid}.json (a stray record: {IGNORED})")
+            continue
         if verify_artifacts:
             err = _artifact_problem(cells_dir / f"{cid}.npz", rec.get("artifacts"))
             if err:
                 problems.append(f"{cells_dir / (cid + '.npz')} {err}")
                 continue
             err = record_problem(rec, cells_dir / f"{cid}.npz")
-            if err not in (None, UNCHECKED):
+            if err is not None:
                 problems.append(f"{p} {err}")
                 continue
         records[cid] = rec
@@ -189,21 +199,6 @@ def _artifact_problem(path: Path, expected: list | None) -> str | None:
     except Exception as exc:  # BadZipFile, zlib.error, EOFError, OSError, ValueError ...
         return f"does not load ({type(exc).__name__}: {exc})"
     return f"lacks arrays {missing}" if missing else None
-
-
-def check_run_folder(out: Path) -> tuple[list[str], int]:
-    """``(problems, unchecked)`` of a run folder's cell files: each row of the results table whose record is
-    missing, unreadable, altered (checksum), or whose ``.npz`` is missing, damaged or altered, as
-    ``"cells/<file> <why>"``; and the number of records written before checksums (accepted unchecked)."""
-    out = Path(out)
-    records, problems = scan_cells(out, verify_artifacts=True)
-    problems = [p.replace(str(out / CELLS_DIR), CELLS_DIR, 1) for p in problems]
-    seen = {Path(p.split(" ", 1)[0]).stem for p in problems}
-    for cid in read_results(out)["cell_id"].astype(str):
-        if cid not in records and cid not in seen:
-            problems.append(f"{CELLS_DIR}/{cid}.json is missing")
-    unchecked = sum(record_problem(r, out / CELLS_DIR / f"{cid}.npz") == UNCHECKED for cid, r in records.items())
-    return problems, unchecked
 
 
 def load_cells(out: Path) -> dict[str, dict]:
@@ -473,8 +468,6 @@ def read_results(out: str | Path):
         ``out`` holds no results table, or one that does not read or lacks ``cell_id`` / ``status`` / ``label``
         (one line, naming the file).
     """
-    import numpy as np
-
     out = Path(out)
     csv_path, pq_path = out / RESULTS_CSV, out / RESULTS_PARQUET
     if not csv_path.is_file() and not pq_path.is_file():
@@ -486,6 +479,12 @@ def read_results(out: str | Path):
             raise InputError(f"{str(pq_path)!r} is not a readable results table; rerun the grid with --resume "
                              "to rewrite it")
         table = _read_csv_table(csv_path)
+    return frame_of(table, path)
+
+
+def frame_of(table, path: Path):
+    """The typed ``table`` read from ``path`` as :func:`read_results` returns it (a missing value NaN in every
+    column); :class:`InputError` when it lacks ``cell_id`` / ``status`` / ``label``."""
     missing = [c for c in ("cell_id", "status", "label") if c not in table.column_names]
     if missing:
         raise InputError(f"{str(path)!r} is not a results table of levelset-bench (no column "

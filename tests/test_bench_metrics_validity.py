@@ -191,3 +191,19 @@ def test_with_heavy_noise_a_mesh_on_the_noisy_zero_set_is_valid_but_one_in_index
     shifted = mesh.copy()
     shifted.vertices += 0.6                                     # 0.6 world units = 5.6 h off both zero sets
     assert any(r.startswith("off the zero set") for r in check_mesh(shifted, clean, given=noisy))
+
+
+def test_on_a_thick_slice_input_the_zero_set_tolerance_is_in_its_slice_steps():
+    import trimesh
+
+    from phantoms import get_phantom
+    from phantoms.degrade import degrade
+
+    ph = get_phantom("sphere")
+    clean = ph.volume(n=48)
+    h = clean.h
+    shrunk = trimesh.creation.icosphere(subdivisions=4, radius=1 - 0.7 * h)     # 0.7 h inside the truth
+    thick = degrade(ph, "thick_slices@3+mask", 48)
+    iso = degrade(ph, "mask", 48)
+    assert any(r.startswith("off the zero set") for r in check_mesh(shrunk, clean, given=iso))
+    assert not any(r.startswith("off the zero set") for r in check_mesh(shrunk, clean, given=thick))

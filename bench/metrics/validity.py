@@ -17,7 +17,8 @@ one on distances).  :func:`check_mesh` returns the reasons a mesh is *invalid* �
   collapse, a surface that never reached the level set).  With a noisy input, ``given`` is the volume the method
   was given and ``volume`` the clean one: a vertex's |φ| is the smaller of the two, so a mesh on the noisy zero
   set (marching cubes) and one near the true surface (a smoothing method) both count as on the zero set — how
-  far either is from the truth is the distances' business, not validity's.
+  far either is from the truth is the distances' business, not validity's.  |φ| of the given volume is counted
+  in its own grid steps, those of its coarsest axis: on a thick-slice scan a surface half a slice off is on it.
 
 Degenerate faces (a repeated vertex index) are ignored, as the metrics ignore them.
 """
@@ -54,10 +55,10 @@ def _geometry_reasons(v: np.ndarray, f: np.ndarray, volume, box_margin: float, p
                        f"steps outside the box [{np.round(volume.lower, 4).tolist()}, "
                        f"{np.round(volume.upper, 4).tolist()}] (world coordinates expected)")
         return reasons
-    phi = np.abs(volume.sample(v, clamp=True).phi)
-    if given is not None:
-        phi = np.minimum(phi, np.abs(given.sample(v, clamp=True).phi))
-    med = float(np.median(phi)) / h
+    steps = np.abs(volume.sample(v, clamp=True).phi) / h
+    if given is not None:      # in the given volume's own steps: its coarsest axis (a thick-slice scan's slices)
+        steps = np.minimum(steps, np.abs(given.sample(v, clamp=True).phi) / float(given.spacing.max()))
+    med = float(np.median(steps))
     if med > phi_tolerance:
         reasons.append(f"off the zero set: median |φ| at the vertices is {med:.3g} grid steps (> {phi_tolerance:g})")
     return reasons

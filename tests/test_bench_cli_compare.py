@@ -97,3 +97,24 @@ def test_bad_input_is_one_line_exit_2(runs, tmp_path, capsys, argv, message):
     assert main(["compare", *argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and message in err[0]
+
+
+def test_a_run_whose_results_table_disagrees_with_its_sealed_records_is_refused(runs, tmp_path, capsys):
+    import csv
+    import shutil
+
+    a, b = runs
+    edited = tmp_path / "edited"
+    shutil.copytree(b, edited)
+    with open(edited / "results.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    col = rows[0].index("hausdorff_h")
+    rows[1][col] = "0.0001"                                   # a better number, typed in by hand
+    with open(edited / "results.csv", "w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
+    capsys.readouterr()
+    assert main(["compare", str(a), str(edited), "--fail-on-worse"]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert captured.out == "" and len(err) == 1 and err[0].startswith("error: ")
+    assert f"{rows[1][0]}: hausdorff_h is 0.0001 in results.csv" in err[0], err[0]

@@ -185,3 +185,81 @@ def test_the_leaderboard_exports_with_its_ranks_and_compiles(run, capsys, tmp_pa
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stdout[-2000:]
     assert "Missing character" not in (tmp_path / "l.log").read_text()
+
+
+# ---------------------------------------------------------------------------------------------- sealed records
+def _damage(out, how: str) -> str:
+    """Damage the results tables of the run folder ``out`` as ``how`` says; returns the cell id to be named."""
+    import csv
+
+    import pyarrow as pa
+
+    with open(out / "results.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    col = rows[0].index("hausdorff_h")
+    named = {"end": rows[-1][0], "middle": rows[5][0], "duplicate": rows[3][0],
+             "edit_csv": rows[2][0]}.get(how)
+    if how in ("end", "middle", "header_only", "duplicate", "edit_csv"):
+        if how == "end":
+            rows = rows[:-1]
+        elif how == "middle":
+            rows = rows[:5] + rows[6:]
+        elif how == "header_only":
+            rows = rows[:1]
+        elif how == "duplicate":
+            rows = rows + [rows[3]]
+        else:
+            rows[2][col] = repr(float(rows[2][col]) * 0.5)
+        with open(out / "results.csv", "w", newline="") as fh:
+            csv.writer(fh).writerows(rows)
+        return named
+    table = pq.read_table(out / "results.parquet")       # the parquet only, its CSV hash kept: it is read first
+    if how == "parquet_row":
+        edited = table.slice(0, table.num_rows - 1)
+        named = table.column("cell_id")[table.num_rows - 1].as_py()
+    else:
+        df = table.to_pandas()
+        df.loc[3, "hausdorff_h"] = 0.001
+        edited, named = pa.Table.from_pandas(df, preserve_index=False), df.loc[3, "cell_id"]
+    pq.write_table(edited.replace_schema_metadata(table.schema.metadata), out / "results.parquet")
+    return named
+
+
+CASES = {"end": "{}: no row in results.csv", "middle": "{}: no row in results.csv",
+         "header_only": "15 cells have no row in results.csv",
+         "duplicate": "{}: 2 rows in results.csv", "edit_csv": "{}: hausdorff_h is",
+         "parquet_row": "{}: no row in results.parquet", "edit_parquet": "{}: hausdorff_h is 0.001 in results.parquet"}
+
+
+@pytest.mark.parametrize("how", list(CASES))
+def test_a_results_table_that_disagrees_with_the_sealed_records_is_one_line_exit_2(how, tmp_path, capsys):
+    from _synthetic_run import write_synthetic_run
+
+    out = tmp_path / "run"
+    write_synthetic_run(out, n_shapes=1, seeds=2, sealed=True)
+    capsys.readouterr()
+    assert main(["table", str(out)]) == 0                             # intact: the tables are the records
+    capsys.readouterr()
+    cid = _damage(out, how)
+    assert main(["table", str(out)]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert captured.out == "" and len(err) == 1 and err[0].startswith("error: "), captured
+    assert CASES[how].format(cid) in err[0] and "against the sealed cell records" in err[0] and "--resume" in err[0]
+
+
+def test_a_record_whose_checksum_was_deleted_is_refused_by_table(tmp_path, capsys):
+    import json
+
+    from _synthetic_run import write_synthetic_run
+
+    out = tmp_path / "run"
+    write_synthetic_run(out, n_shapes=1, seeds=1, noise=("none",), sealed=True)
+    path = sorted((out / "cells").glob("*.json"))[0]
+    rec = json.loads(path.read_text())
+    del rec["checksum"]
+    path.write_text(json.dumps(rec))
+    capsys.readouterr()
+    assert main(["table", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{path.name} has no seal" in err[0] and "--accept-unsealed" in err[0]

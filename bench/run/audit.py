@@ -110,7 +110,12 @@ def table_problems(name: str, df, records: dict[str, dict], damaged: set[str]) -
     problems = [f"{cid}: {n} rows in {name}" for cid, n in counts.items() if n > 1]
     problems += [f"{cid}: a row in {name} but no record ({CELLS_DIR}/{cid}.json is missing)"
                  for cid in counts if cid not in records and cid not in damaged]
-    problems += [f"{cid}: no row in {name}" for cid in records if cid not in counts]
+    rowless = [cid for cid in records if cid not in counts]
+    if len(rowless) > 3:                                  # a table cut short, or emptied: one entry
+        problems.append(f"{len(rowless)} cells have no row in {name}: {', '.join(rowless[:3])} and "
+                        f"{len(rowless) - 3} more")
+    else:
+        problems += [f"{cid}: no row in {name}" for cid in rowless]
     once = {cid for cid, n in counts.items() if n == 1}
     columns = bool(records) and not damaged       # (a damaged record's columns are not known)
     return problems + _value_problems(name, df[df["cell_id"].astype(str).isin(once)], records, columns)

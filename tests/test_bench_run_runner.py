@@ -168,3 +168,28 @@ def test_a_full_disk_is_one_line_with_a_resume_hint_and_leaves_no_temp_files(tmp
         assert main(["run", "--config", str(cfg), "--resume", "--out", str(out), "--jobs", "2",
                      "--no-report"]) == 0
         assert len(_rows(out / "results.csv")) == 9 and temp_files(out) == []
+
+
+# ---------------------------------------------------------------------------------------------- tampering plug-ins
+def test_a_plugin_that_writes_a_record_and_deletes_config_json_leaves_a_sound_resumable_folder(tmp_path, capsys):
+    """A record a plug-in wrote — even sealed with the suite's own seal() — is set aside (``.rejected``), not
+    taken as a finished cell; config.json removed mid-run is written again at the end (issue 40 item 2)."""
+    from bench.cli import main
+    from tamper_plugins import FORGED_ID
+
+    out = tmp_path / "run"
+    grid = ["--quick", "--phantoms", "sphere", "--noise", "none", "--n", "16", "--n-samples", "2000",
+            "--import", "tamper_plugins", "--jobs", "1", "--no-report"]
+    assert main(["run", *grid, "--method", f"writes_record:folder={out}", "--add-method",
+                 f"deletes_config:folder={out}", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"1 cell record(s) not written by the runner (a plug-in's?) set aside as cells/*.json.rejected: " \
+           f"{FORGED_ID}" in err
+    assert not (out / "cells" / f"{FORGED_ID}.json").exists()
+    assert (out / "cells" / f"{FORGED_ID}.json.rejected").exists() and (out / "config.json").is_file()
+    with open(out / "results.csv", newline="") as fh:
+        assert sorted(r["method"] for r in csv.DictReader(fh)) == ["deletes_config", "writes_record"]
+    assert main(["report", str(out)]) == 0                               # the folder agrees with its records
+    (out / "config.json").unlink()                                       # as if killed before the end
+    assert main(["run", "--resume", "--out", str(out), "--jobs", "1", "--no-report"]) == 0   # run.json keeps it
+    assert "2 cells: 2 ok" in capsys.readouterr().out

@@ -173,7 +173,8 @@ def set_aside(out: Path, known: dict[str, dict | None]) -> list[str]:
             continue
         rec = read_json(p)
         mine = known.get(p.stem)
-        if mine is not None and isinstance(rec, dict) and rec.get("checksum") == mine:
+        if mine is not None and isinstance(rec, dict) and rec.get("checksum") == mine \
+                and record_problem(rec, None) is None:
             continue
         try:
             p.replace(p.with_name(p.name + REJECTED))

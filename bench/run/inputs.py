@@ -67,7 +67,8 @@ def parse_scheduler_address(text: str) -> str:
 
 
 def folder_config(out: Path) -> dict:
-    """The config a run folder was started with (``config.json``), for ``--resume``.
+    """The config a run folder was started with (``config.json``; when that is gone — a plug-in removed it mid-run
+    — the copy ``run.json`` keeps), for ``--resume``.
 
     Parameters
     ----------
@@ -80,6 +81,9 @@ def folder_config(out: Path) -> dict:
         When the folder holds no run (no ``config.json``) or the file cannot be read.
     """
     path = Path(out) / "config.json"
+    kept = _run_json_config(Path(out)) if not path.exists() else None
+    if kept is not None:
+        return kept
     if not path.exists():
         raise InputError(f"--resume: {str(out)!r} holds no run to resume (no config.json there); check --out, or "
                          "run without --resume")
@@ -90,6 +94,15 @@ def folder_config(out: Path) -> dict:
     if not isinstance(data, dict):
         raise InputError(f"cannot read {str(path)!r}: not a config (a JSON object)")
     return data
+
+
+def _run_json_config(out: Path) -> dict | None:
+    """The config ``run.json`` keeps (written at each session's start and end), None without one."""
+    try:
+        config = json.loads((out / "run.json").read_text()).get("config")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return config if isinstance(config, dict) and config else None
 
 
 def _check_executor(executor, jobs: int | None, memory_gb: float | None):

@@ -17,7 +17,8 @@ temporary name in the same folder and renamed into place, so a reader never sees
 
 Readers of the results table (``compare``, ``table``, the report) go through :func:`read_results`: the parquet
 file when it matches results.csv (it records the CSV's SHA-1), else results.csv (a folder of an older suite
-version, or a CSV rewritten since), typed the same way.
+version, or a CSV rewritten since), typed the same way.  The cell records are the truth: ``report``, ``table``
+and ``compare`` first check both tables against them (:mod:`bench.run.audit`).
 """
 
 from __future__ import annotations

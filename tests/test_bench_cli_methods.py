@@ -182,12 +182,20 @@ def test_reconstruct_refuses_a_diverged_mesh_instead_of_writing_inf(sphere_file,
     assert not out.exists()
 
 
-def test_reconstruct_with_a_failing_plugin_is_one_line_and_writes_nothing(sphere_file, tmp_path, capsys):
+def test_reconstruct_with_a_failing_plugin_is_one_line_and_writes_nothing(sphere_file, tmp_path, capsys,
+                                                                        monkeypatch):
+    from methods.marching_cubes import MarchingCubes
+
+    def bug(self, volume):
+        raise ValueError("index 7 is out of bounds\nfor axis 0 with size 3")
+
+    monkeypatch.setattr(MarchingCubes, "reconstruct", bug)
     out = tmp_path / "x.ply"
-    rc = main(["reconstruct", str(sphere_file), "-m", "broken_raises", "-o", str(out), "--import", "broken_methods"])
+    rc = main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(out)])
     err = capsys.readouterr().err
-    assert rc == 1 and "method 'broken_raises' failed: " in err and "Traceback" not in err, err
-    assert len(err.strip().splitlines()) == 1 and not out.exists()
+    assert err.strip() == ("error: method 'marching_cubes' failed: ValueError: index 7 is out of bounds for axis 0 "
+                           "with size 3") and rc == 1
+    assert not out.exists()
 
 
 def test_reconstruct_with_faces_naming_missing_vertices_writes_nothing(sphere_file, tmp_path, capsys, monkeypatch):

@@ -173,3 +173,22 @@ def test_an_intensity_at_a_level_keeps_the_subvoxel_boundary_and_its_fidelity_re
     assert level["phi_gradient"] > 100 and abs(threshold["phi_gradient"] - 1) < 0.1
     for k in ("sdf_rms_h", "phi_mean_h", "sign_err_pct"):
         assert np.isfinite(level[k]) and level[k] < 1.0, (k, level[k])
+
+
+def test_a_label_map_with_labels_all_is_one_phantom_per_label_each_meshed_in_one_run(tmp_path):
+    import nibabel as nib
+
+    lab = np.zeros((30, 30, 30), np.int16)
+    lab[3:10, 3:10, 3:10] = 1
+    lab[12:20, 5:15, 5:15] = 2
+    lab[5:25, 18:27, 18:27] = 5
+    nib.save(nib.Nifti1Image(lab, np.eye(4)), str(tmp_path / "organs.nii.gz"))
+    cfg = config_from_dict({"grid": {"phantoms": [f"volume:{tmp_path / 'organs.nii.gz'}?labels=all"]},
+                            "metrics": {"n_samples": 2000}, "methods": [{"name": "marching_cubes"}]})
+    cfg.validate()
+    cells = expand_grid(cfg)
+    assert [c.phantom for c in cells] == ["organs_label1", "organs_label2", "organs_label5"]
+    for cell, label in zip(cells, (1, 2, 5)):
+        row = run_cell(cell).row
+        assert row["status"] == "ok" and row["input_kind"] == "mask", row["error"]
+        assert row["n_faces"] > 0 and row["components"] == 1

@@ -32,6 +32,9 @@ import numpy as np
 
 from geometry.errors import InputError
 
+from .image_checks import (check_claimed_size, check_dicom_size, check_file_kind, check_nifti, itk_error_text,
+                           one_line, quiet_itk)
+
 __all__ = ["Image", "read_image", "image_suffix", "IMAGE_SUFFIXES", "ITK_SUFFIXES", "AXIS_TOLERANCE_DEG"]
 
 ITK_SUFFIXES = (".nrrd", ".nhdr", ".mha", ".mhd")
@@ -106,6 +109,7 @@ def _read_nifti(path: Path):
     import nibabel as nib
 
     img = nib.load(str(path))
+    check_nifti(path, img)                      # header only: nothing of the data is read before this
     values = np.asarray(img.dataobj)
     values = _drop_singleton_4d(values, path)
     if values.ndim != 3:
@@ -176,6 +180,7 @@ def _itk_image(path: Path, series: str | None):
             raise InputError(f"{path}: no DICOM series {series!r} in the folder; series: {', '.join(ids)}")
         files = sitk.ImageSeriesReader.GetGDCMSeriesFileNames(str(path), series)
         _check_slice_spacing(path, files)
+        check_dicom_size(path, files)
         reader = sitk.ImageSeriesReader()
         reader.SetFileNames(files)
         return reader.Execute()
@@ -185,7 +190,12 @@ def _itk_image(path: Path, series: str | None):
 def _read_itk(path: Path, series: str | None):
     import SimpleITK as sitk
 
-    img = _itk_image(path, series)
+    said: list[str] = []
+    try:
+        with quiet_itk() as said:                 # ITK / GDCM print on the C++ stderr: captured, not shown
+            img = _itk_image(path, series)
+    except RuntimeError as exc:
+        raise InputError(f"{path}: cannot read the image ({itk_error_text(exc, ''.join(said))})") from None
     if img.GetNumberOfComponentsPerPixel() != 1:
         raise InputError(f"{path}: a vector image ({img.GetNumberOfComponentsPerPixel()} components per voxel); "
                          "a volume needs one value per voxel")
@@ -210,8 +220,10 @@ def read_image(path, *, series: str | None = None) -> Image:
     path = Path(path).expanduser()
     if not path.exists():
         raise InputError(f"no such file: {path}")
+    check_file_kind(path)          # a FIFO or a device would block the reader or never end: refused unopened
     suffix = image_suffix(path)
     try:
+        check_claimed_size(path, suffix)
         if suffix in (".npz", ".npy"):
             values, origin, spacing = _read_numpy(path, suffix)
         elif suffix in (".nii", ".nii.gz"):
@@ -227,19 +239,21 @@ def read_image(path, *, series: str | None = None) -> Image:
         raise InputError(f"{path}: not enough memory to read the image") from None
     except OSError as exc:
         if exc.errno is not None:  # the file cannot be read at all (permission, I/O error): not a format problem
-            raise InputError(f"{path}: cannot read the file: {exc.strerror or exc}") from None
-        raise InputError(f"{path}: cannot read the file (truncated or not a {suffix} image?): {exc}") from None
+            raise InputError(f"{path}: cannot read the file: {one_line(exc.strerror or exc)}") from None
+        raise InputError(f"{path}: cannot read the file (truncated or not a {suffix} image?): "
+                         f"{one_line(exc)}") from None
     except ValueError as exc:
         if "Object arrays" in str(exc):
             raise InputError(f"{path}: the file holds Python objects (dtype object or pickled data), not "
                              "numbers; a volume must be an array of real numbers") from None
-        raise InputError(f"{path}: cannot read the file (truncated or not a {suffix} image?): {exc}") from None
+        raise InputError(f"{path}: cannot read the file (truncated or not a {suffix} image?): "
+                         f"{one_line(exc)}") from None
     except (EOFError, zipfile.BadZipFile, KeyError) as exc:
-        raise InputError(f"{path}: cannot read the file (truncated or not a {suffix} image?): {exc}") from None
+        raise InputError(f"{path}: cannot read the file (truncated or not a {suffix} image?): "
+                         f"{one_line(exc)}") from None
     except Exception as exc:  # nibabel and SimpleITK raise their own types (ImageFileError, RuntimeError, ...)
-        first = str(exc).strip().splitlines()
-        text = next((ln.strip() for ln in first if ln.strip() and "ITK" not in ln[:12]), first[0] if first else "")
-        raise InputError(f"{path}: cannot read the image ({type(exc).__name__}: {text[:300]})") from None
+        text = itk_error_text(exc) if "SimpleITK" in str(exc) else one_line(exc)[:300]
+        raise InputError(f"{path}: cannot read the image ({type(exc).__name__}: {text})") from None
     values = np.asarray(values)
     if np.issubdtype(values.dtype, np.complexfloating) or not (np.issubdtype(values.dtype, np.number)
                                                                or values.dtype == bool):

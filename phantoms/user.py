@@ -38,6 +38,7 @@ import numpy as np
 from geometry.errors import InputError
 
 from .base import Phantom
+from .image_checks import check_file_kind
 from .images import IMAGE_SUFFIXES, image_suffix, read_image
 from .volume import Volume, check_grid, check_memory
 
@@ -403,6 +404,7 @@ class VolumePhantom(Phantom):
             tp = Path(truth).expanduser()
             if not tp.exists():
                 raise InputError(f"{where}: no such truth file: {truth}")
+            check_file_kind(tp)            # a FIFO or a device as truth would block the mesh reader
             is_image = tp.is_dir() or image_suffix(tp) in IMAGE_SUFFIXES
             self.truth_phantom = (_truth_from_labels(str(tp), self.options, where) if is_image
                                   else _truth_from_mesh(str(tp), where))

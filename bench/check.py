@@ -32,8 +32,12 @@ them and exits 1 on any violation.
 
 from __future__ import annotations
 
+import faulthandler
 import multiprocessing as mp
+import os
 import signal
+import sys
+import tempfile
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -104,6 +108,11 @@ class CaseResult:
         The returned mesh's facts (vertices, faces, Euler characteristic, ...).
     traceback : str, optional
         The traceback of an exception that is a violation.
+    output : str
+        What the method wrote on stdout / stderr (a case run in a child process: captured, not shown), at most
+        :data:`OUTPUT_KEPT` bytes of it.
+    output_bytes : int
+        How many bytes it wrote in all.
     """
 
     case: str
@@ -114,6 +123,8 @@ class CaseResult:
     info: dict = field(default_factory=dict)
     facts: dict = field(default_factory=dict)
     traceback: str | None = None
+    output: str = ""
+    output_bytes: int = 0
 
     @property
     def passed(self) -> bool:
@@ -267,19 +278,57 @@ def check_method(method, n: int = 24, cases=CASES, seed: int = 0, timeout: float
     return [_run_case_isolated(method, c, volumes[c], timeout) for c in cases]
 
 
-def _case_child(conn, method, case: str, volume: Volume, clean: Volume) -> None:
+#: bytes of a method's own stdout / stderr kept for the report (the rest is counted, not kept)
+OUTPUT_KEPT = 4096
+
+
+def _redirect_output(fd: int) -> None:
+    """In the child: file descriptors 1 and 2 (C code, subprocesses) and sys.stdout / sys.stderr go to ``fd``."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    sys.stdout = open(1, "w", buffering=1, errors="backslashreplace", closefd=False)
+    sys.stderr = open(2, "w", buffering=1, errors="backslashreplace", closefd=False)
+    if faulthandler.is_enabled():          # its crash report went to a copy of the old stderr: captured too
+        faulthandler.enable(file=sys.stderr)
+
+
+def _case_child(conn, method, case: str, volume: Volume, clean: Volume, out_fd: int) -> None:
     try:
+        _redirect_output(out_fd)
         conn.send(run_case(method, case, volume, clean))
     finally:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
         conn.close()
 
 
+def _captured(res: CaseResult, fd: int) -> CaseResult:
+    """``res`` with the head of what the child wrote on its stdout / stderr (file ``fd``) and its size."""
+    res.output_bytes = os.fstat(fd).st_size
+    res.output = os.pread(fd, OUTPUT_KEPT, 0).decode("utf-8", "replace") if res.output_bytes else ""
+    return res
+
+
 def _run_case_isolated(method, case: str, volumes, timeout: float) -> CaseResult:
-    """:func:`run_case` in a forked child, stopped after ``timeout`` seconds; its death is the finding."""
+    """:func:`run_case` in a forked child, stopped after ``timeout`` seconds; its death is the finding.  What the
+    method writes on stdout / stderr goes to a temporary file, not the terminal (:attr:`CaseResult.output`)."""
+    with tempfile.TemporaryFile() as out:
+        return _captured(_run_in_child(method, case, volumes, timeout, out.fileno()), out.fileno())
+
+
+def _run_in_child(method, case: str, volumes, timeout: float, out_fd: int) -> CaseResult:
     ctx = mp.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
     t0 = time.perf_counter()
-    proc = ctx.Process(target=_case_child, args=(send, method, case, *volumes), daemon=True)
+    proc = ctx.Process(target=_case_child, args=(send, method, case, *volumes, out_fd), daemon=True)
     proc.start()
     send.close()
     result = None

@@ -7,7 +7,7 @@ method honours the contract, 2 on bad input (unknown method or parameter, a modu
 
 from __future__ import annotations
 
-from ..check import CASES, check_method, hint
+from ..check import CASES, OUTPUT_KEPT, check_method, hint
 from ..terminal import printable
 from .methods import add_import_option, import_modules, parse_assignments
 
@@ -45,6 +45,18 @@ def _print_case(r, verbose: bool) -> None:
             print(f"  {'':<12}         fix: {fix}")
     if verbose and r.traceback:
         print(printable(r.traceback))
+    _print_output(r)
+
+
+def _print_output(r) -> None:
+    """The head of what the method wrote on stdout / stderr, control characters shown, with how much was cut."""
+    if not r.output_bytes:
+        return
+    shown = min(OUTPUT_KEPT, r.output_bytes)
+    cut = f"; the first {shown} shown, {r.output_bytes - shown} cut" if r.output_bytes > shown else ""
+    print(f"  {'':<12}       output: the method wrote {r.output_bytes} bytes on stdout / stderr{cut}:")
+    for line in r.output.splitlines():
+        print(printable(f"  {'':<12}         | {line}"))
 
 
 def _cmd_check(args) -> int:
@@ -54,7 +66,7 @@ def _cmd_check(args) -> int:
     method = get_method(args.name, **parse_assignments(args.set))
     cases = args.case or list(CASES)
     settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())
-    print(f"check-method {method.name} ({settings or 'no parameters'}), N = {args.n}")
+    print(printable(f"check-method {method.name} ({settings or 'no parameters'}), N = {args.n}"))
     results = check_method(method, n=args.n, cases=cases, timeout=args.timeout or None)
     for r in results:
         _print_case(r, args.verbose)

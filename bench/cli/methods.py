@@ -39,7 +39,7 @@ def _param_line(key: str, spec) -> str:
         extra.append(f"range [{lo}, {hi}]")
     bounds = f" ({'; '.join(extra)})" if extra else ""
     default = "auto" if spec.default is None else repr(spec.default)
-    return f"    {key:<17} {typ:<6} default {default:<10} {spec.doc}{bounds}"
+    return printable(f"    {key:<17} {typ:<6} default {default:<10} {spec.doc}{bounds}")  # plug-in text
 
 
 def add_import_option(p) -> None:
@@ -72,9 +72,10 @@ def _cmd_methods(args) -> int:
         cls = methods[name]
         if i:
             print()
+        # the name, description, class and parameter docs are a plug-in's text: shown, never obeyed
         origin = f"{cls.__module__}:{cls.__qualname__}"
-        print(f"{name} — {cls.description or '(no description)'}")
-        print(f"  class: {origin}")
+        print(printable(f"{name} — {cls.description or '(no description)'}"))
+        print(printable(f"  class: {origin}"))
         if cls.params:
             print("  parameters (set with --set key=value):")
             for key, spec in cls.params.items():
@@ -82,7 +83,7 @@ def _cmd_methods(args) -> int:
         else:
             print("  parameters: none")
     for w in caught:
-        print(f"note: {w.message}")
+        print(printable(f"note: {w.message}"))
     return 0
 
 
@@ -155,7 +156,7 @@ def _cmd_reconstruct(args) -> int:
     write_mesh(mesh, out, MESH_SUFFIXES[suffix])
     facts = mesh_facts(mesh)
     settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())
-    print(f"method:       {method.name} ({settings})")
+    print(printable(f"method:       {method.name} ({settings})"))
     print(f"input:        {printable(args.input)} (shape {volume.shape}, spacing {volume.h:.6g})")
     print(f"wrote:        {out}")
     print(f"vertices:     {facts['vertices']}")

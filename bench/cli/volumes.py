@@ -8,6 +8,8 @@ import math
 from phantoms import (NOISE_KINDS, PHANTOMS, VARIANTS, InputError, add_noise, check_volume_output, get_phantom,
                       load_volume, save_volume)
 
+from ..terminal import printable
+
 
 def _cmd_phantoms(args) -> int:
     print(f"{'name':<15} {'genus':>5} {'creases':>7} {'paper SNR':>9}  parameters / description")
@@ -41,7 +43,8 @@ def _cmd_volume(args) -> int:
             raise InputError(f"--snr is required for phantom {args.phantom!r} (no paper SNR)")
     vol, achieved = add_noise(vol, args.noise, snr, seed=args.seed)
     path = save_volume(args.output, vol)
-    print(f"wrote {path}: {args.phantom} ({args.variant}), grid {'×'.join(map(str, vol.shape))}, spacing {vol.h:.6g}")
+    print(printable(f"wrote {path}: {args.phantom} ({args.variant}), grid {'×'.join(map(str, vol.shape))}, "
+                    f"spacing {vol.h:.6g}"))
     if args.noise == "none":
         print("noise: none")
     else:
@@ -52,7 +55,7 @@ def _cmd_volume(args) -> int:
 def _cmd_info(args) -> int:
     vol = load_volume(args.file, mask=True if args.mask else None)
     s = vol.summary()
-    print(f"file:         {args.file}")
+    print(printable(f"file:         {args.file}"))           # a file name can hold ESC: shown, not obeyed
     print(f"shape:        {s['shape']}")
     print(f"origin:       {[float(f'{v:.6g}') for v in s['origin']]}")   # 6 digits, not 6 decimals: 1e-9 m
     print(f"spacing:      {[float(f'{v:.6g}') for v in s['spacing']]}")

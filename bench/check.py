@@ -300,7 +300,13 @@ def _redirect_output(fd: int) -> None:
 def _case_child(conn, method, case: str, volume: Volume, clean: Volume, out_fd: int) -> None:
     try:
         _redirect_output(out_fd)
-        conn.send(run_case(method, case, volume, clean))
+        try:
+            res = run_case(method, case, volume, clean)
+        except KeyboardInterrupt:          # raised by the method (a real Ctrl-C stops the parent too): a finding
+            res = CaseResult(case, outcome="raised")
+            res.violations.append("raised KeyboardInterrupt: a method must not raise it (it stops the whole run); "
+                                  "raise methods.ReconstructionFailed or phantoms.InputError with a message")
+        conn.send(res)
     finally:
         for stream in (sys.stdout, sys.stderr):
             try:

@@ -115,3 +115,18 @@ def test_check_method_runs_the_chosen_cases():
     res = check_method(get_method("marching_cubes"), cases=("sphere", "torus"))
     assert [r.case for r in res] == ["sphere", "torus"] and all(r.passed for r in res)
     assert res[1].facts["euler"] == 0
+
+
+def test_a_method_raising_keyboard_interrupt_is_a_finding_not_a_child_traceback(monkeypatch):
+    from bench.check import check_method
+    from methods import get_method
+    from methods.marching_cubes import MarchingCubes
+
+    def interrupt(self, volume):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(MarchingCubes, "reconstruct", interrupt)
+    results = check_method(get_method("marching_cubes"), cases=("sphere", "no_surface"), timeout=30)
+    for res in results:
+        assert res.outcome == "raised" and res.violations[0].startswith("raised KeyboardInterrupt"), res
+        assert "Traceback" not in (res.output or "")

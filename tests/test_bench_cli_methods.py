@@ -224,3 +224,25 @@ def test_reconstruct_with_a_plugin_out_of_memory_is_one_line(sphere_file, tmp_pa
     rc = main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(tmp_path / "x.ply")])
     err = capsys.readouterr().err
     assert rc == 1 and err.strip() == "error: method 'marching_cubes' ran out of memory"
+
+
+@pytest.mark.parametrize("how, words", [("signal", "ended its process (signal SIGKILL"),
+                                        ("exit", "ended its process (exit code 3")])
+def test_reconstruct_with_a_plugin_that_kills_its_process_is_one_line(sphere_file, tmp_path, capsys, monkeypatch,
+                                                                        how, words):
+    import os
+    import signal
+
+    from methods.marching_cubes import MarchingCubes
+
+    def crash(self, volume):
+        if how == "signal":
+            os.kill(os.getpid(), signal.SIGKILL)      # as a segfault in compiled code would end it
+        os._exit(3)
+
+    monkeypatch.setattr(MarchingCubes, "reconstruct", crash)
+    out = tmp_path / "x.ply"
+    rc = main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 1 and err.startswith(f"error: method 'marching_cubes' {words}") and err.count("\n") == 1, err
+    assert not out.exists()

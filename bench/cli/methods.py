@@ -109,13 +109,57 @@ def _fmt(value) -> str:
     return str(value)
 
 
+def _in_child(conn, fn, method, volume) -> None:
+    try:
+        conn.send(("ok", fn(method, volume)))
+    except BaseException as exc:  # noqa: BLE001 — sent back and judged in the parent
+        try:
+            conn.send(("raised", exc))
+        except Exception:  # noqa: BLE001 — an exception that does not pickle
+            conn.send(("raised", RuntimeError(f"{type(exc).__name__}: {exc}")))
+    finally:
+        conn.close()
+
+
+def _isolated(fn, method, volume):
+    """``fn(method, volume)`` in a forked child (where fork exists): a method that aborts or segfaults ends the
+    child, not this command, and is one line naming the signal."""
+    import multiprocessing as mp
+    import signal
+
+    from methods import ReconstructionFailed
+
+    if "fork" not in mp.get_all_start_methods():
+        return fn(method, volume)
+    ctx = mp.get_context("fork")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_in_child, args=(send, fn, method, volume), daemon=True)
+    proc.start()
+    send.close()
+    try:
+        kind, value = recv.recv()
+    except (EOFError, OSError):
+        proc.join()
+        code = proc.exitcode
+        how = (f"signal {signal.Signals(-code).name}" if code is not None and code < 0 else f"exit code {code}")
+        raise ReconstructionFailed(f"method {method.name!r} ended its process ({how}: an abort or a crash in "
+                                   "compiled code) instead of returning or raising") from None
+    finally:
+        recv.close()
+    proc.join()
+    if kind == "raised":
+        raise value
+    return value
+
+
 def _guarded(fn, method, volume):
-    """``fn(method, volume)``; a plug-in's own exception (MemoryError, a bug, a missing ``reconstruct``) becomes
-    one :class:`methods.ReconstructionFailed` line naming the method instead of a traceback."""
+    """``fn(method, volume)`` in a child process (:func:`_isolated`); a plug-in's own exception (MemoryError, a
+    bug, a missing ``reconstruct``) or its crash becomes one :class:`methods.ReconstructionFailed` line naming
+    the method instead of a traceback or a silent exit code."""
     from methods import ReconstructionFailed
 
     try:
-        return fn(method, volume)
+        return _isolated(fn, method, volume)
     except (InputError, ReconstructionFailed, KeyboardInterrupt):
         raise
     except MemoryError:

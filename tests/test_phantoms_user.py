@@ -235,3 +235,19 @@ def test_a_gapped_dicom_series_as_a_volume_is_refused_naming_the_slice(tmp_path,
     assert main(["info", str(folder)]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and "slice006.dcm" in err[0], err
+
+
+def test_info_checks_a_truth_too(tmp_path, capsys):
+    from bench.cli import main
+
+    m = sphere_mask()
+    origin = np.array([6.0, -31.0, -9.0])
+    nii = _nifti(tmp_path / "seg.nii.gz", m.astype(np.uint8), origin=tuple(origin))
+    v, f = voxel_surface(m, origin, np.ones(3))
+    trimesh.Trimesh(v, f, process=False).export(str(tmp_path / "ok.obj"))
+    trimesh.Trimesh(v - origin, f, process=False).export(str(tmp_path / "index.obj"))
+    assert main(["info", f"volume:{nii}?truth={tmp_path / 'ok.obj'}"]) == 0
+    assert "truth:        ground truth = the mesh ok.obj" in capsys.readouterr().out
+    assert main(["info", f"volume:{nii}?truth={tmp_path / 'index.obj'}"]) == 2
+    err = capsys.readouterr().err
+    assert "voxel-index coordinates" in err and err.count("\n") == 1

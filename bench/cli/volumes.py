@@ -7,6 +7,7 @@ import math
 
 from phantoms import (NOISE_KINDS, PHANTOMS, VARIANTS, InputError, add_noise, check_volume_output, get_phantom,
                       load_volume, save_volume)
+from phantoms.user import parse_spec
 
 from ..terminal import printable
 
@@ -67,6 +68,9 @@ def _cmd_info(args) -> int:
         print("closed:       yes (no zero crossing on the boundary faces of the grid)")
     else:
         print("closed:       no (the zero level set reaches the boundary of the grid)")
+    if str(args.file).startswith("volume:") and "truth" in parse_spec(str(args.file))[1]:
+        ph = get_phantom(str(args.file))          # reads the truth and checks it lies on the volume's surface
+        print(printable(f"truth:        {ph.truth_note} (on the volume's zero level set)"))
     return 0
 
 

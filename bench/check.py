@@ -32,7 +32,6 @@ them and exits 1 on any violation.
 
 from __future__ import annotations
 
-import faulthandler
 import multiprocessing as mp
 import os
 import signal
@@ -50,6 +49,7 @@ from phantoms import InputError, Volume, add_noise, get_phantom
 
 from .metrics.validity import check_mesh
 from .run.values import error_text, plain
+from .terminal import redirect_output
 
 __all__ = ["CASES", "CaseResult", "check_method", "case_volumes", "HINTS"]
 
@@ -282,24 +282,9 @@ def check_method(method, n: int = 24, cases=CASES, seed: int = 0, timeout: float
 OUTPUT_KEPT = 4096
 
 
-def _redirect_output(fd: int) -> None:
-    """In the child: file descriptors 1 and 2 (C code, subprocesses) and sys.stdout / sys.stderr go to ``fd``."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
-    os.dup2(fd, 1)
-    os.dup2(fd, 2)
-    sys.stdout = open(1, "w", buffering=1, errors="backslashreplace", closefd=False)
-    sys.stderr = open(2, "w", buffering=1, errors="backslashreplace", closefd=False)
-    if faulthandler.is_enabled():          # its crash report went to a copy of the old stderr: captured too
-        faulthandler.enable(file=sys.stderr)
-
-
 def _case_child(conn, method, case: str, volume: Volume, clean: Volume, out_fd: int) -> None:
     try:
-        _redirect_output(out_fd)
+        redirect_output(out_fd)
         try:
             res = run_case(method, case, volume, clean)
         except KeyboardInterrupt:          # raised by the method (a real Ctrl-C stops the parent too): a finding

@@ -9,9 +9,12 @@ report escapes its text itself (Jinja autoescape).
 
 from __future__ import annotations
 
+import faulthandler
+import os
 import re
+import sys
 
-__all__ = ["printable"]
+__all__ = ["printable", "redirect_output", "captured_head"]
 
 _CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
 
@@ -24,3 +27,30 @@ def _escape(match: re.Match) -> str:
 def printable(text) -> str:
     """``str(text)`` with control characters (but ``\\n`` and ``\\t``) and bidirectional overrides escaped."""
     return _CONTROL.sub(_escape, str(text))
+
+
+def redirect_output(fd: int) -> None:
+    """In a child process: file descriptors 1 and 2 (C code, subprocesses), ``sys.stdout`` / ``sys.stderr`` and
+    faulthandler's crash report go to ``fd`` — what a plug-in writes never reaches the terminal raw."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    sys.stdout = open(1, "w", buffering=1, errors="backslashreplace", closefd=False)
+    sys.stderr = open(2, "w", buffering=1, errors="backslashreplace", closefd=False)
+    if faulthandler.is_enabled():          # its crash report went to a copy of the old stderr: captured too
+        faulthandler.enable(file=sys.stderr)
+
+
+def captured_head(fd: int, kept: int) -> tuple[int, str]:
+    """(bytes written to the file ``fd``, its first ``kept`` bytes as text, control characters escaped)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    size = os.fstat(fd).st_size
+    return size, (printable(os.pread(fd, kept, 0).decode("utf-8", "replace")) if size else "")

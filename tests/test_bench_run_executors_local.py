@@ -74,3 +74,46 @@ def test_local_executor_settings():
 def test_local_executor_with_no_cells_returns_at_once():
     started, results = _run(LocalExecutor(jobs=1, timeout=1.0), [])
     assert started == [] and results == {}
+
+
+LOUD = r'''
+import os
+import sys
+
+from methods import Method, get_method, register_method
+
+
+@register_method
+class Loud(Method):
+    name = "loud"
+    description = "prints control codes and 20 KB before meshing"
+
+    def reconstruct(self, volume):
+        print("\x1b]0;stdout title\x07" + "o" * 20000)
+        sys.stderr.write("\x1b[2J stderr line\n")
+        os.write(2, b"\x07 fd 2 from C\n")
+        return get_method("marching_cubes").reconstruct(volume)
+'''
+
+
+def test_a_plugins_output_in_a_run_is_kept_in_its_record_not_shown_raw(tmp_path):
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    (tmp_path / "loud_plugin.py").write_text(LOUD)
+    repo = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(repo)])}
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "bench", "run", "--quick", "--phantoms", "sphere", "--n", "16",
+                           "--noise", "none", "--method", "loud", "--import", "loud_plugin", "--no-report",
+                           "--out", str(out)], capture_output=True, text=True, timeout=300, env=env, cwd=repo)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "\x1b" not in proc.stdout + proc.stderr and "\x07" not in proc.stdout + proc.stderr
+    (record,) = [json.loads(p.read_text()) for p in (out / "cells").glob("*.json")]
+    row = record.get("row", record)
+    kept = row["method_output"]
+    assert kept["bytes"] > 20000 and len(kept["head"]) >= 4096
+    assert kept["head"].startswith("\\x1b]0;stdout title\\x07ooo")

@@ -66,7 +66,7 @@ TAIL_COLUMNS = ["flags", "status", "error"]
 #: how :func:`scan_cells` ends the problem of a record file that is no cell's record
 IGNORED = "ignored"
 #: row keys kept in the cell's json but not in results.csv
-_NOT_IN_CSV = ("cell_s", "cpu_s", "artifact_error", "method_info", "phase_s")
+_NOT_IN_CSV = ("cell_s", "cpu_s", "artifact_error", "method_info", "method_output", "phase_s")
 
 
 # ---------------------------------------------------------------------------------------------- atomic writes

@@ -13,6 +13,7 @@ pipes (their rows arrive as usual) while the next cell starts a new fork server.
 from __future__ import annotations
 
 import os
+import tempfile
 import threading
 import time
 from collections import deque
@@ -24,13 +25,20 @@ from ..contracts import Cell, CellResult
 from ..grid import as_cell
 from ..limits import TimeLimits, apply_memory_limit, memory_phase
 from ..values import error_text
+from ...terminal import captured_head, redirect_output
 
 __all__ = ["LocalExecutor"]
+
+
+#: bytes of a cell's own stdout / stderr kept in its record
+OUTPUT_KEPT = 4096
 
 
 def _cell_process(cell: Cell, cache_dir: str | None, result_conn, lifeline_conn,
                   memory_gb: float | None = None) -> None:
     """Body of a worker process: run one cell, send the result, exit.  Exits at once if the runner dies.
+    What the cell writes on stdout / stderr (a plug-in's prints, a library's warnings) goes to a temporary file;
+    its first :data:`OUTPUT_KEPT` bytes, escaped, and its size are the row's ``method_output`` (the cell's json).
 
     The process leaves the runner's process group first (a new session: a plug-in's ``os.killpg(0, ...)``
     reaches only this cell; Ctrl-C reaches the runner, which kills its cells), then limits its own address
@@ -53,12 +61,17 @@ def _cell_process(cell: Cell, cache_dir: str | None, result_conn, lifeline_conn,
     def on_phase(phase: str, facts: dict) -> None:  # the parent's per-phase deadlines (bench.run.limits)
         result_conn.send(("phase", phase, facts))
 
-    try:
-        result = run_cell(cell, cache_dir, on_phase)
-    except KeyboardInterrupt:  # a SIGINT sent to the cell itself (Ctrl-C reaches the runner, which kills it)
-        os._exit(130)
-    except BaseException as exc:  # run_cell catches Exception; this is SystemExit etc.
-        result = failed_result(cell, "failed", f"worker: {error_text(exc)}")
+    with tempfile.TemporaryFile() as out:          # what the method prints: kept in the record, not shown raw
+        redirect_output(out.fileno())
+        try:
+            result = run_cell(cell, cache_dir, on_phase)
+        except KeyboardInterrupt:  # a SIGINT sent to the cell itself (Ctrl-C reaches the runner, which kills it)
+            os._exit(130)
+        except BaseException as exc:  # run_cell catches Exception; this is SystemExit etc.
+            result = failed_result(cell, "failed", f"worker: {error_text(exc)}")
+        size, head = captured_head(out.fileno(), OUTPUT_KEPT)
+    if size:
+        result.row["method_output"] = {"bytes": size, "head": head}
     try:
         result_conn.send(result)
     except Exception as exc:  # e.g. an unpicklable artifact: send the row alone

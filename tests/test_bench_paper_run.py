@@ -45,8 +45,10 @@ def test_paper_columns_start_from_the_radius_2_sphere_and_run_the_papers_iterati
     last = 150 if phantom == "fused_spheres" else 100
     assert list(art["snapshot_iterations"]) == [0, 1, last // 2, last][: len(art["snapshot_iterations"])]
     # no stop on a relative-energy tolerance: the paper's count, or the line search ran out (the caption says so)
-    assert row["stop_reason"] in ("max_iter", "line_search_floor")
-    assert (row["iterations"] == last) == (row["stop_reason"] == "max_iter")
+    assert row["stop_reason"] in ("fixed_iterations", "line_search_floor")
+    assert (row["iterations"] == last) == (row["stop_reason"] == "fixed_iterations")
+    # the paper's count is its design, not a defect; a line search that ran out is
+    assert ("not_converged" in str(row.get("flags"))) == (row["stop_reason"] == "line_search_floor")
     v1 = np.asarray(art["snap1_vertices"], float)
     assert np.abs(v1 - v0).max() > 0.01                                    # iteration 1 moved visibly
 

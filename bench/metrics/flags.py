@@ -8,7 +8,9 @@
 * ``missing_parts`` — more than 0.5 % of the true surface lies farther than 2 h from the mesh (``coverage_pct``
   below 99.5): a part of the object is missing, whatever the method says (a dropped limb, an eroded thin part);
 * ``not_converged`` — the method stopped on ``max_iter``, ``line_search_floor``, ``diverged`` or
-  ``sign_guard`` (the shape gradient rolled back to a checkpoint: its result is an early iterate).
+  ``sign_guard`` (the shape gradient rolled back to a checkpoint: its result is an early iterate).  A run with
+  no convergence test that ran its full count (``stop_reason = fixed_iterations``, the paper's presets) is not
+  flagged: the count is its design.
 """
 
 from __future__ import annotations

@@ -142,12 +142,12 @@ def _beta(params) -> float | None:
 
 def _clean(r: dict) -> bool:
     """Valid and unflagged — except that the paper's variants may stop on ``not_converged``: the paper runs a
-    fixed number of iterations (``max_iter`` is its design) and the printed loop ends where its line search
-    finds no decrease (``line_search_floor``); any other flag still disqualifies."""
+    fixed number of iterations (``fixed_iterations``, never flagged) and the printed loop ends where its line
+    search finds no decrease (``line_search_floor``); any other flag still disqualifies."""
     flags = r.get("flags")
     text = "" if flags is None or (isinstance(flags, float) and math.isnan(flags)) else str(flags)
     left = {f for f in text.split(";") if f.strip()}
-    if variant_of(r) in ("printed", "corrected") and r.get("stop_reason") in ("max_iter", "line_search_floor"):
+    if variant_of(r) in ("printed", "corrected") and r.get("stop_reason") in ("fixed_iterations", "max_iter", "line_search_floor"):
         left.discard("not_converged")
     return r.get("status") == "ok" and not left
 

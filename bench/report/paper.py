@@ -224,6 +224,7 @@ STOP_WORDS = {"line_search_floor": "the line search found no decrease of the ene
               "converged": "the energy or the surface stopped changing (tolerance)",
               "diverged": "the step became non-finite or left the grid",
               "sign_guard": "the sign guard rolled back a step that cut the object",
+              "fixed_iterations": "its fixed iteration count (no convergence test, by design)",
               "max_iter": "the iteration limit"}
 
 

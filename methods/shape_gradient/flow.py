@@ -23,7 +23,9 @@ from .signs import SignGuard
 
 __all__ = ["ShapeGradientFlow", "STOP_REASONS"]
 
-STOP_REASONS = ("converged", "max_iter", "line_search_floor", "diverged", "sign_guard")
+#: ``fixed_iterations``: the run had no convergence test (``tol`` and ``move_tol`` both 0, as the paper's presets)
+#: and ran its full ``max_iter`` count by design; ``max_iter``: a run with a test hit the cap before it held
+STOP_REASONS = ("converged", "fixed_iterations", "max_iter", "line_search_floor", "diverged", "sign_guard")
 
 _CONVERGE_PATIENCE = 3     # consecutive iterations with relative energy change < tol
 _FLOOR_MOVE_VOXELS = 1e-4  # the line search gives up when the largest trial move falls below this
@@ -138,6 +140,9 @@ class ShapeGradientFlow:
         if self.stop is not None:
             return False
         if self.iteration >= self.settings.max_iter:
+            if self.settings.tol <= 0 and self.settings.move_tol <= 0:
+                return self._end("fixed_iterations", f"ran its fixed count of {self.settings.max_iter} iterations "
+                                                      "(no convergence test: tol = move_tol = 0)")
             return self._end("max_iter", f"reached max_iter = {self.settings.max_iter}")
         st, ops, field, timings = self.settings, self.ops, self.field, self.timings
         alpha, beta, h = self.alpha, self.beta, self.h

@@ -170,7 +170,9 @@ def test_the_leaderboard_exports_with_its_ranks_and_compiles(run, capsys, tmp_pa
 
     board = leaderboards(read_results(run).to_dict("records"))[0]
     md = _table([str(run), "--leaderboard"], capsys)
-    rows = [ln for ln in md.splitlines() if ln.startswith("| ") and not ln.startswith("| method")]
+    raw, usable = md.split("### ")[1:3]                      # the board, then its usable-meshes-first twin
+    assert board["recommendation"].split(",")[0] in raw and "usable meshes first" in usable
+    rows = [ln for ln in raw.splitlines() if ln.startswith("| ") and not ln.startswith("| method")]
     assert len(rows) == len(board["rows"]) == 2
     for r, line in zip(board["rows"], rows):
         cells = [c.strip().strip("*") for c in line.strip("|").split("|")]

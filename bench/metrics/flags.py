@@ -17,11 +17,14 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["result_flags", "FLAGS"]
+__all__ = ["result_flags", "FLAGS", "UNUSABLE_FLAGS", "is_usable"]
 
 FLAGS = ("topology_mismatch", "dropped_components", "missing_parts", "self_intersecting", "not_converged")
 #: ``missing_parts`` below this ``coverage_pct``
 MIN_COVERAGE_PCT = 99.5
+#: a valid mesh with one of these is not *usable* (see :func:`is_usable`); ``not_converged`` alone is not a defect
+#: of the mesh
+UNUSABLE_FLAGS = ("topology_mismatch", "dropped_components", "missing_parts", "self_intersecting")
 _NOT_CONVERGED = ("max_iter", "line_search_floor", "diverged", "sign_guard")
 
 
@@ -53,3 +56,14 @@ def result_flags(row: dict, phantom=None) -> list[str]:
     if row.get("stop_reason") in _NOT_CONVERGED:
         flags.append("not_converged")
     return flags
+
+
+def is_usable(row: dict) -> bool:
+    """A result a user who needs one closed surface can take as it is: ``ok`` (valid), the truth's number of
+    components and genus where a truth exists, no ``missing_parts``, no self-intersection (none of
+    :data:`UNUSABLE_FLAGS` in the row's ``flags``)."""
+    if row.get("status") != "ok":
+        return False
+    flags = row.get("flags")
+    text = "" if flags is None or (isinstance(flags, float) and math.isnan(flags)) else str(flags)
+    return not {f.strip() for f in text.split(";")} & set(UNUSABLE_FLAGS)

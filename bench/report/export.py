@@ -56,6 +56,8 @@ class GroupTable:
     group: dict
     frame: object
     best: dict
+    #: a sentence printed under the title (a leaderboard's recommendation)
+    note: str = ""
 
 
 def _as_float(series):
@@ -156,18 +158,20 @@ def leaderboard_tables(df) -> list[GroupTable]:
     if not len(df):
         raise InputError("the run has no finished cells: no leaderboard to make")
     out = []
-    for b in leaderboards(df.to_dict("records")):
+    boards = leaderboards(df.to_dict("records"))
+    for b in [x for board in boards for x in (board, board.get("usable_board")) if x is not None]:
         recs = []
         for r in b["rows"]:
-            rec = {"method": r["label"], "cells": f"{r['valid_pct']:.0f} % of {r['cells']}"}
+            rec = {"method": r["label"], "cells": f"{r['valid_pct']:.0f} % of {r['cells']}, "
+                                                  f"{r['usable_pct']:.0f} % usable"}
             rec.update({f"rank {m}": r[m] for m, _ in b["keys"]})
             rec.update(wins=float(r["wins"]), ties=float(r["ties"]), losses=float(r["losses"]), median_s=r["median_s"])
             recs.append(rec)
         frame = pd.DataFrame(recs)
         best = {c: (best_mask(frame[c], "min") if c.startswith("rank ") else np.zeros(len(frame), bool))
                 for c in frame.columns if c not in ("method", "cells")}
-        title = f"{b['title']}: {b['n_blocks']} inputs; {b['significance']['note']}"
-        out.append(GroupTable(title, {}, frame, best))
+        title = f"{b['title']}: {b['n_inputs']} inputs, {b['n_blocks']} with every method; {b['significance']['note']}"
+        out.append(GroupTable(title, {}, frame, best, note=b["recommendation"]))
     return out
 
 
@@ -197,7 +201,8 @@ def to_markdown(tables: list[GroupTable]) -> str:
     for t in tables:
         metrics = [c for c in t.frame.columns if c not in ("method", "cells")]
         head = ["method", "cells"] + [f"{n} ({u})" if u else n for n, u in map(_header, metrics)]
-        lines = [f"### {_md(t.title)}", "", "| " + " | ".join(_md(h) for h in head) + " |",
+        lines = [f"### {_md(t.title)}", "", *([_md(t.note), ""] if t.note else []),
+                 "| " + " | ".join(_md(h) for h in head) + " |",
                  "|" + "|".join([":---", "---:"] + ["---:"] * len(metrics)) + "|"]
         for i, r in t.frame.iterrows():
             cells = [_md(r["method"]), r["cells"]]
@@ -241,7 +246,7 @@ def to_latex(tables: list[GroupTable]) -> str:
             bold.loc[t.best[m], h] = "textbf:--rwrap;"
         sty = shown.style.hide(axis="index").apply(lambda _: bold, axis=None)
         out.append(sty.to_latex(hrules=True, column_format="lr" + "r" * len(metrics), environment="table",
-                                position="htbp", position_float="centering", caption=latex_text(t.title),
+                                position="htbp", position_float="centering", caption=latex_text(t.title + (f". {t.note}" if t.note else "")),
                                 label=f"tab:levelset-bench-{k + 1}"))
     return "\n".join(out)
 

@@ -19,6 +19,7 @@ from .cost import cost_section
 from .interactive import VIEW_FACES, pareto_figure, plotly_js, robustness_figures, viewer_payload
 from .paper import gallery_tables, paper_layout, paper_tables
 from .tables import BEST_DIRECTION, summary_tables
+from .pairwise import pairwise_html
 from .verdicts import board_html, cd_figure, leaderboards
 from .colours import method_colour
 
@@ -142,6 +143,9 @@ def _interactive(df, arts: Artifacts, config: dict, shown: list[str] | None = No
     verdict_charts = [cd_figure(b, colours) for b in boards]
     for b, fig in zip(boards, verdict_charts):
         b["html"] = board_html(b, colours)
+        b["pairwise_html"] = pairwise_html(b["pairwise"], [r["label"] for r in b["rows"]])
+        if b.get("usable_board"):
+            b["usable_board"]["html"] = board_html(b["usable_board"], colours)
         b["chart"] = None
     charts = [f for f in verdict_charts if f is not None]
     k = 0

@@ -30,8 +30,11 @@ from typing import Any
 
 import numpy as np
 
+from bench.metrics.flags import is_usable
 from bench.metrics.registry import METRICS
 from bench.perf.quality import same_within_tolerance
+
+from .pairwise import pairwise, recommendation
 
 __all__ = ["BLOCK_KEYS", "TRUTH_KEYS", "DEGRADED_KEYS", "FREE_KEYS", "MIN_BLOCKS", "ALPHA", "block_ranks", "leaderboards",
            "significance", "cd_figure", "board_html"]
@@ -170,15 +173,55 @@ def _wtl(ranks: np.ndarray, i: int) -> tuple[int, int, int]:
     return int((at_best & (shared == 1)).sum()), int((at_best & (shared > 1)).sum()), int((~at_best).sum())
 
 
-def _board(rows: list[dict], keys, title: str) -> dict | None:
+def _input(r: dict) -> tuple:
+    return tuple(str(r.get(k)) for k in BLOCK_KEYS)
+
+
+def _per_label(rows: list[dict], metric: str, labels: list[str]) -> dict[str, dict[tuple, float]]:
+    """Each label's value per input (smaller is better, NaN unless ok; the first row of an input wins)."""
+    out: dict[str, dict[tuple, float]] = {lab: {} for lab in labels}
+    for r in rows:
+        lab = str(r.get("label"))
+        if lab in out:
+            out[lab].setdefault(_input(r), _sign(metric) * _value(r, metric))
+    return out
+
+
+def _core(rows: list[dict], labels: list[str], keys, n_inputs: int) -> dict | None:
+    """The methods run on every input of the board, tested over all those inputs — when they are fewer than
+    the board's methods (the board's own test only sees the inputs every method has)."""
+    have = {lab: {_input(r) for r in rows if str(r.get("label")) == lab} for lab in labels}
+    core = [lab for lab in labels if len(have[lab]) == n_inputs]
+    if not 2 <= len(core) < len(labels):
+        return None
+    first = keys[0][0]
+    labs, ranks = block_ranks(rows, first, core)
+    values = None
+    if len(core) == 2:
+        blocks = _blocks(rows, core)
+        values = np.array([[_sign(first) * _value(b[lab], first) for lab in core] for _, b in sorted(blocks.items())])
+    sig = significance(ranks, labs, values)
+    order = sorted(core, key=lambda lab: sig["mean_ranks"][lab])
+    out = {"labels": core, "n_blocks": int(len(ranks)), "significance": sig}
+    out["recommendation"] = recommendation({"rows": [{"label": lab} for lab in order], "metric": first,
+                                            "keys": keys, "n_inputs": n_inputs,
+                                            "pairwise": pairwise(_per_label(rows, first, core), first)})
+    return out
+
+
+def _board(rows: list[dict], keys, title: str, usable: bool = False) -> dict | None:
+    """One board over ``rows``; ``usable``: an unusable cell (:func:`bench.metrics.flags.is_usable`) ranks last."""
     keys = [(m, t) for m, t in keys if any(np.isfinite(_num(r.get(m))) for r in rows)]
     labels = list(dict.fromkeys(str(r.get("label")) for r in rows))
     if not keys or len(labels) < 1:
         return None
+    n_usable = {lab: sum(1 for r in rows if str(r.get("label")) == lab and is_usable(r)) for lab in labels}
+    if usable:
+        rows = [r if is_usable(r) else {**r, "status": "unusable"} for r in rows]
     first = keys[0][0]
+    per_label = _per_label(rows, first, labels)
+    n_inputs = len({_input(r) for r in rows})
     _, ranks0 = block_ranks(rows, first, labels)
-    if not len(ranks0):
-        return None
     mean_ranks = {}
     for m, _ in keys:
         _, rk = block_ranks(rows, m, labels)
@@ -189,18 +232,26 @@ def _board(rows: list[dict], keys, title: str) -> dict | None:
         good = [r for r in mine if r.get("status") == "ok" and not _flagged(r)]
         times = [_num(r.get("wall_s")) for r in mine if np.isfinite(_num(r.get("wall_s")))]
         rec = {"label": lab, "cells": len(mine), "valid_pct": 100.0 * len(good) / len(mine) if mine else math.nan,
+               "usable_pct": 100.0 * n_usable[lab] / len(mine) if mine else math.nan,
                "median_s": float(np.median(times)) if times else math.nan}
         for m, _ in keys:
             rec[m] = float(mean_ranks[m][i])
-        rec["wins"], rec["ties"], rec["losses"] = _wtl(ranks0, i)
+        rec["wins"], rec["ties"], rec["losses"] = _wtl(ranks0, i) if len(ranks0) else (0, 0, 0)
         table.append(rec)
-    table.sort(key=lambda r: (r[first], r["label"]))
+    pw = pairwise(per_label, first)
+    # no input every method has: order by the share of pairwise comparisons won
+    score = {lab: sum(pw["pairs"][(lab, o)]["wins"] - pw["pairs"][(lab, o)]["losses"] for o in labels if o != lab)
+             for lab in labels}
+    table.sort(key=lambda r: (r[first] if len(ranks0) else 0.0, -score[r["label"]], r["label"]))
     values = None
     if len(labels) == 2:
         blocks = _blocks(rows, labels)
         values = np.array([[_sign(first) * _value(b[lab], first) for lab in labels] for _, b in sorted(blocks.items())])
-    return {"title": title, "keys": keys, "rows": table, "n_blocks": int(len(ranks0)),
-            "significance": significance(ranks0, labels, values), "metric": first}
+    board = {"title": title, "keys": keys, "rows": table, "n_blocks": int(len(ranks0)), "n_inputs": n_inputs,
+             "significance": significance(ranks0, labels, values), "metric": first, "usable": usable,
+             "pairwise": pw, "core": _core(rows, labels, keys, n_inputs)}
+    board["recommendation"] = recommendation(board)
+    return board
 
 
 def _degrade(r: dict) -> str:
@@ -223,7 +274,7 @@ def leaderboards(rows: list[dict]) -> list[dict]:
         sub = [r for r in rows if _degrade(r) == d and not _no_truth(r)]
         kinds = sorted({str(r.get("input_kind")) for r in sub if r.get("input_kind") not in (None, "")})
         kind = " / ".join(KIND_TITLES.get(k, k) for k in kinds) or "a degraded volume"
-        b = _board(sub, DEGRADED_KEYS, f"From {kind}: {d}") if sub else None
+        b = _with_usable(sub, DEGRADED_KEYS, f"From {kind}: {d}") if sub else None
         if b is not None:
             b["degrade"] = d
             boards.append(b)
@@ -234,10 +285,18 @@ def leaderboards(rows: list[dict]) -> list[dict]:
                                                                             else "")),
                              (free, FREE_KEYS, "Cells without ground truth (data fidelity only)")):
         if sub:
-            b = _board(sub, keys, title)
+            b = _with_usable(sub, keys, title)
             if b is not None:
                 boards.append(b)
     return boards
+
+
+def _with_usable(rows: list[dict], keys, title: str) -> dict | None:
+    """The raw board with its twin (``usable_board``) that ranks unusable results last."""
+    b = _board(rows, keys, title)
+    if b is not None:
+        b["usable_board"] = _board(rows, keys, f"{title}: usable meshes first", usable=True)
+    return b
 
 
 def _no_truth(r: dict) -> bool:
@@ -281,18 +340,20 @@ def _fmt(v, digits: str = ".2f") -> str:
 
 
 def board_html(board: dict, colours: dict[str, str]) -> str:
-    """A board as an HTML table (escaped): method, mean rank per key metric, W/T/L, valid %, median time."""
+    """A board as an HTML table (escaped): method, mean rank per key metric, W/T/L, valid %, usable %, median time."""
     import html
 
     head = ["method", *[f"{t}<br><small>mean rank on {html.escape(m)}</small>" for m, t in board["keys"]],
             f"wins / ties / losses<br><small>on {html.escape(board['metric'])}</small>",
-            "valid &amp; unflagged", "median time"]
+            "valid &amp; unflagged", "usable<br><small>one piece, truth's genus, no missing part or "
+            "self-intersection</small>", "median time"]
     body = []
     for r in board["rows"]:
         colour = html.escape(colours.get(r["label"], "#444"))
         cells = [f'<span class="swatch" style="background:{colour}"></span>{html.escape(r["label"])}',
                  *[_fmt(r[m]) for m, _ in board["keys"]], f"{r['wins']} / {r['ties']} / {r['losses']}",
-                 f"{_fmt(r['valid_pct'], '.0f')} % of {r['cells']}", f"{_fmt(r['median_s'], '.3g')} s"]
+                 f"{_fmt(r['valid_pct'], '.0f')} % of {r['cells']}", f"{_fmt(r['usable_pct'], '.0f')} %",
+                 f"{_fmt(r['median_s'], '.3g')} s"]
         body.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
     return ('<table class="summary leaderboard"><thead><tr>' + "".join(f"<th>{h}</th>" for h in head)
             + "</tr></thead><tbody>" + "".join(body) + "</tbody></table>")

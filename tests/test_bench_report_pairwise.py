@@ -1,0 +1,107 @@
+"""bench/report/pairwise.py and the boards that use it: every pair tested on the inputs both methods have,
+Holm's correction, usable meshes first, and the recommendation sentence generated from the numbers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bench.report.pairwise import MIN_PAIRED, holm, pairwise, recommendation
+from bench.report.verdicts import leaderboards
+
+
+def _rows(values: dict[str, dict[int, float]], **extra) -> list[dict]:
+    """One row per (method, input index): value = Hausdorff; the inputs are phantoms p0, p1, ..."""
+    rows = []
+    for label, vals in values.items():
+        for i, v in vals.items():
+            rows.append({"phantom": f"p{i}", "variant": "sdf", "N": 48, "noise": "none", "snr_requested": None,
+                         "seed": 0, "label": label, "status": "ok", "flags": "", "wall_s": 1.0, "hausdorff_h": v,
+                         "mean_dist_h": v / 4, **extra})
+    return rows
+
+
+def test_holm_matches_the_step_down_by_hand():
+    ps = [0.01, 0.04, 0.03, math.nan, 0.2]
+    # sorted: 0.01·4 = 0.04, 0.03·3 = 0.09, 0.04·2 = 0.08 → max(0.09, 0.08) = 0.09, 0.2·1 = 0.2
+    assert holm(ps)[:3] == pytest.approx([0.04, 0.09, 0.09]) and math.isnan(holm(ps)[3])
+    assert holm(ps)[4] == pytest.approx(0.2)
+    assert holm([0.6, 0.5]) == pytest.approx([1.0, 1.0])
+
+
+def test_a_pair_is_tested_on_the_inputs_both_have_even_when_a_third_method_shares_few():
+    rng = np.random.default_rng(1)
+    base = rng.uniform(0.5, 3.0, 20)
+    vals = {"A": {i: base[i] for i in range(20)}, "B": {i: base[i] * 1.2 + 0.05 for i in range(20)},
+            "C": {i: base[i] * 0.9 for i in range(6)}}               # C ran on 6 of the 20 inputs only
+    board = leaderboards(_rows(vals))[0]
+    assert board["n_blocks"] == 6 and board["n_inputs"] == 20
+    assert board["significance"]["test"] is None                       # 6 inputs every method has: no Friedman
+    ab = board["pairwise"]["pairs"][("A", "B")]
+    assert (ab["n"], ab["wins"], ab["losses"]) == (20, 20, 0)
+    assert ab["p_holm"] < 0.05 and ab["better"] == "A"
+    ba = board["pairwise"]["pairs"][("B", "A")]
+    assert (ba["wins"], ba["losses"], ba["better"]) == (0, 20, "A")
+    ac = board["pairwise"]["pairs"][("A", "C")]
+    assert ac["n"] == 6 and ac["losses"] == 6       # C is better where it ran, but 6 inputs give p ≥ 0.03 before Holm
+    # A and B are a core that ran everywhere: their test over all 20 inputs
+    assert board["core"]["labels"] == ["A", "B"] and board["core"]["n_blocks"] == 20
+    assert board["core"]["significance"]["p"] < 0.05
+
+
+def test_the_recommendation_names_who_is_beaten_and_who_is_not_told_apart():
+    base = np.linspace(1.0, 3.0, 12)
+    alternating = {i: v * (1.2 if i % 2 else 0.85) for i, v in enumerate(base)}
+    vals = {"A": {i: v for i, v in enumerate(base)}, "B": {i: v * 1.5 for i, v in enumerate(base)},
+            "C": alternating}
+    board = leaderboards(_rows(vals))[0]
+    text = board["recommendation"]
+    assert text.startswith("On these 12 inputs, A has the best mean rank on distance (Hausdorff) (hausdorff_h)")
+    assert "significantly better than B (12–0 of 12" in text and "not distinguishable from C" in text
+    assert "Holm" in text
+    # nothing separates two methods that alternate: the sentence says so
+    two = leaderboards(_rows({"A": vals["A"], "C": alternating}))[0]["recommendation"]
+    assert two.startswith("No significant difference on distance (Hausdorff)") and "significantly" not in two[5:]
+
+
+def test_a_method_in_pieces_wins_the_raw_board_and_ranks_last_on_the_usable_board():
+    base = np.linspace(1.0, 2.0, 12)
+    rows = _rows({"pieces": {i: v * 0.5 for i, v in enumerate(base)},
+                  "one": {i: v for i, v in enumerate(base)}, "other": {i: v * 1.3 for i, v in enumerate(base)}})
+    for r in rows:
+        if r["label"] == "pieces":
+            r["flags"] = "topology_mismatch"                           # e.g. 3–18 components of a one-piece shape
+    board = leaderboards(rows)[0]
+    assert board["rows"][0]["label"] == "pieces" and board["rows"][0]["usable_pct"] == 0.0
+    usable = board["usable_board"]
+    assert [r["label"] for r in usable["rows"]] == ["one", "other", "pieces"]
+    assert usable["rows"][0]["usable_pct"] == 100.0 and usable["rows"][2]["hausdorff_h"] == 3.0
+    assert "pieces has the best mean rank" in board["recommendation"]
+    assert usable["recommendation"].startswith("Among usable meshes on these 12 inputs (unusable ones rank "
+                                               "last), one has the best mean rank")
+    assert "significantly better than other" in usable["recommendation"]
+    assert "pieces (12–0 of 12" in usable["recommendation"]
+
+
+def test_an_invalid_cell_loses_to_a_valid_one_and_two_invalid_cells_tie():
+    a = {("x", i): 1.0 + i for i in range(MIN_PAIRED)}
+    b = dict(a)
+    b[("x", 0)] = math.nan
+    a[("x", 1)] = math.nan
+    b[("x", 1)] = math.nan
+    pw = pairwise({"A": a, "B": b}, "hausdorff_h")
+    rec = pw["pairs"][("A", "B")]
+    assert (rec["wins"], rec["ties"], rec["losses"]) == (1, MIN_PAIRED - 1, 0)
+    few = pairwise({"A": {1: 1.0}, "B": {1: 2.0}}, "hausdorff_h")["pairs"][("A", "B")]
+    assert math.isnan(few["p"]) and few["better"] is None and few["wins"] == 1
+
+
+def test_no_input_in_common_still_gives_a_board_with_its_pairs():
+    rows = _rows({"A": {i: 1.0 for i in range(8)}, "B": {i: 2.0 for i in range(8)},
+                  "C": {i: 0.5 for i in range(8, 16)}})
+    board = leaderboards(rows)[0]
+    assert board["n_blocks"] == 0 and board["n_inputs"] == 16
+    assert board["rows"][0]["label"] == "A"                             # the only pair with inputs in common
+    assert "not tested against C (only 0 shared inputs; a test needs 6)" in recommendation(board)

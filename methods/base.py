@@ -46,6 +46,9 @@ BUILTIN_METHODS: dict[str, str] = {
     "reach_for_the_spheres": "methods.reach_for_the_spheres:ReachForTheSpheres",
     "reach_for_the_arcs": "methods.reach_for_the_arcs:ReachForTheArcs",
     "dual_contouring": "methods.dual_contouring:DualContouring",
+    "dc_sdf": "methods.dc_sdf:DCSDF",
+    "cgal_mesher": "methods.cgal_mesher:CGALMesher",
+    "vdb": "methods.vdb:VDB",
     "flying_edges": "methods.flying_edges:FlyingEdges",
     "surface_nets": "methods.surface_nets:SurfaceNets",
     "slicer": "methods.slicer:Slicer",
@@ -264,6 +267,29 @@ class Method:
             The method ran but its result is not a reconstruction.
         """
         raise NotImplementedError
+
+    #: optional packages the method needs: {top-level module: the command that installs it}.  While one is
+    #: missing the method is listed as unavailable with that command (``python -m bench methods``) and
+    #: :meth:`require` — called first by ``reconstruct`` — fails in one line instead of an import traceback
+    requires: ClassVar[dict[str, str]] = {}
+
+    @classmethod
+    def missing(cls) -> str | None:
+        """None when every module of :attr:`requires` is installed, else one line naming the first missing
+        one and the command that installs it (nothing is imported: listing the methods stays cheap)."""
+        import importlib.util
+
+        for module, command in cls.requires.items():
+            if importlib.util.find_spec(module) is None:
+                return f"method {cls.name!r} needs {module}, which is not installed: {command}"
+        return None
+
+    @classmethod
+    def require(cls) -> None:
+        """Raise :class:`InputError` with :meth:`missing`'s line when a required module is not installed."""
+        message = cls.missing()
+        if message:
+            raise InputError(message)
 
     #: rough cost of one run relative to marching cubes + scoring at the same N (the runner starts the dearest
     #: cells first, so that two workers finish together); a plug-in may set its own

@@ -62,7 +62,7 @@ from .base import Method, Param, Reconstruction, ReconstructionFailed, check_vol
 from .cost import PowerLaw
 from .marching_cubes import _nudge_zeros, orient_outward
 
-__all__ = ["DualContouring", "split_quads", "band_box"]
+__all__ = ["DualContouring", "split_quads", "band_box", "library_grid"]
 
 
 def band_box(volume: Volume, band: float) -> tuple[np.ndarray, np.ndarray]:
@@ -81,6 +81,18 @@ def band_box(volume: Volume, band: float) -> tuple[np.ndarray, np.ndarray]:
     lo = np.maximum(idx.min(axis=0) - 1, 0)
     hi = np.minimum(idx.max(axis=0) + 2, np.asarray(v.shape))
     return lo, hi
+
+
+def library_grid(volume: Volume, lo, hi) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sub-box ``[lo, hi)`` of the grid as gpytoolbox's dual contouring takes it: (the box's values with
+    exact zeros nudged outside, S (M,) first axis fastest, GV (M, 3) the samples' world coordinates)."""
+    values = _nudge_zeros(volume.values[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]])
+    S = values.ravel(order="F")            # first axis fastest, as the library wants
+    axes = [volume.origin[d] + volume.spacing[d] * np.arange(lo[d], hi[d]) for d in range(3)]
+    GV = np.empty((S.size, 3))
+    for d, g in enumerate(np.meshgrid(*axes, indexing="ij")):
+        GV[:, d] = g.ravel(order="F")
+    return values, S, GV
 
 
 def split_quads(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
@@ -129,13 +141,8 @@ class DualContouring(Method):
             lo, hi = band_box(volume, cfg["band"])
         else:
             lo, hi = np.zeros(3, dtype=int), np.asarray(volume.shape)
-        values = _nudge_zeros(volume.values[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]])
+        values, S, GV = library_grid(volume, lo, hi)
         nx, ny, nz = values.shape
-        S = values.ravel(order="F")            # first axis fastest, as the library wants
-        axes = [volume.origin[d] + volume.spacing[d] * np.arange(lo[d], hi[d]) for d in range(3)]
-        GV = np.empty((S.size, 3))
-        for d, g in enumerate(np.meshgrid(*axes, indexing="ij")):
-            GV[:, d] = g.ravel(order="F")
         t0 = time.perf_counter()
         V, Q = dual_contouring_of_signed_distance_data(S, GV, nx, ny, nz, outer_iters=cfg["iterations"],
                                                        inner_iters=cfg["inner_iterations"])

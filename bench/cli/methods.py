@@ -76,6 +76,12 @@ def _cmd_methods(args) -> int:
         origin = f"{cls.__module__}:{cls.__qualname__}"
         print(printable(f"{name} — {cls.description or '(no description)'}"))
         print(printable(f"  class: {origin}"))
+        try:
+            missing = cls.missing()
+        except Exception:  # noqa: BLE001 - a plug-in's own override must not break the listing
+            missing = None
+        if missing:
+            print(printable(f"  unavailable: {missing}"))
         if cls.params:
             print("  parameters (set with --set key=value):")
             for key, spec in cls.params.items():

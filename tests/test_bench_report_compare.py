@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 import zlib
 
+import numpy as np
 import pytest
 
 from bench.perf.quality import TOLERANCES, cells_from_rows, quality_gate
@@ -21,7 +22,7 @@ def _row(label="mc", seed=0, params='{"k":1}', **metrics) -> dict:
 
 
 def _seed(name: str) -> str:
-    return re.search(r"_s(\d+)_", name).group(1)
+    return re.search(r"/s(\d+)/", name).group(1)
 
 
 def _run(folder, rows):
@@ -103,3 +104,45 @@ def test_a_topology_flagged_baseline_is_judged_against_the_phantoms_own_euler(tm
     b = _run(tmp_path / "b", [_row(phantom=phantom, euler=b_euler, flags="topology_mismatch")])
     got = {v["metric"]: v["verdict"] for v in compare_frames(a, b).values}
     assert got["euler"] == verdict
+
+
+def _seeds(label: str, values, params='{"k":1}') -> list[dict]:
+    return [_row(label=label, seed=i, params=params, hausdorff_h=float(v), mean_dist_h=float(v) / 4)
+            for i, v in enumerate(values)]
+
+
+def test_a_real_worsening_is_significant_and_seed_noise_is_not(tmp_path):
+    """Two runs of 10 seeds × 3 methods: `worse` got worse on every seed, `noisy` moved both ways by more than the
+    per-cell tolerance but with no direction, `same` did not move."""
+    rng = np.random.default_rng(3)
+    base = {lab: rng.uniform(1.0, 2.0, 10) for lab in ("worse", "noisy", "same")}
+    shift = rng.uniform(0.2, 0.4, 10) * np.where(np.arange(10) % 2, 1.0, -1.0)        # ±, alternating seeds
+    a = _run(tmp_path / "a", [r for lab in base for r in _seeds(lab, base[lab])])
+    b = _run(tmp_path / "b", _seeds("worse", base["worse"] * 1.3, params='{"k":2}') + _seeds("noisy", base["noisy"] + shift)
+             + _seeds("same", base["same"]))
+    cmp = compare_frames(a, b, "A", "B")
+    got = {(c["label"], c["metric"]): c for c in cmp.changes}
+    w = got[("worse", "hausdorff_h")]
+    assert w["verdict"] == "significantly worse" and (w["n"], w["worse_n"], w["better_n"]) == (10, 10, 0)
+    assert w["p_holm"] < 0.05 and w["median"] > 0 and min(w["interval"]) > 0
+    n = got[("noisy", "hausdorff_h")]
+    assert n["verdict"] == "no significant change" and n["worse_n"] and n["better_n"] and n["p"] > 0.05
+    assert got[("same", "hausdorff_h")]["verdict"] == "no change"
+    assert cmp.changes[0]["verdict"] == "significantly worse"                            # the worst news first
+    assert cmp.worse                                       # --fail-on-worse: the real worsening fails the run ...
+    b2 = _run(tmp_path / "b2", _seeds("worse", base["worse"]) + _seeds("noisy", base["noisy"] + shift)
+              + _seeds("same", base["same"]))
+    quiet = compare_frames(a, b2)
+    assert not quiet.worse and any(v["verdict"] == "worse" for v in quiet.values)    # ... seed noise alone does not
+    text = format_comparison(cmp)
+    assert "worse: hausdorff_h significantly worse — worse on 10, better on 0, the same on 0 of 10 inputs" in text
+    assert "noisy: hausdorff_h no significant change" in text
+    assert "sphere/N24/none/s3/worse" in text                          # readable cell names in the per-cell list
+
+
+def test_a_label_with_too_few_inputs_is_judged_per_cell(tmp_path):
+    a = _run(tmp_path / "a", _seeds("m", [1.0, 1.1, 1.2]))
+    b = _run(tmp_path / "b", _seeds("m", [1.0, 1.1, 1.5]))
+    cmp = compare_frames(a, b)
+    assert {c["verdict"] for c in cmp.changes if c["metric"] == "hausdorff_h"} == {"not tested"}
+    assert cmp.worse and "too few inputs to test" in format_comparison(cmp)

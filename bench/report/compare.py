@@ -11,6 +11,16 @@ Each metric of the quality gate (:data:`bench.perf.quality.TOLERANCES`) is judge
 tolerance.  A cell whose status or flags changed is listed apart (``ok`` → anything else, or a gained flag, is
 worse).  Time is not judged (one cell's time is noise on a shared machine: ``bench perf`` measures it); the
 median ratio of ``wall_s`` is shown.
+
+Conclusions (:func:`conclude`): per method label × key metric (:data:`KEY_METRICS`), over the inputs both runs
+share (seeds, shapes), the median change B − A with a distribution-free 95 % interval for it (order statistics),
+the count of inputs better / worse / the same within the gate's tolerance, and the Wilcoxon signed-rank test of
+the paired changes, Holm-corrected over the tests run (a label × metric whose values did not move is "no change"
+and not tested).  A change is *significant* at α = 0.05.  With fewer than
+:data:`bench.report.pairwise.MIN_PAIRED` shared inputs no test is possible and the per-cell tolerances decide,
+as the quality gate does.  :attr:`Comparison.worse` (``--fail-on-worse``) is a status or gained flag, a
+significant worsening of a key metric, or — for a label with too few inputs to test — a value beyond its
+tolerance.
 """
 
 from __future__ import annotations
@@ -21,16 +31,20 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench.perf.quality import TOLERANCES, cells_from_rows, compare_value, stable_cell_id
+from bench.perf.quality import TOLERANCES, cells_from_rows, compare_value
 
 from ..run.store import read_results
 from .export import phantom_genus
+from .pairwise import ALPHA, MIN_PAIRED, holm, median_interval, signed_rank_test
 from .tables import best_rule
 
-__all__ = ["MATCH_KEY", "Comparison", "compare_runs", "compare_frames", "format_comparison", "comparison_html"]
+__all__ = ["MATCH_KEY", "KEY_METRICS", "Comparison", "compare_runs", "compare_frames", "conclude", "format_comparison",
+           "comparison_html", "short_name"]
 
 #: the columns that say what a cell computes, without the code or the method's parameters
 MATCH_KEY = ("phantom", "variant", "N", "noise", "snr_requested", "seed", "label")
+#: the metrics a conclusion is drawn on (the leaderboard's key metrics with and without truth)
+KEY_METRICS = ("hausdorff_h", "mean_dist_h", "sdf_rms_h", "phi_mean_h", "roughness_deg")
 
 
 @dataclass
@@ -52,6 +66,8 @@ class Comparison:
     only_b: list[str] = field(default_factory=list)
     time_ratio: float | None = None
     time_cells: int = 0
+    #: one per label × key metric (:func:`conclude`)
+    changes: list[dict] = field(default_factory=list)
 
     def count(self, verdict: str) -> int:
         return sum(v["verdict"] == verdict for v in self.values)
@@ -62,8 +78,14 @@ class Comparison:
 
     @property
     def worse(self) -> bool:
-        """Something got worse: a metric beyond its tolerance, a status or a gained flag."""
-        return bool(self.cells_with("worse"))
+        """Something got worse: a status or a gained flag, a significant worsening of a key metric, or a value
+        beyond its tolerance for a label with too few shared inputs to test."""
+        if any(s["verdict"] == "worse" for s in self.states):
+            return True
+        if any(c["verdict"] == "significantly worse" for c in self.changes):
+            return True
+        tested = {c["label"] for c in self.changes if c["n"] >= MIN_PAIRED}
+        return any(v["verdict"] == "worse" and v["label"] not in tested for v in self.values)
 
     @property
     def unchanged(self) -> bool:
@@ -76,7 +98,10 @@ class Comparison:
                     "same status and flags")
         worse, better = self.cells_with("worse"), self.cells_with("better") - self.cells_with("worse")
         same = self.matched - len(worse | better)
-        return (f"compare: {self.matched} cells matched — {len(worse)} worse, {len(better)} better, {same} same; "
+        sig = {v: sum(c["verdict"] == v for c in self.changes) for v in ("significantly worse", "significantly better")}
+        return (f"compare: {self.matched} cells matched — {sig['significantly worse']} method × metric significantly "
+                f"worse, {sig['significantly better']} significantly better; per cell "
+                f"{len(worse)} worse, {len(better)} better, {same} same; "
                 f"{self.count('worse')} values worse, {self.count('better')} better, {self.count('same')} same "
                 f"(the quality gate's tolerances); {len(self.states)} status / flag changes; "
                 f"{len(self.only_a)} only in A, {len(self.only_b)} only in B")
@@ -149,6 +174,77 @@ def _flag_change(fa: list[str], fb: list[str]) -> str:
     return " ".join([f"+{f}" for f in fb if f not in fa] + [f"−{f}" for f in fa if f not in fb])
 
 
+def _pair_label(ra: dict, rb: dict) -> str:
+    la, lb = str(ra.get("label")), str(rb.get("label"))
+    return la if la == lb else f"{la} → {lb}"
+
+
+def short_name(r: dict) -> str:
+    """A cell's readable name: phantom/N/noise[@SNR]/seed/label (the variant, degradation when not plain)."""
+    parts = [str(r.get("phantom"))]
+    if r.get("variant") not in (None, "", "sdf"):
+        parts.append(str(r.get("variant")))
+    parts.append(f"N{_key_text('N', r.get('N'))}")
+    if r.get("degrade") not in (None, "", "none"):
+        parts.append(str(r.get("degrade")))
+    snr = _key_text("snr_requested", r.get("snr_requested"))
+    parts.append(str(r.get("noise")) + (f"@{float(snr):g}dB" if snr else ""))
+    parts.append(f"s{_key_text('seed', r.get('seed'))}")
+    return "/".join(parts + [str(r.get("label"))]).replace(" ", "_")
+
+
+def conclude(cmp: Comparison) -> list[dict]:
+    """Per label × key metric: the paired changes over the shared inputs, their median and interval, the test
+    (see the module docstring).  Sorted: significant worsening first."""
+    import numpy as np
+
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for v in cmp.values:
+        if v["metric"] in KEY_METRICS and isinstance(v["a"], (int, float)) and isinstance(v["b"], (int, float)):
+            groups.setdefault((v["label"], v["metric"]), []).append(v)
+    out = []
+    for (label, metric), vals in groups.items():
+        sign = -1.0 if TOLERANCES[metric].better == "max" else 1.0
+        d = np.array([sign * (float(v["b"]) - float(v["a"])) for v in vals])
+        moved = np.array([v["verdict"] != "same" for v in vals])
+        rec = {"label": label, "metric": metric, "n": len(d), "worse_n": int(((d > 0) & moved).sum()),
+               "better_n": int(((d < 0) & moved).sum()), "median": float(sign * np.median(d)),
+               "interval": tuple(sign * x for x in median_interval(d)), "p": math.nan, "p_holm": math.nan,
+               "lead": 0.0}
+        rec["same_n"] = rec["n"] - rec["worse_n"] - rec["better_n"]
+        if len(d) >= MIN_PAIRED and moved.any():
+            rec["p"], rec["lead"] = signed_rank_test(np.where(moved, d, 0.0))
+        out.append(rec)
+    for rec, ph in zip(out, holm([r["p"] for r in out])):
+        rec["p_holm"] = ph
+        if rec["n"] < MIN_PAIRED:
+            rec["verdict"] = "not tested"
+        elif not (rec["worse_n"] or rec["better_n"]):
+            rec["verdict"] = "no change"
+        elif ph < ALPHA and rec["lead"] != 0:
+            rec["verdict"] = "significantly worse" if rec["lead"] < 0 else "significantly better"
+        else:
+            rec["verdict"] = "no significant change"
+    order = {"significantly worse": 0, "significantly better": 1, "no significant change": 2, "not tested": 3,
+             "no change": 4}
+    return sorted(out, key=lambda r: (order[r["verdict"]], r["label"], KEY_METRICS.index(r["metric"])))
+
+
+def change_line(c: dict) -> str:
+    """One conclusion in words: ``label: metric significantly worse — worse on 9, better on 1, the same on 0
+    of 10 inputs; median change +0.31 (95 % interval +0.12 … +0.5); p = 0.004``."""
+    unit = " h" if c["metric"].endswith("_h") else "°" if c["metric"].endswith("_deg") else ""
+    lo, hi = sorted(c["interval"])
+    head = f"{c['label']}: {c['metric']} {c['verdict']}"
+    if c["verdict"] == "no change":
+        return f"{head} on {c['n']} inputs (every value within the gate's tolerance)"
+    counts = f"worse on {c['worse_n']}, better on {c['better_n']}, the same on {c['same_n']} of {c['n']} inputs"
+    med = f"median change {c['median']:+.3g}{unit} (95 % interval {lo:+.3g} … {hi:+.3g}{unit})"
+    test = (f"too few inputs to test (fewer than {MIN_PAIRED}): judged per cell" if c["verdict"] == "not tested"
+            else f"p = {c['p_holm']:.2g}" if c["p_holm"] >= 0.001 else "p < 0.001")
+    return f"{head} — {counts}; {med}; {test}"
+
+
 def _compare_pair(cmp: Comparison, name: str, ra: dict, rb: dict) -> None:
     qa, qb = (next(iter(cells_from_rows([r], "x").values())) for r in (ra, rb))
     if qa["status"] != qb["status"] or qa["flags"] != qb["flags"]:
@@ -165,7 +261,7 @@ def _compare_pair(cmp: Comparison, name: str, ra: dict, rb: dict) -> None:
         tol = TOLERANCES[metric]
         truth = _truth_value(metric, ra) if tol.better == "target" else None
         status, _, limit = compare_value(metric, tol, base, cur, qa["flags"], truth)
-        cmp.values.append({"cell": name, "label": ra.get("label"), "metric": metric, "a": base, "b": cur,
+        cmp.values.append({"cell": name, "label": _pair_label(ra, rb), "metric": metric, "a": base, "b": cur,
                            "limit": limit, "verdict": "same" if status == "ok" else status})
 
 
@@ -182,7 +278,7 @@ def compare_frames(df_a, df_b, name_a: str = "A", name_b: str = "B") -> Comparis
     ratios = []
     for ka, kb in pairs.items():
         ra, rb = a[ka], b[kb]
-        name = stable_cell_id(str(ra["cell_id"]))
+        name = short_name(rb)
         sig = (ra.get("label"), rb.get("label"), ra.get("method"), rb.get("method"), ra.get("parameters"),
                rb.get("parameters"))
         if sig[0] != sig[1] or sig[2] != sig[3] or sig[4] != sig[5]:
@@ -195,12 +291,13 @@ def compare_frames(df_a, df_b, name_a: str = "A", name_b: str = "B") -> Comparis
             ratios.append(float(tb) / float(ta))
     cmp.parameters = list(changed.values())
     matched_b = set(pairs.values())
-    cmp.only_a = [stable_cell_id(str(a[k]["cell_id"])) for k in a if k not in pairs]
-    cmp.only_b = [stable_cell_id(str(b[k]["cell_id"])) for k in b if k not in matched_b]
+    cmp.only_a = [short_name(a[k]) for k in a if k not in pairs]
+    cmp.only_b = [short_name(b[k]) for k in b if k not in matched_b]
     if ratios:
         import numpy as np
 
         cmp.time_ratio, cmp.time_cells = float(np.median(ratios)), len(ratios)
+    cmp.changes = conclude(cmp)
     return cmp
 
 
@@ -232,6 +329,12 @@ def format_comparison(cmp: Comparison) -> str:
     lines = [f"A: {cmp.name_a} ({cmp.n_a} cells)", f"B: {cmp.name_b} ({cmp.n_b} cells)"]
     for p in cmp.parameters:
         lines.append(f"changed: {p['label']} ({p['method']}, {p['cells']} cells): {p['change'] or 'same parameters'}")
+    if cmp.changes:
+        lines.append(f"verdicts per method and key metric (paired over the inputs both runs share; Wilcoxon "
+                     f"signed-rank, Holm-corrected over the {sum(not math.isnan(c['p']) for c in cmp.changes)} "
+                     f"tests, α = {ALPHA}):")
+        lines += ["  " + change_line(c) for c in cmp.changes]
+        lines.append("per cell (the quality gate's tolerances):")
     for verdict in ("worse", "better"):
         vals = [v for v in cmp.values if v["verdict"] == verdict]
         if vals:
@@ -273,11 +376,16 @@ def comparison_html(cmp: Comparison) -> str:
              f"</title><style>{_STYLE}</style></head><body><h1>levelset-bench compare</h1>",
              f"<p>A: <code>{e(cmp.name_a)}</code> ({cmp.n_a} cells)<br>B: <code>{e(cmp.name_b)}</code> "
              f"({cmp.n_b} cells)</p>", f"<p class='summary'>{e(cmp.summary_line())}</p>",
-             "<h2>Changed methods</h2>", _table(cmp.parameters, ["label", "method", "change", "cells"])]
+             "<h2>Changed methods</h2>", _table(cmp.parameters, ["label", "method", "change", "cells"]),
+             f"<h2>Verdicts per method and key metric</h2><p>Paired over the inputs both runs share; Wilcoxon "
+             f"signed-rank, Holm-corrected, α = {ALPHA}.</p><ul>"
+             + "".join(f"<li class='{'worse' if 'worse' in c['verdict'] else 'better' if 'better' in c['verdict'] else ''}'>"
+                       f"{e(change_line(c))}</li>" for c in cmp.changes) + "</ul>",
+             "<h2>Per cell</h2>"]
     for verdict in ("worse", "better"):
         vals = [v for v in cmp.values if v["verdict"] == verdict]
-        parts += [f"<h2 class='{verdict}'>{verdict.capitalize()} ({len(vals)} values)</h2>",
-                  _table(vals, ["cell", "metric", "a", "b", "limit"])]
+        parts += [f"<details><summary class='{verdict}'>{verdict.capitalize()} ({len(vals)} values)</summary>",
+                  _table(vals, ["cell", "metric", "a", "b", "limit"]), "</details>"]
     parts += ["<h2>Status / flags changed</h2>", _table(cmp.states, ["cell", "verdict", "status", "flags"])]
     for side, cells in (("A", cmp.only_a), ("B", cmp.only_b)):
         parts += [f"<h2>Only in {side}</h2>", _table([{"cell": c} for c in cells], ["cell"])]

@@ -29,7 +29,8 @@ import numpy as np
 
 from bench.perf.quality import same_within_tolerance
 
-__all__ = ["MIN_PAIRED", "ALPHA", "pairwise", "holm", "recommendation", "pairwise_html"]
+__all__ = ["MIN_PAIRED", "ALPHA", "pairwise", "holm", "signed_rank_test", "median_interval", "recommendation",
+           "pairwise_html"]
 
 MIN_PAIRED = 6
 ALPHA = 0.05
@@ -63,7 +64,7 @@ def _differences(a: dict, b: dict, metric: str) -> tuple[np.ndarray, int, int, i
     return d, int((d < 0).sum()), int((d == 0).sum()), int((d > 0).sum())
 
 
-def _test(d: np.ndarray) -> tuple[float, float]:
+def signed_rank_test(d: np.ndarray) -> tuple[float, float]:
     """(two-sided p, R− − R+): the Wilcoxon signed-rank test of d (R−: the rank sum of the negative d)."""
     import warnings
 
@@ -79,6 +80,21 @@ def _test(d: np.ndarray) -> tuple[float, float]:
     return p, float(r[nz < 0].sum() - r[nz > 0].sum())
 
 
+def median_interval(d: np.ndarray, level: float = 0.95) -> tuple[float, float]:
+    """A distribution-free interval for the median of ``d``: the order statistics d₍ₖ₎, d₍ₙ₋ₖ₊₁₎ with the
+    largest k whose binomial coverage is at least ``level`` ((min, max) when no k reaches it: n < 6)."""
+    from scipy import stats
+
+    x = np.sort(np.asarray(d, float))
+    n = len(x)
+    if n == 0:
+        return math.nan, math.nan
+    k = 0
+    while k + 1 <= n // 2 and 1.0 - 2.0 * stats.binom.cdf(k, n, 0.5) >= level:
+        k += 1
+    return float(x[max(k - 1, 0)]), float(x[n - max(k, 1)])
+
+
 def pairwise(values: dict[str, dict[tuple, float]], metric: str) -> dict[str, Any]:
     """``values``: per method label, its value per input (smaller is better; NaN: not ok / not usable).
 
@@ -89,7 +105,7 @@ def pairwise(values: dict[str, dict[tuple, float]], metric: str) -> dict[str, An
     pairs: dict[tuple[str, str], dict] = {}
     for a, b in combinations(labels, 2):
         d, w, t, l_ = _differences(values[a], values[b], metric)
-        p, lead = _test(d) if len(d) >= MIN_PAIRED else (math.nan, 0.0)
+        p, lead = signed_rank_test(d) if len(d) >= MIN_PAIRED else (math.nan, 0.0)
         pairs[(a, b)] = {"n": len(d), "wins": w, "ties": t, "losses": l_, "p": p, "lead": lead}
     keys = list(pairs)
     for k, ph in zip(keys, holm([pairs[k]["p"] for k in keys])):

@@ -15,8 +15,11 @@ HELP = """\
 Compare two run folders cell by cell (before / after a change to a method). Cells are matched on phantom,
 variant, N, noise, SNR, seed and method label (not on the cell id: a changed parameter changes it); each metric
 of the quality gate is judged better / worse / same with the gate's tolerances (`bench perf --quality`).
-Lists the changed methods and parameters, the worse and better values, the cells whose status or flags
-changed, the cells found in one run only, and a summary line ("no change" when nothing did)."""
+Concludes per method and key metric over the inputs both runs share (seeds, shapes): the median change with a
+95 % interval and a paired Wilcoxon signed-rank test, Holm-corrected ("significantly worse", "no significant
+change", ...). Then lists the changed methods and parameters, the worse and better values per cell, the cells
+whose status or flags changed, the cells found in one run only, and a summary line ("no change" when nothing
+did)."""
 
 
 def register(subparsers) -> None:
@@ -24,7 +27,8 @@ def register(subparsers) -> None:
     p.add_argument("run_a", metavar="RUN_A", help="the run before (a run folder)")
     p.add_argument("run_b", metavar="RUN_B", help="the run after")
     p.add_argument("--fail-on-worse", action="store_true",
-                   help="exit 1 when a metric got worse beyond its tolerance, a status or a flag (CI)")
+                   help="exit 1 on a significant worsening of a key metric, a worse status or a gained flag "
+                        "(a method with fewer than 6 shared inputs: any value beyond its tolerance) (CI)")
     p.add_argument("--html", metavar="OUT.html", help="also write the comparison as a self-contained page")
     p.set_defaults(func=_cmd_compare)
 

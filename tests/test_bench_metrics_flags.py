@@ -102,3 +102,15 @@ def test_the_shape_gradient_dropping_one_of_two_balls_is_flagged_missing_parts(t
     row = run_cell(cell).row
     assert row["status"] in ("ok", "invalid"), row["error"]
     assert row["coverage_pct"] < 70 and "missing_parts" in row["flags"].split(";")
+
+
+def test_without_truth_a_mesh_whose_inside_disagrees_with_the_data_is_flagged_and_unusable():
+    from bench.metrics.flags import MAX_SIGN_ERR_PCT, is_usable
+
+    row = {"status": "ok", "euler": 2, "components": 1, "sign_err_pct": 8.5}   # Poisson filling a vault
+    assert result_flags(row, None) == ["inside_disagrees"]
+    assert result_flags(dict(row, sign_err_pct=MAX_SIGN_ERR_PCT * 0.99), None) == []
+    # with a truth the truth's own flags speak: the sign error alone does not flag
+    assert "inside_disagrees" not in result_flags(row, object())
+    assert not is_usable(dict(row, flags="inside_disagrees")) and is_usable(dict(row, flags="not_converged"))
+    assert not is_usable(dict(row, status="invalid", flags=""))

@@ -165,3 +165,17 @@ def test_the_paper_variants_may_stop_on_their_iteration_count_or_line_search_oth
     default = dict(_variant_row("default", "sphere", "gaussian", hausdorff_h=0.1), flags="not_converged",
                    stop_reason="line_search_floor")
     assert {c.id: c for c in check_claims([default])}["robust_noise"].by_variant["default"].verdict == "does not hold"
+
+
+def test_a_claim_without_values_to_judge_is_not_measured_never_does_not_hold():
+    """A user's scan without truth: every distance is NaN; the comparisons cannot be made."""
+    nan = float("nan")
+    rows = [_row("shape_gradient", "scan", "gaussian", 1.0, hausdorff_h=nan, mean_dist_h=nan),
+            _row("marching_cubes", "scan", "gaussian", hausdorff_h=nan, mean_dist_h=nan),
+            _row("distmesh", "scan", "gaussian", hausdorff_h=nan),
+            _row("distmesh", "scan", "none", hausdorff_h=nan)]
+    v = _verdicts(rows)
+    for cid in ("robust_noise", "beats_mc", "noise_vs_mc_distmesh", "distmesh_unstable"):
+        assert v[cid] == "not measured", (cid, v[cid])
+    failed = dict(rows[0], status="failed")                      # a failed cell is judged: it is the verdict
+    assert _verdicts([failed] + rows[1:])["robust_noise"] == "does not hold"

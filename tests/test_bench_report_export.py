@@ -8,6 +8,7 @@ from bench.run.store import read_results, write_results_csv
 
 
 def _frame(tmp_path, rows):
+    tmp_path.mkdir(parents=True, exist_ok=True)
     cells = [{"cell_id": r["cell_id"]} for r in rows]
     write_results_csv(tmp_path, cells, {r["cell_id"]: {"row": r} for r in rows})
     return read_results(tmp_path)
@@ -38,3 +39,15 @@ def test_latex_text_escapes_the_special_characters_and_spells_unicode_signs():
     assert latex_text("a_b&c%d$e#f{g}~^\\") == (r"a\_b\&c\%d\$e\#f\{g\}\textasciitilde{}\textasciicircum{}"
                                                  r"\textbackslash{}")
     assert latex_text("1/world units² — °") == r"1/world units$^2$ --- $^\circ$"
+
+
+def test_topology_is_marked_best_only_against_a_truth(tmp_path):
+    """A skull scan without truth: χ = 2 / one component is not 'best' (its reference may well have χ = 0)."""
+    rows = [_row("closed", 0, euler=2, components=1, hausdorff_h=1.0, has_truth=True),
+            _row("open", 0, euler=0, components=1, hausdorff_h=2.0, has_truth=True)]
+    (t,) = group_tables(_frame(tmp_path / "t", rows), metrics=["euler", "hausdorff_h"])
+    assert t.best["euler"].tolist() == [True, False]                 # the sphere's truth: χ = 2
+    free = [dict(r, has_truth=False, hausdorff_h=None, sdf_rms_h=0.1 * (i + 1)) for i, r in enumerate(rows)]
+    (t,) = group_tables(_frame(tmp_path / "f", free), metrics=["euler", "components", "sdf_rms_h"])
+    assert not t.best["euler"].any() and not t.best["components"].any()
+    assert t.best["sdf_rms_h"].tolist() == [True, False]              # the truth-free metrics still mark

@@ -11,6 +11,11 @@
   ``sign_guard`` (the shape gradient rolled back to a checkpoint: its result is an early iterate).  A run with
   no convergence test that ran its full count (``stop_reason = fixed_iterations``, the paper's presets) is not
   flagged: the count is its design.
+* ``inside_disagrees`` — without a ground truth only: more than :data:`MAX_SIGN_ERR_PCT` % of the grid samples
+  with |φ| > h/2 lie on the other side of the mesh (``sign_err_pct``): the mesh fills what the data says is
+  outside, or leaves out what it says is inside (a closed-off cavity, a filled vault).  On the suite's
+  phantoms a good mesh scores below 0.05 % and one with a missing part 0.1–1 %; with a truth, ``missing_parts``
+  and ``topology_mismatch`` say it better.
 """
 
 from __future__ import annotations
@@ -19,12 +24,15 @@ import math
 
 __all__ = ["result_flags", "FLAGS", "UNUSABLE_FLAGS", "is_usable"]
 
-FLAGS = ("topology_mismatch", "dropped_components", "missing_parts", "self_intersecting", "not_converged")
+FLAGS = ("topology_mismatch", "dropped_components", "missing_parts", "self_intersecting", "not_converged",
+         "inside_disagrees")
+#: ``inside_disagrees`` above this ``sign_err_pct`` (no truth only)
+MAX_SIGN_ERR_PCT = 2.0
 #: ``missing_parts`` below this ``coverage_pct``
 MIN_COVERAGE_PCT = 99.5
 #: a valid mesh with one of these is not *usable* (see :func:`is_usable`); ``not_converged`` alone is not a defect
 #: of the mesh
-UNUSABLE_FLAGS = ("topology_mismatch", "dropped_components", "missing_parts", "self_intersecting")
+UNUSABLE_FLAGS = ("topology_mismatch", "dropped_components", "missing_parts", "self_intersecting", "inside_disagrees")
 _NOT_CONVERGED = ("max_iter", "line_search_floor", "diverged", "sign_guard")
 
 
@@ -55,6 +63,9 @@ def result_flags(row: dict, phantom=None) -> list[str]:
         flags.append("self_intersecting")
     if row.get("stop_reason") in _NOT_CONVERGED:
         flags.append("not_converged")
+    sign_err = _number(row, "sign_err_pct")
+    if phantom is None and sign_err is not None and sign_err > MAX_SIGN_ERR_PCT:
+        flags.append("inside_disagrees")
     return flags
 
 

@@ -169,6 +169,13 @@ def _key(r: dict) -> tuple:
     return (r.get("phantom"), r.get("variant"), r.get("N"), r.get("noise"), _snr(r), r.get("seed"))
 
 
+def _has(col: str, *rows: dict) -> bool:
+    """Every row can be judged on ``col``: a value, or a status that is itself the verdict (failed, invalid); an
+    ok row without the value (no ground truth) cannot be judged — its claim is "not measured", never "does not
+    hold"."""
+    return all(r.get("status") != "ok" or math.isfinite(_num(r, col)) for r in rows)
+
+
 def _where(r: dict) -> str:
     """``phantom/noise[ SNR dB] N`` — how a cell is named in the numbers."""
     snr = _snr(r)
@@ -198,7 +205,7 @@ def _pairs(a: list[dict], b: list[dict]) -> list[tuple[dict, dict]]:
 
 
 def _smoother(g) -> tuple:
-    pairs = _pairs(g["sg"], g["sg0"])
+    pairs = [p for p in _pairs(g["sg"], g["sg0"]) if _has("roughness_deg", *p)]
     good = [p for p in pairs if _num(p[0], "roughness_deg") < _num(p[1], "roughness_deg")]
     nums = "; ".join(f"{_where(p[0])}: {_num(p[0], 'roughness_deg'):.2f}° vs "
                      f"{_num(p[1], 'roughness_deg'):.2f}° (β = 0)" for p in pairs)
@@ -206,7 +213,7 @@ def _smoother(g) -> tuple:
 
 
 def _robust(g) -> tuple:
-    noisy = [r for r in g["sg"] if r.get("noise") not in (None, "none")]
+    noisy = [r for r in g["sg"] if r.get("noise") not in (None, "none") and _has("hausdorff_h", r)]
     good = [r for r in noisy if _clean(r) and _num(r, "hausdorff_h") <= 1.0]
     nums = "; ".join(f"{_where(r)}: {_num(r, 'hausdorff_h'):.2f} h, {r.get('status')}"
                      + (f" ⚑{r['flags']}" if not _clean(r) and r.get("status") == "ok" else "") for r in noisy)
@@ -214,7 +221,7 @@ def _robust(g) -> tuple:
 
 
 def _beats_mc(g) -> tuple:
-    pairs = _pairs(g["sg"], g["mc"])
+    pairs = [p for p in _pairs(g["sg"], g["mc"]) if _has("mean_dist_h", *p)]
     good = [p for p in pairs if _clean(p[0]) and _num(p[0], "mean_dist_h") < _num(p[1], "mean_dist_h")]
     nums = "; ".join(f"{_where(p[0])}: {_num(p[0], 'mean_dist_h'):.3f} h vs "
                      f"{_num(p[1], 'mean_dist_h'):.3f} h" for p in pairs)
@@ -225,6 +232,7 @@ def _noise_vs(g) -> tuple:
     noisy = [r for r in g["sg"] if r.get("noise") not in (None, "none")]
     mc, dm = {_key(r): r for r in g["mc"]}, {_key(r): r for r in g["dm"]}
     trios = [(r, mc[_key(r)], dm[_key(r)]) for r in noisy if _key(r) in mc and _key(r) in dm]
+    trios = [t for t in trios if _has("hausdorff_h", *t)]
 
     def wins(s, o):
         return _clean(s) and (not _clean(o) or _num(s, "hausdorff_h") < _num(o, "hausdorff_h"))
@@ -264,7 +272,7 @@ def _diffeo(g) -> tuple:
 
 def _distmesh(g) -> tuple:
     clean = {(r["phantom"], r.get("N"), r.get("seed")): r for r in g["dm"] if r.get("noise") == "none"}
-    noisy = [r for r in g["dm"] if r.get("noise") not in (None, "none")]
+    noisy = [r for r in g["dm"] if r.get("noise") not in (None, "none") and _has("hausdorff_h", r)]
 
     def unstable(r):
         c = clean.get((r["phantom"], r.get("N"), r.get("seed")))

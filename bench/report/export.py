@@ -17,7 +17,7 @@ import numpy as np
 from bench.metrics.registry import METRICS
 from phantoms import InputError
 
-from .tables import best_mask, best_rule, input_title, noise_title
+from .tables import best_mask, best_rule, input_title, noise_title, without_truth
 
 __all__ = ["DEFAULT_METRICS", "GROUP_KEYS", "DIGITS", "GroupTable", "group_tables", "leaderboard_tables",
            "phantom_genus",
@@ -137,9 +137,10 @@ def group_tables(df, metrics=None, by=None) -> list[GroupTable]:
         t = _method_frame(sub, metrics)
         phantoms = sub["phantom"].unique()
         genus = phantom_genus(str(phantoms[0])) if len(phantoms) == 1 else 0
+        truth = not without_truth(sub)
         best = {}
         for m in metrics:
-            rule = best_rule(m, genus)
+            rule = best_rule(m, genus, truth)
             mask = (best_mask(t[m].where(t["_valid"], np.nan), rule, metric=m) if rule is not None
                     else np.zeros(len(t), bool))
             best[m] = mask if mask.sum() == 1 else np.zeros(len(t), bool)    # bold only a unique best

@@ -87,10 +87,16 @@ def _metric_columns(df) -> list[str]:
     return [c for c in names if c not in _ID_COLUMNS]
 
 
-def best_rule(metric: str, genus: int = 0):
-    """The registry's rule for ``metric``; the Euler characteristic's target is the phantom's 2 − 2·genus."""
+#: metrics whose best is the truth's value: without a truth none is marked (χ = 2 on a skull whose reference has
+#: χ = 0 would reward closing its openings)
+TOPOLOGY_METRICS = ("euler", "components")
+
+
+def best_rule(metric: str, genus: int = 0, truth: bool = True):
+    """The registry's rule for ``metric``; the Euler characteristic's target is the phantom's 2 − 2·genus.
+    ``truth`` False (the cells have no ground truth): None for the topology metrics — no target to be best at."""
     m = METRICS.get(metric)
-    if m is None or m.best is None:
+    if m is None or m.best is None or (not truth and metric in TOPOLOGY_METRICS):
         return None
     if metric == "euler":
         return ("target", 2 - 2 * genus)
@@ -148,6 +154,7 @@ FLAG_TITLES = {
     "missing_parts": "more than 0.5 % of the true surface is farther than 2 h from the mesh (coverage_pct < 99.5): never marked best",
     "self_intersecting": "some non-adjacent faces intersect",
     "not_converged": "the method stopped on max_iter, line_search_floor, diverged or sign_guard (rolled back to an earlier iterate)",
+    "inside_disagrees": "no ground truth: more than 2 % of the grid samples with |φ| > h/2 lie on the other side of the mesh (sign_err_pct)",
 }
 
 
@@ -233,7 +240,7 @@ def _source(sub) -> str:
     return str(sub["phantom"].iloc[0])
 
 
-def _without_truth(sub) -> bool:
+def without_truth(sub) -> bool:
     """True when no row of the table had a ground truth (``has_truth`` false, or no truth metric at all)."""
     from bench.metrics.registry import METRICS
 
@@ -245,11 +252,11 @@ def _without_truth(sub) -> bool:
     return bool(truth_cols) and bool(sub[truth_cols].isna().all().all()) and bool((sub["status"] == "ok").any())
 
 
-def _marked_html(t: list[dict], metrics: list[str], genus: int) -> str:
+def _marked_html(t: list[dict], metrics: list[str], genus: int, truth: bool = True) -> str:
     cols = [c for c in metrics if any(c in r for r in t)]
     marks = {}
     for m in cols:
-        rule = best_rule(m, genus)
+        rule = best_rule(m, genus, truth)
         # an invalid or failed result is never best
         vals = np.array([r.get(m, np.nan) if r["_valid"] and "missing_parts" not in r["_flags"] else np.nan
                          for r in t], float)
@@ -292,7 +299,7 @@ def summary_tables(df) -> list[dict]:
     for (phantom, degrade, kind, noise, snr, variant, n), idx in groups.items():
         idx = np.asarray(idx)
         sub = d.iloc[idx]
-        no_truth = _without_truth(sub)
+        no_truth = without_truth(sub)
         shown = [m for m in metrics if not (no_truth and m in METRICS and METRICS[m].kind in truth_kinds)]
         t = _method_rows(d, idx, num, shown)
         title = f"{phantom} — {input_title(kind, degrade)}, {noise_title(noise, snr)}"
@@ -302,6 +309,6 @@ def summary_tables(df) -> list[dict]:
         for lab, cid in zip(sub["label"], sub["cell_id"]):
             cells.setdefault(str(lab), str(cid))
         tables.append({"title": title, "phantom": phantom, "noise": noise,
-                       "html": _marked_html(t, shown, 0 if no_truth else _genus(_source(sub))),
+                       "html": _marked_html(t, shown, 0 if no_truth else _genus(_source(sub)), not no_truth),
                        "n_methods": len(t), "cells": cells, "note": NO_TRUTH_NOTE if no_truth else ""})
     return tables

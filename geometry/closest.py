@@ -194,7 +194,7 @@ def _query(points, tri, lo, cell, dims, start, items):
     return out
 
 
-def point_mesh_distance(points, vertices, faces) -> np.ndarray:
+def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = None) -> np.ndarray:
     """Exact unsigned distance (float64) from each point to the closest point of the triangle mesh.
 
     Parameters
@@ -202,6 +202,11 @@ def point_mesh_distance(points, vertices, faces) -> np.ndarray:
     points : (P, 3) float array.
     vertices : (V, 3) float array.
     faces : (F, 3) int array (at least one face).
+    cells_per_axis : int, optional
+        At most this many grid cells along the mesh box's longest side.  Default: cells of about twice a
+        triangle, right for points near the surface.  Points far from it (a grid's points all over its box)
+        search shells of cells out to their distance, so a coarse grid (e.g. 16) is much cheaper for them:
+        the answer is exact either way.
 
     Returns
     -------
@@ -220,6 +225,8 @@ def point_mesh_distance(points, vertices, faces) -> np.ndarray:
     extent = np.maximum(hi - lo, 1e-12)
     size = float(np.median((tmax - tmin).max(1)))                     # a typical triangle's box
     cell = max(2.0 * size, float(extent.max()) / 512.0, 1e-12)
+    if cells_per_axis is not None:
+        cell = max(cell, float(extent.max()) / max(int(cells_per_axis), 1))
     while np.prod(np.floor(extent / cell) + 1) > MAX_CELLS:
         cell *= 1.25
     dims = (np.floor(extent / cell) + 1).astype(np.int64)

@@ -43,6 +43,18 @@ def test_equals_brute_force_near_on_inside_and_far(mesh):
     np.testing.assert_allclose(point_mesh_distance(pts, v, f), _brute(pts, v, f), rtol=1e-12, atol=1e-14)
 
 
+@pytest.mark.parametrize("cells", [1, 4, 16])
+def test_a_coarse_grid_gives_the_same_exact_distances(cells):
+    """cells_per_axis only changes how far a query searches, not the answer: grid points over a box four times
+    the mesh's, as the SDF energy queries them."""
+    m = trimesh.creation.torus(1.0, 0.3)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    ax = np.linspace(-2.5, 2.5, 9)
+    pts = np.stack(np.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(-1, 3)
+    np.testing.assert_allclose(point_mesh_distance(pts, v, f, cells_per_axis=cells), _brute(pts, v, f),
+                               rtol=1e-12, atol=1e-14)
+
+
 def test_a_mesh_of_very_uneven_triangles_and_degenerate_faces():
     """Long slivers beside tiny triangles (the grid's cell follows the median) and zero-area faces."""
     m = trimesh.creation.icosphere(3)

@@ -14,6 +14,7 @@ phantom's exact ground truth:
 * topology, quality, self-intersections and SIF % (``topology.py``);
 * sharp-feature accuracy ``edge_chamfer`` / ``edge_fscore`` (``features.py``) and the volumetric ``iou``
   (``volume.py``);
+* the papers' SDF energy over the grid's points (``sdf_energy.py``);
 * data fidelity against the volume the method was given — SDF agreement, |φ| on the mesh, sign agreement
   (``fidelity.py``) — truth-free, so also for user scans.
 
@@ -57,6 +58,7 @@ from .distance import (
 from .features import edge_metrics
 from .fidelity import band_query, fidelity_metrics
 from .registry import METRICS, Metric
+from .sdf_energy import energy_distances, energy_query, sdf_energy
 from .volume import iou
 from .topology import (
     compact,
@@ -91,7 +93,7 @@ METRIC_NAMES = list(METRICS)
 
 def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_000, seed: int = 0,
              crease_band: float = 0.1, timings: dict | None = None, vertex_H: dict | None = None,
-             truth_points: np.ndarray | None = None) -> dict:
+             truth_points: np.ndarray | None = None, clean=None) -> dict:
     """All the metrics of ``docs/METRICS.md`` of ``mesh`` against the phantom ``truth`` (or the truth-free subset).
 
     Parameters
@@ -123,6 +125,9 @@ def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_0
     truth_points : numpy.ndarray, shape (n_samples, 3), optional
         ``truth.sample_surface(n_samples, seed)[0]`` computed before (a cache: the same for every mesh
         scored against this truth).
+    clean : phantoms.Volume, optional
+        The clean level set S of the grid (before noise or a degradation): ``sdf_energy`` reads |S| at its grid
+        points (default: ``volume``; NaN without either).
 
     Returns
     -------
@@ -137,7 +142,7 @@ def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_0
         A mesh without faces, non-finite vertices, faces indexing missing vertices, a bad spacing.
     """
     return _evaluate(mesh, truth, spacing, volume=volume, n_samples=n_samples, seed=seed, crease_band=crease_band,
-                     timings=timings, vertex_H=vertex_H, truth_points=truth_points)
+                     timings=timings, vertex_H=vertex_H, truth_points=truth_points, clean=clean)
 
 
 def _check_inputs(mesh, spacing, n_samples, crease_band):
@@ -196,18 +201,29 @@ def _start(fn, *args):
     return wait
 
 
-def _distances(true_pts, band_pts, mesh):
-    """(truth → mesh distances or None, band samples → mesh distances or None): the worker thread's share."""
+def _distances(true_pts, band_pts, mesh, grid_pts=None):
+    """(truth → mesh distances or None, band samples → mesh distances or None, SDF-energy grid points → mesh
+    distances or None): the worker thread's share."""
+    d_grid = None if grid_pts is None else energy_distances(grid_pts, mesh.vertices, mesh.faces)
     parts = [p for p in (true_pts, band_pts) if p is not None]
     if not parts:
-        return None, None
+        return None, None, d_grid
     d = point_mesh_distance(np.concatenate(parts) if len(parts) > 1 else parts[0], mesh.vertices, mesh.faces)
     n_true = len(true_pts) if true_pts is not None else 0
-    return (d[:n_true] if true_pts is not None else None), (d[n_true:] if band_pts is not None else None)
+    return (d[:n_true] if true_pts is not None else None), (d[n_true:] if band_pts is not None else None), d_grid
+
+
+def _energy_grid(truth, clean, volume, seed):
+    """(S at the SDF energy's grid points, those points) or (None, None): only with a truth and a grid."""
+    grid = clean if clean is not None else volume
+    if truth is None or grid is None:
+        return None, None
+    idx, pts = energy_query(grid, seed)
+    return grid.values.reshape(-1)[idx], pts
 
 
 def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, crease_band=0.1, timings=None,
-              vertex_H=None, truth_points=None) -> dict:
+              vertex_H=None, truth_points=None, clean=None) -> dict:
     """:func:`evaluate`, optionally recording the seconds spent per phase in ``timings``."""
     t = time.perf_counter()
     tm = timings if timings is not None else {}
@@ -237,8 +253,9 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     if volume is not None:
         band, band_pts = band_query(volume, seed)
         lap("fidelity_band")
-    # truth -> recon and band -> recon distances (compiled, GIL released) run in a worker thread while numpy does the rest
-    pending = _start(_distances, true_pts, band_pts, scored)
+    S_grid, grid_pts = _energy_grid(truth, clean, volume, seed)
+    # truth/band/grid -> recon distances (compiled, GIL released) run in a worker thread while numpy does the rest
+    pending = _start(_distances, true_pts, band_pts, scored, grid_pts)
 
     out.update(topology_metrics(scored))
     out.update(quality_metrics(scored))
@@ -256,7 +273,7 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     lap("curvature_fit")
 
     def fidelity(pts):
-        (_, d_band), tm["distances (worker)"] = pending()
+        (_, d_band, _), tm["distances (worker)"] = pending()
         lap("distances (wait)")
         if volume is None:
             out.update({k: math.nan for k in FIDELITY_NAMES})
@@ -280,7 +297,8 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     pts, fi = sample_mesh_surface(scored, None, n_samples, seed)
     ts = truth.truth(pts)
     lap("recon_to_truth")
-    d_tr = pending()[0][0]
+    d_tr, _, d_grid = pending()[0]
+    out["sdf_energy"] = sdf_energy(S_grid, d_grid) if d_grid is not None else math.nan
     fidelity(pts)
     fn = scored.face_normals
     out.update(distance_metrics(ts.distance, float(max(tv.distance.max(), ts.distance.max())), d_tr, h,

@@ -55,12 +55,16 @@ _DISTANCES = {
     "hausdorff_90": "symmetric Hausdorff distance with the 90th percentile in place of each max (HD90)",
     "mean_dist": "mean of both directed distance sets (Chamfer-L1 style)",
     "rms_dist": "RMS of both directed distance sets",
+    "chamfer_l2": "RMS of each directed distance set, summed (Reach for the Arcs / Carrera et al. Chamfer)",
     "edge_chamfer": "mean of both directed distances between reconstructed and true sharp-edge samples",
 }
 
 _ROWS = [
     *(Metric(k, "min", "float", m, "world units", "distance") for k, m in _DISTANCES.items()),
     *(Metric(f"{k}_h", "min", "float", f"{k} divided by the grid spacing h", "h", "distance_h") for k in _DISTANCES),
+    Metric("sdf_energy", "min", "float",
+           "1000 · mean over grid points of (|S| − d)², d the distance to the mesh (the papers' SDF energy)",
+           "10⁻³ world units²"),
     Metric("normal_consistency", "max", "float", "mean |n_mesh · n_true| at the closest true point", ""),
     Metric("fscore@h", "max", "float", "F-score of the two sample sets at threshold h", ""),
     Metric("coverage_pct", "max", "float", "share of the true surface's samples within 2h of the mesh", "%"),

@@ -327,7 +327,7 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         try:
             metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell.n_samples, seed=cell.seed,
                                timings=metric_phases, vertex_H=final_H,
-                               truth_points=truth_samples(cell, truth, cache_dir))
+                               truth_points=truth_samples(cell, truth, cache_dir), clean=clean)
         except Exception as exc:
             # an invalid mesh keeps what can be computed — unless the metrics ran out of memory: a failed row
             if not invalid or memory_error(exc, stage):

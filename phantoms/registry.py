@@ -16,10 +16,11 @@ from geometry.errors import InputError
 
 from .analytic import Cylinder, Ellipsoid, FusedSpheres, Sphere, Torus
 from .base import Phantom
+from .field import FIELD_PREFIX, FieldPhantom, parse_field_spec
 from .real import REAL_SHAPES, get_mesh_file_phantom, get_real_phantom, get_volume_phantom
 from .user import VOLUME_PREFIX, parse_spec
 
-__all__ = ["check_phantom_files", "PHANTOMS", "REAL_PHANTOMS", "MESH_PREFIX", "VOLUME_PREFIX", "phantom_names", "is_phantom_name",
+__all__ = ["FIELD_PREFIX", "check_phantom_files", "PHANTOMS", "REAL_PHANTOMS", "MESH_PREFIX", "VOLUME_PREFIX", "phantom_names", "is_phantom_name",
            "get_phantom", "expand_phantoms", "is_file_phantom", "phantom_path"]
 
 #: the analytic phantom classes by name
@@ -94,6 +95,12 @@ def is_phantom_name(name: str) -> bool:
     -------
     bool
     """
+    if isinstance(name, str) and name.startswith(FIELD_PREFIX):
+        try:
+            inner = parse_field_spec(name)[0]
+        except InputError:
+            return False
+        return not inner.startswith((FIELD_PREFIX, VOLUME_PREFIX)) and is_phantom_name(inner)
     return name in PHANTOMS or name in REAL_PHANTOMS or is_file_phantom(name)
 
 
@@ -174,6 +181,8 @@ def get_phantom(name: str, **params) -> Phantom:
         An unknown name (listing the valid ones) or parameters the phantom does not take; a file phantom's
         file that cannot be read.
     """
+    if name.startswith(FIELD_PREFIX):
+        return _field_phantom(name, **params)
     if name.startswith(VOLUME_PREFIX):
         return get_volume_phantom(name, **params)
     if _is_mesh_name(name):
@@ -189,6 +198,29 @@ def get_phantom(name: str, **params) -> Phantom:
         raise InputError(f"bad parameters for phantom {name!r}: {exc}") from None
 
 
+_FIELD_CACHE: dict = {}
+
+
+def _field_phantom(spec: str, **params) -> FieldPhantom:
+    """``field:NAME[?scale=S]``: the mesh of phantom NAME under the field's protocol (:mod:`phantoms.field`);
+    cached per process and inner phantom (whose own cache follows its file's version)."""
+    from .mesh import MeshPhantom
+
+    inner_name, scale = parse_field_spec(spec)
+    if inner_name.startswith((FIELD_PREFIX, VOLUME_PREFIX)) or inner_name in PHANTOMS:
+        raise InputError(f"phantom {spec!r}: the field's protocol takes a mesh phantom (a real shape such as "
+                         f"bunny, or {MESH_PREFIX}PATH); {inner_name!r} is not one")
+    inner = get_phantom(inner_name, **params)
+    if not isinstance(inner, MeshPhantom):
+        raise InputError(f"phantom {spec!r}: {inner_name!r} is not a mesh phantom")
+    key = (spec, id(inner))
+    if key not in _FIELD_CACHE:
+        if len(_FIELD_CACHE) >= 8:
+            _FIELD_CACHE.pop(next(iter(_FIELD_CACHE)))
+        _FIELD_CACHE[key] = FieldPhantom(inner, scale, name=spec)
+    return _FIELD_CACHE[key]
+
+
 def check_phantom_files(source: str) -> None:
     """Refuse, before any work, a ``mesh:`` / ``volume:`` phantom whose file — or ``truth=`` file — does not
     exist (a file that exists but cannot be read is a failed row of its cells instead).
@@ -200,6 +232,8 @@ def check_phantom_files(source: str) -> None:
     """
     from pathlib import Path
 
+    if source.startswith(FIELD_PREFIX):
+        source = parse_field_spec(source)[0]
     if not is_file_phantom(source):
         return
     path = Path(phantom_path(source)).expanduser()

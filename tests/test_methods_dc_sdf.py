@@ -33,7 +33,8 @@ def _bunny_checks(n: int, outer: int, bound: float) -> None:
     rec = get_method("dc_sdf", outer_iterations=outer).reconstruct(vol)
     reasons = validity(rec.mesh, vol)
     # the library's one vertex per cell: edges in four quads where a cell holds two sheets, and around them
-    # neighbouring faces that disagree on the orientation; nothing else wrong, and only there
+    # neighbouring faces that disagree on the orientation; nothing else wrong — and, without outer iterations,
+    # only there (after them misoriented quads appear elsewhere too: the ellipsoid test below)
     assert [r.split(":")[0] for r in reasons] == ["non-manifold", "inconsistently oriented"], reasons
     f = np.asarray(rec.mesh.faces)
     directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
@@ -41,7 +42,7 @@ def _bunny_checks(n: int, outer: int, bound: float) -> None:
     edges, faces_per_edge = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
     pinched = np.unique(edges[faces_per_edge > 2])
     near = np.unique(f[np.isin(f, pinched).any(axis=1)])            # the faces around the pinched vertices
-    assert np.isin(uniq[count > 1], near).any(axis=1).all()
+    assert np.isin(uniq[count > 1], near).any(axis=1).all() or outer > 0
     assert rec.info["nonmanifold_edges"] > 0 and rec.info["boundary_edges"] == 0
     assert "not a closed 2-manifold" in rec.info["warnings"][0] and "'dual_contouring'" in rec.info["warnings"][0]
     assert rec.info["misoriented_edges"] > 0 and "not consistently oriented" in rec.info["warnings"][1]

@@ -117,3 +117,29 @@ def test_several_seeds_show_the_mean_and_a_95_percent_interval():
     html_text = summary_tables(pd.DataFrame(rows))[0]["html"]
     # mean 0.2, sd 0.1, t(0.975, 2) = 4.303: half-width 0.2484
     assert "0.2 <span class=\"ci\"" in html_text and "± 0.2484" in html_text
+
+
+def test_a_file_phantom_is_named_by_its_stem_and_options_in_titles():
+    from bench.report.tables import phantom_label
+
+    assert phantom_label("volume:/scans/patient_01/ct_0001.nii.gz") == "ct_0001"
+    assert phantom_label("volume:/scans/seg.nrrd?label=3&spacing=1,1,3") == "seg (label=3, spacing=1,1,3)"
+    assert phantom_label("mesh:/models/Stanford Bunny.obj") == "Stanford Bunny"
+    assert phantom_label("sphere") == "sphere"
+
+
+def test_a_cell_that_ended_before_reading_its_volume_joins_its_inputs_table():
+    import pandas as pd
+
+    from bench.report.tables import complete_inputs, summary_tables
+
+    base = {"phantom": "volume:/s/ct.nii.gz", "variant": "sdf", "degrade": "none", "noise": "none",
+            "snr_requested": None, "seed": 0, "flags": "", "error": ""}
+    df = pd.DataFrame([dict(base, cell_id="a", label="mc", method="mc", N=40, input_kind="mask", status="ok",
+                            sdf_rms_h=0.1, has_truth=False),
+                       dict(base, cell_id="b", label="sg", method="sg", N=0, input_kind="sdf", status="timeout",
+                            sdf_rms_h=None, has_truth=False)])
+    done = complete_inputs(df)
+    assert done.loc[1, "N"] == 40 and done.loc[1, "input_kind"] == "mask" and df.loc[1, "N"] == 0
+    (table,) = summary_tables(df)                             # one table, not a second "sdf, N = 0" one
+    assert table["title"].startswith("ct — mask") and table["n_methods"] == 2

@@ -65,3 +65,17 @@ def test_seal_unsealed_seals_only_the_records_that_agree_with_the_tables(run):
     assert json.loads((run / "cells" / f"{c}.json").read_text()) == records[c]     # a sealed one: untouched
     problems = check_run_folder(run)
     assert len(problems) == 1 and problems[0].startswith(f"cells/{b}.json has no seal")
+
+
+def test_a_metric_added_after_the_run_is_not_a_damage_but_a_column_the_records_carry_is(run, monkeypatch):
+    import bench.metrics as metrics
+
+    monkeypatch.setattr(metrics, "METRIC_NAMES", (*metrics.METRIC_NAMES, "a_metric_of_a_later_version"))
+    assert check_run_folder(run, arrays=False) == []            # the run predates it: no record carries it
+    import csv
+
+    rows = list(csv.reader(open(run / "results.csv", newline="")))
+    col = rows[0].index("hausdorff_h")
+    with open(run / "results.csv", "w", newline="") as fh:
+        csv.writer(fh).writerows([r[:col] + r[col + 1:] for r in rows])
+    assert any("lacks column 'hausdorff_h'" in p for p in check_run_folder(run, arrays=False))

@@ -32,7 +32,8 @@ def register(subparsers) -> None:
     p.add_argument("run", metavar="RUN", help="a run folder")
     p.add_argument("--format", choices=FORMATS, default="markdown", help="output format (default markdown)")
     p.add_argument("--metric", action="append", metavar="M[,M...]",
-                   help=f"metric columns (repeatable; default: {', '.join(DEFAULT_METRICS)}, those the run has)")
+                   help=f"metric columns (repeatable; default: {', '.join(DEFAULT_METRICS)}, those the run has; "
+                        "without ground truth: the data-fidelity metrics)")
     p.add_argument("--by", metavar="K[,K...]",
                    help=f"one table per value of these ({', '.join(GROUP_KEYS)}; default phantom,noise)")
     p.add_argument("--leaderboard", action="store_true",

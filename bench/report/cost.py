@@ -8,7 +8,7 @@ import html
 import numpy as np
 
 from .colours import method_colour
-from .tables import fmt_value
+from .tables import fmt_value, phantom_label
 
 __all__ = ["COST_COLUMNS", "cost_section"]
 
@@ -28,7 +28,7 @@ def _cost_frame(df):
         return pd.DataFrame(columns=["label", "where", "wall_s", "peak_mem_mb", "cells"])
     d = df[df["status"] == "ok"].copy()
     many_n = "N" in d.columns and d["N"].nunique() > 1
-    d["where"] = d["phantom"].astype(str) + (", N = " + d["N"].astype(str) if many_n else "")
+    d["where"] = d["phantom"].astype(str).map(phantom_label) + (", N = " + d["N"].astype(str) if many_n else "")
     if d["where"].nunique() > MAX_PLACES:
         d["where"] = f"all {d['where'].nunique()} phantoms" + (" and N" if many_n else "")
     for c, _ in COST_COLUMNS:
@@ -143,5 +143,9 @@ def cost_section(df) -> dict:
         return {"html": "", "chart": None, "n_cells": 0}
     labels = list(dict.fromkeys(cf["label"]))
     places = list(dict.fromkeys(cf["where"]))
-    return {"html": _cost_table(cf, labels, places), "chart": _render_cost_chart(cf, labels, places),
+    full = sorted({str(p) for p in df["phantom"]} if "phantom" in df.columns else set())
+    legend = [(phantom_label(p), p) for p in full if phantom_label(p) != p]
+    note = ("<p class=\"caption\">inputs: " + "; ".join(f"{html.escape(a)} = <code>{html.escape(b)}</code>"
+                                                   for a, b in legend) + "</p>") if legend else ""
+    return {"html": _cost_table(cf, labels, places) + note, "chart": _render_cost_chart(cf, labels, places),
             "n_cells": int(cf["cells"].sum())}

@@ -17,7 +17,7 @@ import numpy as np
 from bench.metrics.registry import METRICS
 from phantoms import InputError
 
-from .tables import best_mask, best_rule, input_title, noise_title, without_truth
+from .tables import best_mask, best_rule, complete_inputs, input_title, noise_title, phantom_label, without_truth
 
 __all__ = ["DEFAULT_METRICS", "GROUP_KEYS", "DIGITS", "GroupTable", "group_tables", "leaderboard_tables",
            "phantom_genus",
@@ -25,6 +25,8 @@ __all__ = ["DEFAULT_METRICS", "GROUP_KEYS", "DIGITS", "GroupTable", "group_table
 
 #: the metrics a table shows unless told otherwise (those the run has)
 DEFAULT_METRICS = ("hausdorff_h", "mean_dist_h", "fscore@h", "roughness_deg", "self_intersections", "wall_s")
+#: ... and for a run without ground truth: the data-fidelity metrics in place of the distances to the truth
+FREE_METRICS = ("sdf_rms_h", "phi_mean_h", "sign_err_pct", "roughness_deg", "self_intersections", "wall_s")
 #: ``--by`` names → the columns they group on
 GROUP_KEYS = {"phantom": ("phantom",), "variant": ("variant",), "N": ("N",), "noise": ("noise", "snr_requested"),
               "seed": ("seed",), "input": ("input_kind", "degrade")}
@@ -78,7 +80,8 @@ def _by_columns(df, by) -> list[str]:
 
 def _metrics(df, metrics) -> list[str]:
     if not metrics:
-        return [m for m in DEFAULT_METRICS if m in df.columns]
+        default = FREE_METRICS if without_truth(df) else DEFAULT_METRICS
+        return [m for m in default if m in df.columns]
     unknown = [m for m in metrics if m not in df.columns]
     if unknown:
         shown = [c for c in df.columns if c in METRICS]
@@ -89,7 +92,9 @@ def _metrics(df, metrics) -> list[str]:
 def _title(group: dict) -> str:
     parts = []
     for k, v in group.items():
-        if k == "noise":
+        if k == "phantom":
+            parts.append(phantom_label(v))
+        elif k == "noise":
             parts.append(noise_title(v[0], v[1]))
         elif k == "input":
             parts.append(input_title(v[0], v[1]))
@@ -121,6 +126,7 @@ def group_tables(df, metrics=None, by=None) -> list[GroupTable]:
     """The tables of the results frame ``df`` (:func:`bench.run.store.read_results`)."""
     if not len(df):
         raise InputError("the run has no finished cells: no table to make")
+    df = complete_inputs(df)
     metrics, by = _metrics(df, metrics), _by_columns(df, by)
     cols = [c for k in by for c in GROUP_KEYS[k]]
     d = df.copy()
@@ -159,7 +165,7 @@ def leaderboard_tables(df) -> list[GroupTable]:
     if not len(df):
         raise InputError("the run has no finished cells: no leaderboard to make")
     out = []
-    boards = leaderboards(df.to_dict("records"))
+    boards = leaderboards(complete_inputs(df).to_dict("records"))
     for b in [x for board in boards for x in (board, board.get("usable_board")) if x is not None]:
         recs = []
         for r in b["rows"]:

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..run.view import VIEW_FACES, decimate
 from .colours import method_colour
+from .tables import phantom_label
 
 __all__ = ["VIEW_FACES", "plotly_js", "viewer_payload", "robustness_figures", "pareto_figure", "breakdown"]
 
@@ -214,14 +215,14 @@ def robustness_figures(rows: list[dict], metric: str = "hausdorff_h") -> list[di
             series: dict[str, list] = {}
             for r in noisy:
                 series.setdefault(str(r["label"]), []).append((_snr(r), _num(r, metric), _good(r)))
-            figs.append(_curve_fig(f"{phantom}: {metric} against SNR (N = {n0}; ◇ breakdown point, ✕ not "
+            figs.append(_curve_fig(f"{phantom_label(phantom)}: {metric} against SNR (N = {n0}; ◇ breakdown point, ✕ not "
                                    f"valid / flagged / > 1 h)", "SNR (dB)", series, metric))
         clean = [r for r in pr if r.get("noise") == "none"]
         if len({int(_num(r, "N")) for r in clean}) >= 3:
             series = {}
             for r in clean:
                 series.setdefault(str(r["label"]), []).append((_num(r, "N"), _num(r, metric), _good(r)))
-            figs.append(_curve_fig(f"{phantom}: {metric} against N (clean; ◇ breakdown point)", "N (grid points "
+            figs.append(_curve_fig(f"{phantom_label(phantom)}: {metric} against N (clean; ◇ breakdown point)", "N (grid points "
                                    "per axis)", series, metric, log_x=True))
     return figs
 
@@ -239,7 +240,7 @@ def pareto_figure(rows: list[dict], metric: str = "hausdorff_h") -> dict | None:
         if noise != "none" and math.isfinite(_snr(r)):
             noise = f"{noise} {_snr(r):g} dB"
         flagged = str(r.get("flags") or "").strip(" ;") not in ("", "nan")
-        agg.setdefault((str(r["label"]), str(r["phantom"]), noise), []).append(
+        agg.setdefault((str(r["label"]), phantom_label(str(r["phantom"])), noise), []).append(
             (_num(r, "wall_s"), _num(r, metric), flagged))
     if not agg:
         return None

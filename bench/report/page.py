@@ -15,10 +15,11 @@ from ..run.values import cap_tail, cap_text
 from .artifacts import Artifacts
 from .claims import VARIANTS as CLAIM_VARIANTS
 from .claims import check_claims, variant_of
+
 from .cost import cost_section
 from .interactive import VIEW_FACES, pareto_figure, plotly_js, robustness_figures, viewer_payload
 from .paper import gallery_tables, paper_layout, paper_tables
-from .tables import BEST_DIRECTION, summary_tables
+from .tables import BEST_DIRECTION, complete_inputs, summary_tables
 from .pairwise import pairwise_html
 from .verdicts import board_html, cd_figure, leaderboards
 from .colours import method_colour
@@ -37,7 +38,7 @@ def warn(message: str) -> None:
 
 
 def _load_results(out: Path):
-    df = read_results(out)
+    df = complete_inputs(read_results(out))
     for col in _TEXT_COLUMNS:
         if col in df.columns:
             df[col] = df[col].astype(object).where(df[col].notna(), "").astype(str)

@@ -13,7 +13,7 @@ import numpy as np
 
 from bench.metrics.registry import METRICS
 
-__all__ = ["ci_half_width", "NO_TRUTH_NOTE", "BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables", "fmt_value", "noise_title", "input_title", "is_nan", "best_mask", "best_rule"]
+__all__ = ["ci_half_width", "NO_TRUTH_NOTE", "BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables", "complete_inputs", "phantom_label", "fmt_value", "noise_title", "input_title", "is_nan", "best_mask", "best_rule"]
 
 #: how a metric's best value is chosen ("min", "max", ("target", value)); unranked metrics are absent
 BEST_DIRECTION: dict[str, Any] = {k: m.best for k, m in METRICS.items() if m.best is not None}
@@ -61,6 +61,50 @@ def is_nan(x) -> bool:
 
 #: a table's name for the input a method received (:attr:`phantoms.Volume.kind`)
 INPUT_TITLES = {"sdf": "signed distance", "mask": "mask", "intensity": "intensity image"}
+
+
+def complete_inputs(df):
+    """``df`` with the input of a cell that ended before its volume was read (a user volume's timeout or failure:
+    ``N`` 0, ``input_kind`` unknown) taken from a cell of the same phantom, variant, degradation and noise that
+    read it — so it sits in that input's table and board instead of one of its own."""
+    if not len(df) or "N" not in df.columns:
+        return df
+    import pandas as pd
+
+    n = pd.to_numeric(df["N"], errors="coerce")
+    unknown = ~(n > 0)
+    if not unknown.any():
+        return df
+    keys = [k for k in ("phantom", "variant", "degrade", "noise") if k in df.columns]
+    cols = [c for c in ("N", "input_kind") if c in df.columns]
+    known = df[~unknown].drop_duplicates(keys).set_index(keys)[cols]
+    d = df.copy()
+    for i in d.index[unknown]:
+        key = tuple(d.at[i, k] for k in keys)
+        if key in known.index:
+            for c in cols:
+                d.at[i, c] = known.loc[key, c] if not isinstance(known.loc[key, c], pd.Series) else known.loc[key, c].iloc[0]
+    return d
+
+
+def phantom_label(name: str) -> str:
+    """A phantom's short name for titles, headers and charts: a file's stem (``volume:/scans/ct_01.nii.gz?label=3``
+    → ``ct_01 (label=3)``); a built-in's name as it is.  The full spec goes in a legend."""
+    from phantoms.registry import MESH_PREFIX, VOLUME_PREFIX
+
+    text = str(name)
+    for prefix in (VOLUME_PREFIX, MESH_PREFIX):
+        if text.startswith(prefix):
+            path, _, opts = text[len(prefix):].partition("?")
+            stem = path.replace("\\", "/").rstrip("/").rsplit("/", 1)[-1]
+            for suffix in (".nii.gz", ".tar.gz"):
+                if stem.lower().endswith(suffix):
+                    stem = stem[: -len(suffix)]
+                    break
+            else:
+                stem = stem.rsplit(".", 1)[0] if "." in stem[1:] else stem
+            return stem + (f" ({opts.replace('&', ', ')})" if opts else "")
+    return text
 
 
 def input_title(kind: str, degrade: str = "none") -> str:
@@ -285,7 +329,7 @@ def summary_tables(df) -> list[dict]:
 
     metrics = _metric_columns(df)
     keys = ["phantom", "degrade", "input_kind", "noise", "snr_requested", "variant", "N"]
-    d = df.reset_index(drop=True).copy()
+    d = complete_inputs(df.reset_index(drop=True))
     for col, default in (("degrade", "none"), ("input_kind", "sdf")):      # runs from before degradations
         d[col] = d[col].fillna(default).astype(str) if col in d.columns else default
     d["snr_requested"] = d["snr_requested"].astype(object).where(d["snr_requested"].notna(), None)
@@ -302,13 +346,13 @@ def summary_tables(df) -> list[dict]:
         no_truth = without_truth(sub)
         shown = [m for m in metrics if not (no_truth and m in METRICS and METRICS[m].kind in truth_kinds)]
         t = _method_rows(d, idx, num, shown)
-        title = f"{phantom} — {input_title(kind, degrade)}, {noise_title(noise, snr)}"
+        title = f"{phantom_label(phantom)} — {input_title(kind, degrade)}, {noise_title(noise, snr)}"
         if multi_variant:
             title += f" — {variant}, N = {n}"
         cells = {}
         for lab, cid in zip(sub["label"], sub["cell_id"]):
             cells.setdefault(str(lab), str(cid))
-        tables.append({"title": title, "phantom": phantom, "noise": noise,
+        tables.append({"title": title, "phantom": phantom, "short": phantom_label(phantom), "noise": noise,
                        "html": _marked_html(t, shown, 0 if no_truth else _genus(_source(sub)), not no_truth),
                        "n_methods": len(t), "cells": cells, "note": NO_TRUTH_NOTE if no_truth else ""})
     return tables

@@ -126,8 +126,8 @@ def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_0
         ``truth.sample_surface(n_samples, seed)[0]`` computed before (a cache: the same for every mesh
         scored against this truth).
     clean : phantoms.Volume, optional
-        The clean level set S of the grid (before noise or a degradation): ``sdf_energy`` reads |S| at its grid
-        points (default: ``volume``; NaN without either).
+        The clean level set S of the grid (before noise or a degradation; the cell runner passes it):
+        ``sdf_energy`` reads |S| at its grid points (NaN without it: the noisy φ would score the noise).
 
     Returns
     -------
@@ -213,13 +213,12 @@ def _distances(true_pts, band_pts, mesh, grid_pts=None):
     return (d[:n_true] if true_pts is not None else None), (d[n_true:] if band_pts is not None else None), d_grid
 
 
-def _energy_grid(truth, clean, volume, seed):
-    """(S at the SDF energy's grid points, those points) or (None, None): only with a truth and a grid."""
-    grid = clean if clean is not None else volume
-    if truth is None or grid is None:
+def _energy_grid(truth, clean, seed):
+    """(S at the SDF energy's grid points, those points) or (None, None): only with a truth and a clean grid."""
+    if truth is None or clean is None:
         return None, None
-    idx, pts = energy_query(grid, seed)
-    return grid.values.reshape(-1)[idx], pts
+    idx, pts = energy_query(clean, seed)
+    return clean.values.reshape(-1)[idx], pts
 
 
 def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, crease_band=0.1, timings=None,
@@ -253,7 +252,7 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     if volume is not None:
         band, band_pts = band_query(volume, seed)
         lap("fidelity_band")
-    S_grid, grid_pts = _energy_grid(truth, clean, volume, seed)
+    S_grid, grid_pts = _energy_grid(truth, clean, seed)
     # truth/band/grid -> recon distances (compiled, GIL released) run in a worker thread while numpy does the rest
     pending = _start(_distances, true_pts, band_pts, scored, grid_pts)
 

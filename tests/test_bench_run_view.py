@@ -28,3 +28,26 @@ def test_view_arrays_carry_the_colours_of_the_nearest_full_vertex():
     assert len(out["view_faces"]) <= VIEW_FACES
     assert len(out["view_H"]) == len(out["view_vertices"])
     np.testing.assert_allclose(out["view_H"], out["view_vertices"][:, 2], atol=0.1)   # z of a nearby vertex
+
+
+def test_a_detailed_shape_keeps_more_faces_than_a_sphere_within_the_tolerance():
+    """Level of detail: a sphere reads at the starting count, a shape with many thin features needs more."""
+    from bench.run.view import MAX_VIEW_FACES, VIEW_TOLERANCE, decimate_to_tolerance
+    from geometry.closest import point_mesh_distance
+
+    sphere = trimesh.creation.icosphere(subdivisions=5)                         # 20,480 faces
+    v, f = decimate_to_tolerance(sphere.vertices, sphere.faces)
+    assert len(f) <= VIEW_FACES
+    # 60 thin spikes (0.03 wide, 0.6 long) on the sphere: a 1,000-face mesh cuts them off
+    rng = np.random.default_rng(0)
+    spikes = []
+    for d in rng.normal(size=(60, 3)):
+        d /= np.linalg.norm(d)
+        c = trimesh.creation.cylinder(radius=0.015, segment=[d * 0.9, d * 1.6], sections=8)
+        spikes.append(c)
+    spiky = trimesh.util.concatenate([sphere, *spikes])
+    v2, f2 = decimate_to_tolerance(spiky.vertices, spiky.faces)
+    assert VIEW_FACES < len(f2) <= MAX_VIEW_FACES
+    diag = np.linalg.norm(np.ptp(spiky.vertices, axis=0))
+    d = point_mesh_distance(np.asarray(spiky.vertices), v2, f2)
+    assert np.percentile(d, 95) <= VIEW_TOLERANCE * diag             # the spikes are kept

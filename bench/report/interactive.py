@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..run.view import VIEW_FACES, decimate
+from ..run.view import VIEW_FACES, decimate_to_tolerance
 from .colours import method_colour
 from .tables import phantom_label
 
@@ -101,7 +101,7 @@ def _cell_view(r: dict, a: dict, sdf, extent: float, faces: int) -> tuple[dict, 
     v0, f0 = np.asarray(a["vertices"], float), np.asarray(a["faces"], np.int64)
     if not np.isfinite(v0).all() or f0.min() < 0 or f0.max() >= len(v0):
         return None
-    v, f = decimate(v0, f0, faces)
+    v, f = decimate_to_tolerance(v0, f0, faces)
     full = {}
     H0 = a.get("H")
     if H0 is not None and len(H0) == len(v0):

@@ -143,7 +143,10 @@ def _interactive(df, arts: Artifacts, config: dict, shown: list[str] | None = No
     extent = float(((config.get("grid") or {}).get("extent")) or 2.5)
     boards = leaderboards(rows) if rows else []
     colours = {str(lab): method_colour(lab) for lab in {r.get("label") for r in rows}}
-    verdict_charts = [cd_figure(b, colours) for b in boards]
+    # a board too small for its own test shows the test over all inputs of the methods run on every one
+    verdict_charts = [cd_figure(b, colours) or (cd_figure({"title": f"{b['title']}, methods run on every input",
+                                                           "metric": b["metric"], "significance": b["core"]["significance"]},
+                                                          colours) if b.get("core") else None) for b in boards]
     for b, fig in zip(boards, verdict_charts):
         b["html"] = board_html(b, colours)
         b["pairwise_html"] = pairwise_html(b["pairwise"], [r["label"] for r in b["rows"]])
@@ -158,7 +161,7 @@ def _interactive(df, arts: Artifacts, config: dict, shown: list[str] | None = No
             b["chart"] = k
     n_verdict = len(charts)
     charts += robustness_figures(rows)
-    pareto = pareto_figure(rows)
+    pareto = pareto_figure(rows) or pareto_figure(rows, "sdf_rms_h")   # without truth: data fidelity
     if pareto is not None:
         charts.append(pareto)
     wanted = list(dict.fromkeys(shown if shown is not None else [r["cell_id"] for r in rows]))

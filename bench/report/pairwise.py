@@ -128,7 +128,7 @@ def _join(names: list[str]) -> str:
 def recommendation(board: dict) -> str:
     """The board's verdict in one sentence (see the module docstring), from its rows and pairwise tests."""
     pw, rows = board.get("pairwise"), board["rows"]
-    metric, title = board["metric"], dict(board["keys"]).get(board["metric"], board["metric"])
+    metric = board["metric"]
     n = board.get("n_inputs", board.get("n_blocks", 0))
     where = (f"Among usable meshes on these {n} inputs (unusable ones rank last)" if board.get("usable")
              else f"On these {n} inputs")
@@ -149,7 +149,7 @@ def recommendation(board: dict) -> str:
             worse.append(f"{other} ({rec['losses']}–{rec['wins']} of {rec['n']}, {_p(rec['p_holm'])})")
         else:
             ties.append(f"{other} ({_p(rec['p_holm'])})")
-    parts = [f"{where}, {best} has the best mean rank on {title} ({metric})"]
+    parts = [f"{where}, {best} has the best mean rank on {metric}"]
     if beats:
         parts.append(f"significantly better than {_join(beats)}")
     if worse:
@@ -160,7 +160,7 @@ def recommendation(board: dict) -> str:
         parts.append(f"not tested against {_join([u for u, _ in untested])} (only {_join([n for _, n in untested])} "
                      f"shared inputs; a test needs {MIN_PAIRED})")
     if not beats and not worse and ties:
-        parts[0] = (f"No significant difference on {title} ({metric}) " + ("among usable meshes " if
+        parts[0] = (f"No significant difference on {metric} " + ("among usable meshes " if
                     board.get("usable") else "") + f"over these {n} inputs: {best} has the best "
                     "mean rank")
     return "; ".join(parts) + f" (Wilcoxon signed-rank per pair, Holm-corrected, α = {ALPHA})."

@@ -315,9 +315,13 @@ def cd_figure(board: dict, colours: dict[str, str]) -> dict | None:
     mean = sig["mean_ranks"]
     order = sorted(mean, key=lambda lab: mean[lab])
     k = len(order)
-    data = [{"type": "scatter", "mode": "markers+text", "x": [mean[lab]], "y": [0], "name": lab,
-             "text": [lab], "textposition": "top center", "hovertemplate": f"{lab}: mean rank %{{x:.2f}}<extra></extra>",
+    data = [{"type": "scatter", "mode": "markers", "x": [mean[lab]], "y": [0], "name": lab,
+             "hovertemplate": f"{lab}: mean rank %{{x:.2f}}<extra></extra>",
              "marker": {"size": 11, "color": colours.get(lab, "#444")}, "showlegend": False} for lab in order]
+    # labels on leader lines at four staggered heights: methods with close mean ranks do not overprint
+    labels = [{"x": mean[lab], "y": 0, "text": lab, "showarrow": True, "arrowhead": 0, "arrowwidth": 1,
+               "arrowcolor": "#999", "ax": 0, "ay": -(18 + 18 * (i % 4)), "font": {"size": 11},
+               "bgcolor": "rgba(255,255,255,0.85)"} for i, lab in enumerate(order)]
     for j, clique in enumerate(sig["cliques"]):
         xs = [mean[lab] for lab in clique]
         data.append({"type": "scatter", "mode": "lines", "x": [min(xs) - 0.03, max(xs) + 0.03], "y": [-0.3 - 0.25 * j] * 2,
@@ -330,9 +334,9 @@ def cd_figure(board: dict, colours: dict[str, str]) -> dict | None:
         "title": {"text": f"{board['title']}: mean rank on {board['metric']} ({sig['note']})", "font": {"size": 12}},
         "xaxis": {"title": "mean rank (1 = best)", "range": [0.5, k + 0.5], "dtick": 1},
         "yaxis": {"visible": False, "range": [-0.4 - 0.25 * max(1, len(sig["cliques"])), 1.0]},
-        "height": 240 + 20 * len(sig["cliques"]), "margin": {"t": 50, "b": 40}, "shapes": shapes,
-        "annotations": ([{"x": 1 + sig["cd"] / 2, "y": 0.75, "text": f"CD = {sig['cd']:.2f}", "showarrow": False}]
-                        if sig["cd"] else [])}}
+        "height": 280 + 20 * len(sig["cliques"]), "margin": {"t": 60, "b": 40}, "shapes": shapes,
+        "annotations": labels + ([{"x": 1 + sig["cd"] / 2, "y": 0.75, "text": f"CD = {sig['cd']:.2f}",
+                                   "showarrow": False}] if sig["cd"] else [])}}
 
 
 def _fmt(v, digits: str = ".2f") -> str:

@@ -187,8 +187,8 @@ class ReachForTheSpheres(Method):
         """Steps × seconds per step, the steps those of a surface that is not tangent to every sphere (a noisy
         volume, a real shape: the flow stops after ``patience`` stalled steps; measured 117–138 with the default
         100) — the clean sphere and ellipsoid converge by tangency in ≈ 15 steps, several times sooner.  None
-        with ``samples = 'band'`` or a ``batch_size`` other than 20000, which were not measured."""
-        if self.config["samples"] != "all" or self.config["batch_size"] != 20000:
+        with ``samples = 'band'`` or a ``batch_size`` other than its default, which were not measured."""
+        if self.config["samples"] != "all" or self.config["batch_size"] != self.params["batch_size"].default:
             return None
         steps = self.config["patience"] + self.STEPS_OVER_PATIENCE
         return steps * self.COST.seconds(shape, n_crossing_cells)

@@ -32,3 +32,54 @@ def test_a_non_finite_integer_parameter_is_an_input_error_not_an_overflow(value)
 
     with pytest.raises(InputError, match="parameter 'max_iter': expected int"):
         get_method("shape_gradient", max_iter=value)
+
+
+@pytest.mark.parametrize("default, value, expected", [
+    (3, "5", 5), (3, 5.0, 5), (2.5, "4", 4.0), (True, "off", False), ("a", "b", "b")])
+def test_a_param_keeps_its_defaults_type_whether_set_or_not(default, value, expected):
+    p = Param(default, "doc")
+    assert type(p.default) is type(default) and p.type is type(default)
+    got = p.convert("m", "k", value)
+    assert got == expected and type(got) is type(default)
+
+
+def test_the_default_goes_through_the_same_conversion_as_a_value():
+    import numpy as np
+
+    assert type(Param(np.int64(4), "doc").default) is int         # numpy scalars become Python ones
+    assert type(Param(np.float32(0.5), "doc").default) is float
+    assert Param(1, "doc", float).default == 1.0 and type(Param(1, "doc", float).default) is float
+    assert Param(np.bool_(True), "doc").type is bool
+    assert Param((1, 2), "doc").type is object                      # free-form: anything goes through
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: Param(None, "doc"), "needs type="),
+    (lambda: Param(3.5, "doc", int), "expected int, got 3.5"),
+    (lambda: Param(20, "doc", min=0, max=10), "above the maximum 10"),
+    (lambda: Param("c", "doc", choices=("a", "b")), "not one of"),
+])
+def test_a_default_the_param_would_refuse_is_an_error_when_the_class_is_defined(make, words):
+    with pytest.raises(TypeError, match=words):
+        make()
+
+
+@pytest.mark.parametrize("default, value, type_name", [(3, 2.5, "int"), (3, "x", "int"), (3, True, "int"),
+                                                       (True, 1, "bool"), (True, "maybe", "bool"),
+                                                       (2.0, "two", "float"), ("a", 3, "str")])
+def test_a_value_of_the_wrong_type_is_one_line_naming_method_parameter_and_type(default, value, type_name):
+    with pytest.raises(InputError) as err:
+        Param(default, "doc").convert("m", "k", value)
+    text = str(err.value)
+    assert text == f"method 'm', parameter 'k': expected {type_name}, got {value!r}" and "\n" not in text
+
+
+def test_a_method_with_an_int_param_gives_an_int_set_or_unset():
+    from methods import Method
+
+    class Counting(Method):
+        name = "counting_test"
+        params = {"n": Param(3, "how many")}
+
+    assert type(Counting().config["n"]) is int and Counting().config["n"] == 3
+    assert type(Counting(n="5").config["n"]) is int and Counting(n=5.0).config["n"] == 5

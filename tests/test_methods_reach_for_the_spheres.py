@@ -167,3 +167,12 @@ def test_patience_stops_a_noisy_flow_sooner():
     for rec in (full, short):
         r = np.linalg.norm(rec.mesh.vertices, axis=1)
         assert np.abs(r - 1.0).max() < 0.5 * vol.h
+
+
+def test_the_cost_model_holds_for_the_default_batch_only():
+    from methods import get_method
+
+    default = get_method("reach_for_the_spheres")
+    batch = default.params["batch_size"].default
+    assert default.estimate_seconds(32) > 0
+    assert get_method("reach_for_the_spheres", batch_size=batch // 2).estimate_seconds(32) is None

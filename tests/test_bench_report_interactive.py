@@ -65,7 +65,8 @@ def test_viewer_payload_packs_each_mesh_and_shares_colour_ranges_per_phantom_and
     out = viewer_payload(rows, arrays.get, faces=200)
     assert set(out["cells"]) == {"sphere_a_32_none_None_0", "sphere_b_32_none_None_0"}     # c has no mesh
     cell = out["cells"]["sphere_a_32_none_None_0"]
-    assert cell["nf"] <= 200 and cell["faces_full"] == len(f) and not cell["f32"]
+    # decimated from 200 faces up to what keeps the sphere within the viewer's tolerance (not the 1,280 of the mesh)
+    assert 200 <= cell["nf"] < len(f) and cell["faces_full"] == len(f) and not cell["f32"]
     q = np.frombuffer(base64.b64decode(cell["v"]), "<u2").reshape(cell["n"], 3)
     verts = np.asarray(cell["lo"]) + q / 65535.0 * (np.asarray(cell["hi"]) - np.asarray(cell["lo"]))
     np.testing.assert_allclose(np.linalg.norm(verts, axis=1), 1.05, atol=0.05)   # decimated: off by a little

@@ -340,31 +340,54 @@ def check_volume(volume: Volume, method: str) -> None:
 _REGISTERED: dict[str, type[Method]] = {}
 
 
-def register_method(cls: type[Method]) -> type[Method]:
-    """Register a :class:`Method` subclass under ``cls.name``; usable as a decorator.
+def register_method(cls: type[Method] | None = None, *, replace: bool = False):
+    """Register a :class:`Method` subclass under ``cls.name``; usable as a decorator (``@register_method`` or
+    ``@register_method(replace=True)``).
 
-    Registered methods are listed after the built-ins and entry points (:func:`available_methods`) and replace
-    a method of the same name.
+    Registered methods are listed after the built-ins and entry points (:func:`available_methods`).  A name that
+    is already taken is never taken over silently: a built-in's name is refused unless ``replace=True`` says
+    the replacement is meant, and a name registered earlier by another class is replaced with a warning naming
+    both (the same class registered again, e.g. its module reloaded, is no change).
 
     Parameters
     ----------
     cls : type
         A :class:`Method` subclass with a ``name``.
+    replace : bool
+        Replace a built-in method of the same name (e.g. a patched marching cubes under the built-in's name).
 
     Returns
     -------
     type
-        ``cls`` itself.
+        ``cls`` itself (or, called with ``replace`` only, the decorator).
 
     Raises
     ------
     InputError
-        ``cls`` is not a :class:`Method` subclass with a name.
+        ``cls`` is not a :class:`Method` subclass with a name, or it takes a built-in's name without
+        ``replace=True`` (one line naming both classes).
     """
+    if cls is None:
+        return lambda c: register_method(c, replace=replace)
     if not (isinstance(cls, type) and issubclass(cls, Method)) or not cls.name:
         raise InputError(f"{cls!r} is not a Method subclass with a name")
+    if cls.name in BUILTIN_METHODS and not replace:
+        raise InputError(f"method {cls.name!r} of {_where(cls)} would replace the built-in "
+                         f"{BUILTIN_METHODS[cls.name]}: choose another name, or register_method(cls, "
+                         "replace=True) to mean it")
+    earlier = _REGISTERED.get(cls.name)
+    if earlier is not None and _where(earlier) != _where(cls):
+        import warnings
+
+        warnings.warn(f"method {cls.name!r} of {_where(cls)} replaces the one registered by {_where(earlier)}",
+                      stacklevel=2)
     _REGISTERED[cls.name] = cls
     return cls
+
+
+def _where(cls: type) -> str:
+    """A class as ``module:qualname`` (how the built-ins and entry points name theirs)."""
+    return f"{cls.__module__}:{cls.__qualname__}"
 
 
 def import_plugins(modules) -> None:
@@ -405,7 +428,9 @@ def _load(target: str) -> type[Method]:
 def available_methods() -> dict[str, type[Method]]:
     """Every method: the built-ins, then entry points of group ``levelset_bench.methods``, then registered ones.
 
-    A built-in or plug-in that fails to import is skipped with a warning rather than breaking the others.
+    A built-in or plug-in that fails to import is skipped with a warning rather than breaking the others; so is
+    an entry point named as a built-in (the built-in is used; ``python -m bench methods`` prints the warning).
+    A method registered with ``register_method(cls, replace=True)`` replaces the built-in of its name.
 
     Returns
     -------
@@ -435,7 +460,13 @@ def available_methods() -> dict[str, type[Method]]:
                           stacklevel=2)
             continue
         if isinstance(cls, type) and issubclass(cls, Method):
-            out[cls.name or ep.name] = cls
+            name = cls.name or ep.name
+            if name in BUILTIN_METHODS:   # the built-in stays: a name's meaning must not depend on what is installed
+                warnings.warn(f"plug-in method {ep.name!r} ({ep.value}) is not used: its name {name!r} is the "
+                              f"built-in {BUILTIN_METHODS[name]}'s (rename it, or register it with "
+                              "register_method(cls, replace=True) from a module given to --import)", stacklevel=2)
+                continue
+            out[name] = cls
         else:
             warnings.warn(f"plug-in {ep.name!r} ({ep.value}) is not a methods.Method subclass", stacklevel=2)
     out.update(_REGISTERED)

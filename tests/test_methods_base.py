@@ -1,5 +1,5 @@
-"""Tests of ``methods.base``: :func:`check_volume`, and the plug-in contract where a
-method breaks it (issue 30): a ``sys.exit()`` inside ``reconstruct`` and
+"""Tests of ``methods.base``: :func:`check_volume`, :func:`register_method` and the names it may take, and the
+plug-in contract where a method breaks it: a ``sys.exit()`` inside ``reconstruct`` and
 ``info`` values of the wrong type are failures naming the method (and the key) — in ``reconstruct`` and in a
 grid cell — never an exit 0 without output, one warning per character or a text in an integer column."""
 
@@ -100,7 +100,7 @@ def test_check_volume_accepts_a_volume_with_a_surface_and_names_the_method_other
         check_volume(Volume(np.ones((8, 8, 8))), "m")
 
 
-# ----------------------------------------------------------------- a plug-in module that exits at import (issue 40)
+# ----------------------------------------------------------------- a plug-in module that exits at import
 EXITS_AT_IMPORT = {"exits_zero": "import sys\nsys.exit(0)\n",
                    "exits_msg": "raise SystemExit('bye from the plug-in')\n",
                    "fails_two_lines": "raise RuntimeError('first line\\nsecond line')\n"}
@@ -153,3 +153,70 @@ def test_an_entry_point_exiting_at_import_is_a_warning_not_the_end(exiting_modul
     with pytest.warns(UserWarning, match=r"'exits' \(exits_zero:Nope\) failed to load: it called sys.exit\(0\)"):
         methods = available_methods()
     assert "marching_cubes" in methods and "exits" not in methods
+
+
+# ----------------------------------------------------------------- a plug-in taking a name that is already taken
+def _named(name: str, module: str = "my_plugin"):
+    from methods import Method
+
+    return type("Taken", (Method,), {"name": name, "__module__": module})
+
+
+def test_registering_a_builtins_name_is_refused_naming_both_unless_replace(monkeypatch):
+    from methods import available_methods, register_method
+    from methods import base as methods_base
+    from phantoms import InputError
+
+    monkeypatch.setattr(methods_base, "_REGISTERED", dict(methods_base._REGISTERED))
+    with pytest.raises(InputError) as err:
+        register_method(_named("marching_cubes"))
+    text = str(err.value)
+    assert "my_plugin:Taken" in text and "methods.marching_cubes:MarchingCubes" in text and "replace=True" in text
+    assert "\n" not in text and available_methods()["marching_cubes"].__module__ == "methods.marching_cubes"
+    mine = register_method(replace=True)(_named("marching_cubes"))
+    assert available_methods()["marching_cubes"] is mine
+
+
+def test_registering_a_taken_plugin_name_warns_naming_both_and_a_reload_is_silent(monkeypatch):
+    import warnings
+
+    from methods import available_methods, register_method
+    from methods import base as methods_base
+
+    monkeypatch.setattr(methods_base, "_REGISTERED", dict(methods_base._REGISTERED))
+    register_method(_named("taken_test", "first_plugin"))
+    with pytest.warns(UserWarning, match="second_plugin:Taken replaces the one registered by first_plugin:Taken"):
+        second = register_method(_named("taken_test", "second_plugin"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        again = register_method(_named("taken_test", "second_plugin"))     # the module reloaded: no warning
+    assert available_methods()["taken_test"] is again and again is not second
+
+
+@pytest.fixture()
+def shadowing_plugin(tmp_path, monkeypatch):
+    """An installed (entry-point) plug-in whose class is named as a built-in."""
+    (tmp_path / "shadow_mc.py").write_text(
+        "from methods import Method\n\nclass ShadowMC(Method):\n    name = 'marching_cubes'\n")
+    info = tmp_path / "shadow_mc-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: shadow-mc\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[levelset_bench.methods]\nshadow = shadow_mc:ShadowMC\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return tmp_path
+
+
+def test_an_entry_point_named_as_a_builtin_is_not_used_and_says_so(shadowing_plugin, monkeypatch):
+    from methods import available_methods
+    from methods import base as methods_base
+
+    monkeypatch.setattr(methods_base, "_ENTRY_POINTS", {})
+    with pytest.warns(UserWarning, match=r"plug-in method 'shadow' \(shadow_mc:ShadowMC\) is not used: its name "
+                                         r"'marching_cubes' is the built-in methods.marching_cubes:MarchingCubes"):
+        methods = available_methods()
+    assert methods["marching_cubes"].__module__ == "methods.marching_cubes"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(shadowing_plugin), str(REPO)]))
+    r = subprocess.run([sys.executable, "-m", "bench", "methods", "marching_cubes"], cwd=REPO, env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "class: methods.marching_cubes:MarchingCubes" in r.stdout, r.stderr
+    assert "note: plug-in method 'shadow' (shadow_mc:ShadowMC) is not used" in r.stdout

@@ -262,12 +262,15 @@ def _input_volume(cell: Cell, cache_dir: str | None, row: dict, lap):
 
 def _read_as_distance(clean, vol, row: dict):
     """The clean and the given volume as the validity check and the fidelity metrics read them: φ / |∇φ| when φ
-    is not a distance (:func:`bench.metrics.fidelity.as_distance`); the row gets the median |∇φ| found."""
+    is not a distance (:func:`bench.metrics.fidelity.as_distance`); the row gets the median |∇φ| found.  Third,
+    the grid the SDF energy reads as S: the clean one as built (an exact distance, or a mask's: a thin part's
+    small |∇φ| must not rescale it — the cortex's is 0.7 at N = 41), an intensity's read as a distance."""
     from bench.metrics.fidelity import as_distance
 
     scored, g = as_distance(vol)
     row["phi_gradient"] = g
-    return (scored if clean is vol else as_distance(clean)[0]), scored
+    clean_read = scored if clean is vol else as_distance(clean)[0]
+    return clean_read, scored, (clean if clean.kind != "intensity" else clean_read)
 
 
 def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> CellResult:
@@ -318,7 +321,7 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         lap("method")
         stage = "validity"
         # against the clean level set the grid knows (and, with noise, the one the method was given)
-        clean, vol = _read_as_distance(clean, vol, row)
+        clean, vol, energy_grid = _read_as_distance(clean, vol, row)
         invalid = check_mesh(rec.mesh, clean, given=None if vol is clean else vol)
         lap("validity")
         stage = "metrics"
@@ -327,7 +330,7 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         try:
             metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell.n_samples, seed=cell.seed,
                                timings=metric_phases, vertex_H=final_H,
-                               truth_points=truth_samples(cell, truth, cache_dir), clean=clean)
+                               truth_points=truth_samples(cell, truth, cache_dir), clean=energy_grid)
         except Exception as exc:
             # an invalid mesh keeps what can be computed — unless the metrics ran out of memory: a failed row
             if not invalid or memory_error(exc, stage):

@@ -5,7 +5,8 @@ A method is a subclass of :class:`Method` with
 * ``name`` – the registry name (``python -m bench methods`` lists it);
 * ``description`` – one line;
 * ``params`` – a dict ``name -> Param(default, doc, ...)``: every tunable parameter, documented, with its default;
-* ``reconstruct(volume) -> Reconstruction`` – a closed, outward-oriented triangle mesh in world coordinates.
+* ``reconstruct(volume) -> Reconstruction`` – a closed, outward-oriented triangle mesh in world coordinates
+  (what it must return, and the checks of it: :mod:`methods.contract`, re-exported here).
 
 Methods never import the benchmark (``bench``): they see a :class:`phantoms.Volume` and return a mesh.
 User methods are found through the entry-point group ``levelset_bench.methods`` (see README, "Adding a
@@ -16,15 +17,20 @@ from __future__ import annotations
 
 import importlib
 import sys
-from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any, ClassVar
 
-import numpy as np
-import trimesh
-
 from phantoms import InputError, Volume
 
+from .contract import (
+    INFO_KEYS,
+    Reconstruction,
+    ReconstructionFailed,
+    WrongReturnType,
+    as_reconstruction,
+    check_info,
+    run_reconstruct,
+)
 from .params import Param
 
 __all__ = [
@@ -56,163 +62,6 @@ BUILTIN_METHODS: dict[str, str] = {
     "zmesh": "methods.zmesh_mc:ZMesh",
     "mesh_file": "methods.mesh_file:MeshFile",
 }
-
-
-#: The ``Reconstruction.info`` keys the suite reads, and what it does with them.  Every other key is the
-#: method's own fact: ``reconstruct`` prints it, a grid run keeps it in the cell's json (``row.method_info``)
-#: and the report lists it; it is not a results.csv column.
-INFO_KEYS: dict[str, str] = {
-    "iterations": "int: iterations the method ran (results.csv column `iterations`)",
-    "stop_reason": "str: why it stopped, e.g. converged | max_iter | line_search_floor | diverged "
-                   "(results.csv column `stop_reason`)",
-    "stop_message": "str: one line of detail on the stop (printed by `reconstruct`)",
-    "energy_history": "1-D floats: the energy per iteration, entry 0 = the initial surface (the report's energy "
-                      "curve; its last entry is the results.csv column `energy_final`)",
-    "energy_final": "float: the final energy, when there is no energy_history",
-    "warnings": "list of str: things the user must know about this result (e.g. the target's topology cannot be "
-                "reached); `reconstruct` prints each as a warning line",
-    "snapshots": "{iteration: vertices (V, 3) of the final mesh's faces, or (vertices, faces)}: the report's "
-                 "rows of an iterative method; iteration 0 is the initial surface",
-}
-
-
-class ReconstructionFailed(RuntimeError):
-    """A method ran but its result is not a reconstruction (collapsed, far from φ = 0, ...).
-
-    The message says why.  The command line prints it as one line (exit code 1); a grid run records it as a
-    failed cell.
-    """
-
-
-@dataclass
-class Reconstruction:
-    """What a method returns: the mesh and facts about how it was made.
-
-    Parameters
-    ----------
-    mesh : trimesh.Trimesh
-        A closed, outward-oriented triangle mesh in world coordinates.
-    info : dict
-        The method's facts as plain Python/numpy values; the keys the suite reads are documented in
-        :data:`INFO_KEYS` (and checked by :func:`check_info`).
-    """
-
-    mesh: trimesh.Trimesh
-    info: dict = field(default_factory=dict)
-
-
-class WrongReturnType(ReconstructionFailed, TypeError):
-    """A method returned something other than a :class:`Reconstruction` of a ``trimesh.Trimesh`` and a dict.
-
-    An ``info`` value of :data:`INFO_KEYS` of the wrong type, or a ``sys.exit()`` instead of a return, counts.
-    """
-
-
-def as_reconstruction(result: Any, name: str) -> Reconstruction:
-    """Check that ``result`` is what a method must return.
-
-    Parameters
-    ----------
-    result : object
-        What the method's ``reconstruct`` returned.
-    name : str
-        The method's name, for the error message.
-
-    Returns
-    -------
-    Reconstruction
-        ``result`` itself: a :class:`Reconstruction` holding a ``trimesh.Trimesh`` and an ``info`` dict.
-
-    Raises
-    ------
-    WrongReturnType
-        Naming the method and what it returned (see :func:`check_info` for the ``info`` values).
-    """
-    if not isinstance(result, Reconstruction):
-        raise WrongReturnType(f"method {name!r} returned {type(result).__name__}, expected methods.Reconstruction "
-                              "(return Reconstruction(mesh, info))")
-    if not isinstance(result.mesh, trimesh.Trimesh):
-        raise WrongReturnType(f"method {name!r} returned a Reconstruction whose mesh is "
-                              f"{type(result.mesh).__name__}, expected trimesh.Trimesh")
-    if not isinstance(result.info, dict):
-        raise WrongReturnType(f"method {name!r} returned a Reconstruction whose info is "
-                              f"{type(result.info).__name__}, expected dict")
-    check_info(result.info, name)
-    return result
-
-
-def _is_int(v: Any) -> bool:
-    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
-
-
-def _is_real(v: Any) -> bool:
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
-
-
-# the INFO_KEYS the suite reads as scalars: (test, what the key must be); None is "not given"
-_INFO_TYPES = {
-    "iterations": (_is_int, "an int"),
-    "stop_reason": (lambda v: isinstance(v, str), "a str"),
-    "stop_message": (lambda v: isinstance(v, str), "a str"),
-    "energy_final": (_is_real, "a real number"),
-    "warnings": (lambda v: isinstance(v, (list, tuple)) and all(isinstance(w, str) for w in v), "a list of str"),
-}
-
-
-def check_info(info: dict, name: str) -> None:
-    """Check the types of the :data:`INFO_KEYS` values the suite reads; the method's own keys are not checked.
-
-    A wrong type would be read wrongly downstream: ``warnings = "text"`` as one warning per character,
-    ``iterations = "many"`` as a text in an integer column.
-
-    Parameters
-    ----------
-    info : dict
-        A :attr:`Reconstruction.info`.
-    name : str
-        The method's name, for the error message.
-
-    Raises
-    ------
-    WrongReturnType
-        Naming the key, its value and the type expected.
-    """
-    for key, (ok, what) in _INFO_TYPES.items():
-        value = info.get(key)
-        if value is not None and not ok(value):
-            shown = repr(value) if len(repr(value)) <= 60 else repr(value)[:57] + "..."
-            raise WrongReturnType(f"method {name!r} returned info[{key!r}] = {shown} "
-                                  f"({type(value).__name__}), expected {what}")
-
-
-def run_reconstruct(method: "Method", volume: Volume) -> Any:
-    """Call ``method.reconstruct(volume)``, turning a ``sys.exit()`` inside the method into an error.
-
-    A plug-in must not end the suite's process (``reconstruct`` exiting 0 with no output, a grid worker gone
-    without a row).
-
-    Parameters
-    ----------
-    method : Method
-        The method instance.
-    volume : Volume
-        The volume to reconstruct.
-
-    Returns
-    -------
-    object
-        What ``reconstruct`` returned, unchecked (:func:`as_reconstruction` checks it).
-
-    Raises
-    ------
-    WrongReturnType
-        The method called ``sys.exit()``; any other exception of the method propagates unchanged.
-    """
-    try:
-        return method.reconstruct(volume)
-    except SystemExit as exc:
-        raise WrongReturnType(f"method {method.name!r} called sys.exit({exc.code!r}) instead of returning "
-                                   "a Reconstruction or raising an exception") from None
 
 
 class Method:

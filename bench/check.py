@@ -22,7 +22,11 @@ passes:
   suite's ``topology_mismatch`` flag reports that in a grid run), or a clear refusal —
   :class:`methods.ReconstructionFailed` or :class:`phantoms.InputError` with a message;
 * no_surface: a clear refusal (``InputError``, as :func:`methods.check_volume` raises, or
-  ``ReconstructionFailed``) or a :class:`methods.Reconstruction` with an empty mesh.  A non-empty mesh (a
+  ``ReconstructionFailed``) or a :class:`methods.Reconstruction` with an empty mesh.
+* any case: skipped, when the method's :meth:`~methods.Method.skip_reason` declines the volume (the reason is
+  shown; a grid records such a cell as ``skipped``) — but skipping every case is a violation, as nothing was
+  checked.  The method's :meth:`~methods.Method.warm_up` runs before each case, outside its time; either hook
+  raising or returning the wrong type is a violation.  A non-empty mesh (a
   surface that is not there) or any other exception (e.g. a ``ValueError`` from deep inside a library) is a
   violation.
 
@@ -44,7 +48,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geometry.mesh import mesh_facts
-from methods import Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction, run_reconstruct
+from methods import (MethodSkipped, Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction,
+                     check_skip, run_reconstruct, run_warm_up)
 from phantoms import InputError, Volume, add_noise, get_phantom
 
 from .metrics.validity import check_mesh
@@ -80,6 +85,8 @@ HINTS = {
                "stopping rule, or raise ReconstructionFailed when it does not converge",
     "crashed": "the method ended its process (a segfault or abort() in compiled code, os._exit, a signal): a "
                "method must return or raise",
+    "skipped every case": "skip_reason declined every case's volume (exact signed distances): the checks need "
+                          "a method that takes at least one of them",
     "surface": "φ > 0 everywhere: there is no surface; call methods.check_volume(volume, self.name) first "
                "(it raises InputError) or return an empty mesh",
 }
@@ -94,8 +101,9 @@ class CaseResult:
     case : str
         The case's name (one of :data:`CASES`).
     outcome : str
-        What the method did: ``mesh``, ``empty mesh``, ``refused``, ``raised``, ``wrong type``, ``timeout``
-        or ``crashed``.
+        What the method did: ``mesh``, ``empty mesh``, ``refused``, ``skipped`` (its
+        :meth:`~methods.Method.skip_reason` declined the volume), ``raised``, ``wrong type``, ``timeout`` or
+        ``crashed``.
     seconds : float
         The case's wall time.
     violations : list of str
@@ -113,10 +121,12 @@ class CaseResult:
         :data:`OUTPUT_KEPT` bytes of it.
     output_bytes : int
         How many bytes it wrote in all.
+    warm_up_s : float
+        Seconds of the method's :meth:`~methods.Method.warm_up` before the case (not in ``seconds``).
     """
 
     case: str
-    outcome: str = ""                     # "mesh", "empty mesh", "refused", "raised", "wrong type"
+    outcome: str = ""
     seconds: float = 0.0
     violations: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
@@ -125,6 +135,7 @@ class CaseResult:
     traceback: str | None = None
     output: str = ""
     output_bytes: int = 0
+    warm_up_s: float = 0.0
 
     @property
     def passed(self) -> bool:
@@ -218,9 +229,35 @@ def _judge(res: CaseResult, rec: Reconstruction, clean: Volume, given: Volume | 
                          "this as topology_mismatch")
 
 
+def _skip_and_warm_up(method, volume: Volume, res: CaseResult) -> bool:
+    """Ask the method whether it takes ``volume`` and let it warm up (not in the case's time); False when the
+    case ends there: ``skipped`` with the method's reason, or a violation of either hook."""
+    t0 = time.perf_counter()
+    try:
+        check_skip(method, volume)
+        run_warm_up(method)
+    except MethodSkipped as exc:
+        res.outcome = "skipped"
+        res.notes.append(f"skipped: {exc.reason}")
+        return False
+    except WrongReturnType as exc:
+        res.outcome = "wrong type"
+        res.violations.append(f"wrong type: {exc}")
+        return False
+    except Exception as exc:  # noqa: BLE001 - whatever a hook raised is the finding
+        res.outcome = "raised"
+        res.violations.append(f"raised {error_text(exc)} in skip_reason or warm_up")
+        res.traceback = traceback.format_exc()
+        return False
+    res.warm_up_s = time.perf_counter() - t0
+    return True
+
+
 def run_case(method, case: str, volume: Volume, clean: Volume) -> CaseResult:
     """Run ``method`` on one case volume and judge the result (never raises for what the method does)."""
     res = CaseResult(case)
+    if not _skip_and_warm_up(method, volume, res):
+        return res
     t0 = time.perf_counter()
     try:
         out = run_reconstruct(method, volume)
@@ -274,8 +311,12 @@ def check_method(method, n: int = 24, cases=CASES, seed: int = 0, timeout: float
     """
     volumes = case_volumes(n, seed)
     if timeout is None or "fork" not in mp.get_all_start_methods():
-        return [run_case(method, c, *volumes[c]) for c in cases]
-    return [_run_case_isolated(method, c, volumes[c], timeout) for c in cases]
+        results = [run_case(method, c, *volumes[c]) for c in cases]
+    else:
+        results = [_run_case_isolated(method, c, volumes[c], timeout) for c in cases]
+    if results and all(r.outcome == "skipped" for r in results):
+        results[0].violations.append("skipped every case: nothing was checked")
+    return results
 
 
 #: bytes of a method's own stdout / stderr kept for the report (the rest is counted, not kept)

@@ -6,7 +6,9 @@ A method is a subclass of :class:`Method` with
 * ``description`` – one line;
 * ``params`` – a dict ``name -> Param(default, doc, ...)``: every tunable parameter, documented, with its default;
 * ``reconstruct(volume) -> Reconstruction`` – a closed, outward-oriented triangle mesh in world coordinates
-  (what it must return, and the checks of it: :mod:`methods.contract`, re-exported here).
+  (what it must return, and the checks of it: :mod:`methods.contract`, re-exported here);
+* optionally ``skip_reason(volume)`` (an input the method cannot take: the cell is ``skipped``, not failed) and
+  ``warm_up()`` (one-off costs such as compiling kernels, paid before ``reconstruct`` is timed).
 
 Methods never import the benchmark (``bench``): they see a :class:`phantoms.Volume` and return a mesh.
 User methods are found through the entry-point group ``levelset_bench.methods`` (see README, "Adding a
@@ -24,17 +26,21 @@ from phantoms import InputError, Volume
 
 from .contract import (
     INFO_KEYS,
+    MethodSkipped,
     Reconstruction,
     ReconstructionFailed,
     WrongReturnType,
     as_reconstruction,
     check_info,
+    check_skip,
     run_reconstruct,
+    run_warm_up,
 )
 from .params import Param
 
 __all__ = [
-    "Param", "Method", "Reconstruction", "ReconstructionFailed", "WrongReturnType", "as_reconstruction", "check_info", "run_reconstruct", "INFO_KEYS", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
+    "Param", "Method", "Reconstruction", "ReconstructionFailed", "WrongReturnType", "as_reconstruction", "check_info", "run_reconstruct", "INFO_KEYS",
+    "MethodSkipped", "check_skip", "run_warm_up", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
     "available_methods", "get_method", "register_method", "method_names", "check_volume",
 ]
 
@@ -116,6 +122,37 @@ class Method:
             The method ran but its result is not a reconstruction.
         """
         raise NotImplementedError
+
+    def skip_reason(self, volume: Volume) -> str | None:
+        """None when the method takes ``volume``, else one line saying why not.
+
+        For an input the method cannot take by design — e.g. a mask-native method given a kind it cannot read —
+        rather than a failure: the suite asks before :meth:`warm_up` and :meth:`reconstruct`, a grid records the
+        cell as ``skipped`` with the reason (a row that does not count against the method) and
+        ``check-method`` reports the case as skipped.  Keep it cheap (read ``volume.kind``, ``shape``, ...):
+        it is not timed.  The default takes every volume.
+
+        Parameters
+        ----------
+        volume : Volume
+            The volume :meth:`reconstruct` would be given.
+
+        Returns
+        -------
+        str or None
+        """
+        return None
+
+    def warm_up(self) -> None:
+        """Pay the method's one-off costs — compiling numba kernels on a tiny input, loading a model — so that
+        they do not count in the timed :meth:`reconstruct` (``wall_s``).
+
+        The suite calls it after :meth:`skip_reason` and before every timed :meth:`reconstruct`, in the same
+        process (a grid cell's own process); a second call in a process should cost nothing (numba keeps what
+        it compiled; ``cache=True`` keeps it on disk for the next process).  Its seconds are the row's
+        ``phase_s["warm_up"]`` and count in the cell's time limit, not the method's.  An exception fails the
+        cell as one in :meth:`reconstruct` would.  The default does nothing.
+        """
 
     #: optional packages the method needs: {top-level module: the command that installs it}.  While one is
     #: missing the method is listed as unavailable with that command (``python -m bench methods``) and

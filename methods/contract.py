@@ -1,6 +1,8 @@
 """What a method must return and how the suite calls it: :class:`Reconstruction`, the ``info`` keys the suite
 reads (:data:`INFO_KEYS`, type-checked by :func:`check_info`), the checks of a returned value
-(:func:`as_reconstruction`) and the guarded call (:func:`run_reconstruct`).  :mod:`methods.base` re-exports
+(:func:`as_reconstruction`), the guarded call (:func:`run_reconstruct`) and the two optional hooks the suite
+calls first: :meth:`Method.skip_reason <methods.base.Method.skip_reason>` (:func:`check_skip`) and
+:meth:`Method.warm_up <methods.base.Method.warm_up>` (:func:`run_warm_up`).  :mod:`methods.base` re-exports
 every name here.
 """
 
@@ -12,10 +14,10 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from phantoms import Volume
+from phantoms import InputError, Volume
 
-__all__ = ["INFO_KEYS", "Reconstruction", "ReconstructionFailed", "WrongReturnType", "as_reconstruction",
-           "check_info", "run_reconstruct"]
+__all__ = ["INFO_KEYS", "Reconstruction", "ReconstructionFailed", "WrongReturnType", "MethodSkipped",
+           "as_reconstruction", "check_info", "run_reconstruct", "check_skip", "run_warm_up"]
 
 
 #: The ``Reconstruction.info`` keys the suite reads, and what it does with them.  Every other key is the
@@ -173,3 +175,74 @@ def run_reconstruct(method, volume: Volume) -> Any:
     except SystemExit as exc:
         raise WrongReturnType(f"method {method.name!r} called sys.exit({exc.code!r}) instead of returning "
                                    "a Reconstruction or raising an exception") from None
+
+
+class MethodSkipped(InputError):
+    """The method declines its input: its :meth:`~methods.base.Method.skip_reason` gave ``reason``.
+
+    Not a failure of the method: a grid records the cell as ``skipped`` with the reason, ``check-method`` as a
+    skipped case, ``reconstruct`` as one line (exit 2, as other bad input).
+
+    Parameters
+    ----------
+    method : str
+        The method's name.
+    reason : str
+        Why it cannot take the input, one line.
+    """
+
+    def __init__(self, method: str, reason: str) -> None:
+        super().__init__(f"method {method!r} skips this input: {reason}")
+        self.method, self.reason = method, reason
+
+    def __reduce__(self):          # sent between processes (a grid cell, check-method's forked cases)
+        return type(self), (self.method, self.reason)
+
+
+def check_skip(method, volume: Volume) -> None:
+    """Ask ``method.skip_reason(volume)`` whether the method takes ``volume``; raise if it does not.
+
+    Parameters
+    ----------
+    method : Method
+        The method instance.
+    volume : Volume
+        The volume it would be given.
+
+    Raises
+    ------
+    MethodSkipped
+        ``skip_reason`` gave a reason (its whitespace joined into one line).
+    WrongReturnType
+        ``skip_reason`` returned something other than None or a non-empty str, or called ``sys.exit()``; any
+        other exception of it propagates unchanged.
+    """
+    try:
+        reason = method.skip_reason(volume)
+    except SystemExit as exc:
+        raise WrongReturnType(f"method {method.name!r} called sys.exit({exc.code!r}) in skip_reason") from None
+    if reason is None:
+        return
+    if not isinstance(reason, str) or not reason.strip():
+        raise WrongReturnType(f"method {method.name!r}: skip_reason returned {reason!r}, expected None (the "
+                              "method takes the volume) or a non-empty str saying why not")
+    raise MethodSkipped(method.name, " ".join(reason.split()))
+
+
+def run_warm_up(method) -> None:
+    """Call ``method.warm_up()`` (its one-off costs, paid before the timed ``reconstruct``).
+
+    Parameters
+    ----------
+    method : Method
+        The method instance.
+
+    Raises
+    ------
+    WrongReturnType
+        ``warm_up`` called ``sys.exit()``; any other exception of it propagates unchanged.
+    """
+    try:
+        method.warm_up()
+    except SystemExit as exc:
+        raise WrongReturnType(f"method {method.name!r} called sys.exit({exc.code!r}) in warm_up") from None

@@ -130,3 +130,39 @@ def test_a_method_raising_keyboard_interrupt_is_a_finding_not_a_child_traceback(
     for res in results:
         assert res.outcome == "raised" and res.violations[0].startswith("raised KeyboardInterrupt"), res
         assert "Traceback" not in (res.output or "")
+
+
+# ------------------------------------------------------------------ the method's hooks: skip_reason and warm_up
+@pytest.fixture()
+def hooks(monkeypatch):
+    import hook_plugins
+
+    monkeypatch.setattr(hook_plugins, "_WARMED", [])
+    return hook_plugins
+
+
+def test_a_declined_case_is_skipped_with_its_reason_not_a_violation(hooks):
+    results = {r.case: r for r in check_method(get_method("picky_mc", min_n=26), cases=CASES)}
+    assert results["sphere"].outcome == "skipped" and results["sphere"].passed        # the sphere's N is 24
+    assert "skipped: the grid has 24 points per axis, fewer than the 26 it needs" in results["sphere"].notes
+    assert results["torus"].outcome == "mesh" and all(r.passed for r in results.values())
+
+
+def test_skipping_every_case_is_a_violation_nothing_was_checked(hooks):
+    results = check_method(get_method("picky_mc"), cases=("sphere", "torus"))
+    assert [r.outcome for r in results] == ["skipped", "skipped"]
+    assert results[0].violations == ["skipped every case: nothing was checked"] and hint(results[0].violations[0])
+
+
+def test_warm_up_runs_before_the_case_and_outside_its_time(hooks):
+    first, second = check_method(get_method("warm_mc"), cases=("sphere", "torus"))
+    assert first.passed and second.passed
+    assert first.warm_up_s >= hooks.WARM_SECONDS > first.seconds and second.warm_up_s < hooks.WARM_SECONDS
+
+
+@pytest.mark.parametrize("hook, outcome, says", [("skip_type", "wrong type", "skip_reason returned 3"),
+                                                 ("skip_raises", "raised", "ValueError: no idea"),
+                                                 ("warm_raises", "raised", "the kernels do not compile")])
+def test_a_hook_breaking_its_contract_is_a_violation(hooks, hook, outcome, says):
+    (res,) = check_method(get_method("bad_hooks", hook=hook), cases=("no_surface",))
+    assert res.outcome == outcome and len(res.violations) == 1 and says in res.violations[0]

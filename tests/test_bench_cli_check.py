@@ -177,3 +177,12 @@ def test_a_hanging_or_aborting_method_is_a_reported_violation(name, violation, b
     assert out.count(violation) == 2 and out.count("fix: ") == 2, out
     assert "FAIL: 2 of 2 cases violate the method contract" in out
     assert time.perf_counter() - t0 < 60          # bounded by the limit, not by the hour the method sleeps
+
+
+@pytest.mark.parametrize("min_n, code, last", [("100", 1, "FAIL: 1 of 5 cases"),
+                                               ("26", 0, "ok: 5 cases honour the method contract (3 skipped)")])
+def test_check_method_prints_each_skip_and_its_reason(capsys, min_n, code, last):
+    assert main(["check-method", "picky_mc", "--import", "hook_plugins", "--set", f"min_n={min_n}"]) == code
+    out = capsys.readouterr().out
+    assert f"note: skipped: the grid has 24 points per axis, fewer than the {min_n} it needs" in out
+    assert out.strip().splitlines()[-1].startswith(last)

@@ -246,3 +246,24 @@ def test_reconstruct_with_a_plugin_that_kills_its_process_is_one_line(sphere_fil
     err = capsys.readouterr().err
     assert rc == 1 and err.startswith(f"error: method 'marching_cubes' {words}") and err.count("\n") == 1, err
     assert not out.exists()
+
+
+def test_reconstruct_of_an_input_the_method_declines_is_one_line_exit_2(sphere_file, tmp_path, capsys):
+    import hook_plugins  # noqa: F401  (registers picky_mc)
+
+    out = tmp_path / "m.ply"
+    args = ["reconstruct", str(sphere_file), "-m", "picky_mc", "--set", "min_n=41", "-o", str(out)]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["error: method 'picky_mc' skips this input: the grid has 40 points per axis, fewer than the "
+                   "41 it needs"] and not out.exists()
+
+
+def test_reconstruct_times_the_method_after_its_warm_up(sphere_file, tmp_path, capsys, monkeypatch):
+    import hook_plugins
+
+    monkeypatch.setattr(hook_plugins, "_WARMED", [])
+    info = tmp_path / "info.json"
+    assert main(["reconstruct", str(sphere_file), "-m", "warm_mc", "-o", str(tmp_path / "m.ply"),
+                 "--info-json", str(info)]) == 0
+    assert json.loads(info.read_text())["wall_s"] < hook_plugins.WARM_SECONDS

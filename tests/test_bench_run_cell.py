@@ -218,3 +218,35 @@ def test_the_sdf_energy_reads_the_exact_clean_grid_even_where_phi_gradient_is_sm
     se = g2.std() * np.sqrt((1 - 8192 / len(g2)) / 8192)
     assert se < 0.03 * g2.mean()
     assert abs(row["sdf_energy"] - g2.mean()) <= 4 * se, (row["sdf_energy"], g2.mean(), se)
+
+
+# ------------------------------------------------------------------ the method's hooks: skip_reason and warm_up
+def _hook_cell(sphere_cell, method: str, **params) -> dict:
+    return {**sphere_cell.to_dict(), "method": method, "label": method, "params": params,
+            "imports": ["hook_plugins"], "cell_id": method}
+
+
+def test_a_method_declining_its_input_gives_a_skipped_row_with_its_reason_and_no_scores(sphere_cell):
+    result = run_cell(_hook_cell(sphere_cell, "picky_mc"))
+    row = result.row
+    assert row["status"] == "skipped" and result.traceback is None and result.artifacts == {}
+    assert row["error"] == "the grid has 24 points per axis, fewer than the 30 it needs"
+    assert "hausdorff_h" not in row and "wall_s" not in row and '"min_n":30' in row["parameters"]
+    assert run_cell(_hook_cell(sphere_cell, "picky_mc", min_n=20)).row["status"] == "ok"
+
+
+def test_warm_up_runs_before_the_timed_reconstruct_and_is_not_in_wall_s(sphere_cell, monkeypatch):
+    import hook_plugins
+
+    monkeypatch.setattr(hook_plugins, "_WARMED", [])
+    row = run_cell(_hook_cell(sphere_cell, "warm_mc")).row
+    assert row["status"] == "ok", row["error"]                 # reconstruct found the method warmed up
+    assert row["phase_s"]["warm_up"] >= hook_plugins.WARM_SECONDS > row["wall_s"]
+    assert row["phase_s"]["method"] < hook_plugins.WARM_SECONDS
+
+
+def test_a_hook_that_raises_fails_the_cell_naming_where(sphere_cell):
+    warm = run_cell(_hook_cell(sphere_cell, "bad_hooks", hook="warm_raises"))
+    assert warm.row["status"] == "failed" and warm.row["error"].startswith("warm-up: RuntimeError")
+    skip = run_cell(_hook_cell(sphere_cell, "bad_hooks", hook="skip_type")).row
+    assert skip["status"] == "failed" and "skip_reason returned 3" in skip["error"]

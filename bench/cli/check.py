@@ -32,6 +32,8 @@ def _print_case(r, verbose: bool) -> None:
     what = r.outcome
     if r.facts:
         what += f", {r.facts.get('faces', '?')} faces, euler {r.facts.get('euler', '?')}"
+    if r.warm_up_s >= 0.001:
+        what += f" (after warm_up: {r.warm_up_s:.3f} s, not counted)"
     print(f"  {r.case:<12} {verdict}  {r.seconds:7.3f} s  {what}")
     for note in r.notes:
         print(printable(f"  {'':<12}       note: {note}"))
@@ -76,7 +78,9 @@ def _cmd_check(args) -> int:
         print(f"FAIL: {len(bad)} of {len(results)} cases violate the method contract ({', '.join(bad)}); "
               f"{total:.2f} s in the method")
         return 1
-    print(f"ok: {len(results)} cases honour the method contract; {total:.2f} s in the method")
+    skipped = sum(r.outcome == "skipped" for r in results)
+    print(f"ok: {len(results)} cases honour the method contract{f' ({skipped} skipped)' if skipped else ''}; "
+          f"{total:.2f} s in the method")
     return 0
 
 

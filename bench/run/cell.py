@@ -8,10 +8,11 @@ dict form) and returns a :class:`~bench.run.contracts.CellResult` (``row``, ``ar
 reason, cost, ``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`:
 ``error`` says why; the metrics that can be computed are kept) / ``failed`` and ``error`` (over the process's
 memory limit: ``memory limit (N GB) exceeded in the method`` / ``in scoring ...``, see
-:mod:`bench.run.limits`)); ``artifacts`` holds
-the arrays the report draws:
-the final mesh with its per-vertex mean curvature, the energy history and the snapshots.  Which
-``Reconstruction.info`` keys are read is documented in :data:`methods.INFO_KEYS`.
+:mod:`bench.run.limits`) / ``skipped`` (the method declines the input, :meth:`methods.Method.skip_reason`:
+``error`` is its reason; no metrics)); ``artifacts`` holds the arrays the report draws: the final mesh with its
+per-vertex mean curvature, the energy history and the snapshots.  Which ``Reconstruction.info`` keys are read
+is documented in :data:`methods.INFO_KEYS`.  The method's :meth:`~methods.Method.warm_up` runs before
+``reconstruct`` is timed (``phase_s["warm_up"]``), so compiling does not count in ``wall_s``.
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ from typing import Any
 import numpy as np
 
 from geometry.files import WriteError
-from methods import as_reconstruction, get_method, import_plugins, run_reconstruct
+from methods import (MethodSkipped, as_reconstruction, check_skip, get_method, import_plugins, run_reconstruct,
+                     run_warm_up)
 from phantoms import Volume, add_noise, get_phantom
 from phantoms.degrade import degrade
 
@@ -273,6 +275,24 @@ def _read_as_distance(clean, vol, row: dict):
     return clean_read, scored, (clean if clean.kind != "intensity" else clean_read)
 
 
+def _method(cell: Cell, vol, row: dict):
+    """The cell's method, its parameters in the row, after it said it takes ``vol`` (:func:`methods.check_skip`:
+    :class:`methods.MethodSkipped` when it does not)."""
+    method = get_method(cell.method, **cell.params)
+    row["parameters"] = canonical_json(plain(getattr(method, "config", cell.params)))
+    check_skip(method, vol)
+    return method
+
+
+def _ended(exc: Exception, stage: str) -> tuple[str, str, str | None]:
+    """``(status, error, traceback)`` of a cell that ended in ``exc`` at ``stage``: ``skipped`` with the method's
+    reason (no traceback: nothing went wrong), else ``failed`` — over the process's memory limit
+    (:mod:`bench.run.limits`) saying so and in which phase."""
+    if isinstance(exc, MethodSkipped):
+        return "skipped", exc.reason, None
+    return "failed", memory_error(exc, stage) or f"{stage}: {error_text(exc)}", traceback.format_exc()
+
+
 def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> CellResult:
     """Compute one cell from its parameters; never raises for a failing method (see the module docstring).
 
@@ -289,7 +309,8 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
     Returns
     -------
     CellResult
-        Its row, artifacts and traceback; a failing method's row has ``status`` ``failed``, ``error``.
+        Its row, artifacts and traceback; a failing method's row has ``status`` ``failed``, ``error``; a method
+        that declines the input (:meth:`methods.Method.skip_reason`) ``skipped`` and its reason.
     """
     from bench.metrics import evaluate
 
@@ -306,12 +327,14 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         stage = "volume"
         truth, clean, vol = _input_volume(cell, cache_dir, row, lap)
         stage = "method setup"
-        method = get_method(cell.method, **cell.params)
-        row["parameters"] = canonical_json(plain(getattr(method, "config", cell.params)))
+        method = _method(cell, vol, row)            # MethodSkipped: a skipped row
+        lap("setup")
+        stage = "warm-up"
+        run_warm_up(method)                         # not timed: compiling is not the method's wall_s
+        lap("warm_up")
         stage = "reconstruction"
         if on_phase is not None:
             on_phase("method", {})
-        lap("setup")
         rec, cost = measure(run_reconstruct, method, vol)   # sys.exit() in the method: a failed row
         rec = as_reconstruction(rec, cell.method)   # a bare trimesh etc.: named, not an AttributeError
         runner_values = _runner_values(rec, cost)
@@ -357,10 +380,7 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         row["status"] = "invalid" if invalid else "ok"
         row["error"] = f"invalid: {'; '.join(invalid)}" if invalid else ""
     except Exception as exc:
-        row["status"] = "failed"
-        # over the process's memory limit (bench.run.limits): say so, and in which phase
-        row["error"] = memory_error(exc, stage) or f"{stage}: {error_text(exc)}"
-        tb = traceback.format_exc()
+        row["status"], row["error"], tb = _ended(exc, stage)
     row["cell_s"] = time.perf_counter() - t0
     row["cpu_s"] = time.process_time() - c0        # all threads of the cell: its cost whatever the machine's load
     return CellResult(row, artifacts, tb)

@@ -39,6 +39,9 @@ from .store import (CACHE_DIR, IGNORED, clean_temp_files, read_json, save_cell, 
 __all__ = ["run_grid", "RunSummary", "time_limits", "memory_limit"]
 
 STATUSES = ("ok", "invalid", "failed", "timeout")
+#: the method declined the cell's input (:meth:`methods.Method.skip_reason`): a row, not a failure; counted in
+#: :attr:`RunSummary.statuses` (``RunSummary.skipped`` counts the cells a resumed run found done)
+SKIPPED = "skipped"
 
 
 def _now() -> str:
@@ -66,7 +69,7 @@ class RunSummary:
     report, report_error : Path or str, optional
         The report written after the run, or why it could not be.
     statuses : dict
-        Further counts by status.
+        Further counts by status: ``skipped`` (the method declined the input).
     """
 
     out: Path
@@ -84,7 +87,7 @@ class RunSummary:
 
     def line(self) -> str:
         parts = [f"{self.ok} ok"] + ([f"{self.invalid} invalid"] if self.invalid else []) \
-            + [f"{self.failed} failed", f"{self.timeout} timeout"]
+            + [f"{self.failed} failed", f"{self.timeout} timeout"] + [f"{n} {k}" for k, n in self.statuses.items()]
         resumed = f", {self.skipped} already done" if self.skipped else ""
         where = f" → {self.report}" if self.report else f" → {self.out}"
         return (f"{self.total} cells: {', '.join(parts)} ({self.ran} run{resumed}) in "
@@ -123,7 +126,7 @@ class RunLog:
             "config": self.cfg.to_dict(),
             "config_source": self.cfg.source,
             "cells": {"total": self.n_cells, "finished": len(records),
-                      "status": {k: sum(1 for r in rows if r.get("status") == k) for k in STATUSES}},
+                      "status": {k: sum(1 for r in rows if r.get("status") == k) for k in STATUSES + (SKIPPED,)}},
             "start": self.previous.get("start", self.session["start"]),
             "end": s.get("end"),
             "total_s": round(sum(x.get("total_s", 0.0) for x in sessions), 3),
@@ -164,7 +167,7 @@ class _Progress:
     def finish(self, cell: Cell, row: dict) -> None:
         self.done += 1
         if row.get("status") != "ok":
-            self.failed += 1
+            self.failed += row.get("status") != SKIPPED      # a skipped cell is shown, but is no failure
             if self.show:
                 self.bar.write(printable(f"{row.get('status')}: {cell.cell_id}: {row.get('error', '')}"))
         self.bar.update(1)
@@ -411,6 +414,8 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
             st = r["row"].get("status")
             if st in STATUSES:
                 setattr(summary, st, getattr(summary, st) + 1)
+            elif st == SKIPPED:
+                summary.statuses[st] = summary.statuses.get(st, 0) + 1
         summary.seconds = time.time() - log.started
         try:  # after a write error these may fail too: the first error is the one to report
             write_results_csv(out, cells, records)

@@ -124,7 +124,7 @@ def test_reconstruct_reads_a_mask(tmp_path, capsys):
     assert "watertight:   yes" in capsys.readouterr().out
 
 
-# ---------------------------------------------------------------------------------------------- issue 16
+# ------------------------------------------------------------------ output paths checked before the method runs
 @pytest.fixture
 def counted_runs(monkeypatch):
     """Counts reconstructions of marching_cubes (to show an output path is checked before the method runs)."""

@@ -3,14 +3,18 @@
 Every cell runs in a fresh process forked from a server that preloaded the suite.  A fresh process still pays,
 at its first call of each step, for what Python and numba do lazily: numba's typing context and the machine
 code of each compiled kernel (loaded from the on-disk cache), the modules imported inside functions, scipy's
-and scikit-image's lazily loaded parts.  Measured on the 2-core machine: ≈ 1.2 s per cell (the validity check
-0.65 s, the metrics 0.55 s) — more than the whole method on most cells of the paper's grid.
+and scikit-image's lazily loaded parts — more than the whole method on most cells of the paper's grid
+(docs/NOTES.md, "The fork server's warm-up").
 
 Importing this module runs :func:`warm`: the steps of a cell on a tiny volume (N = 24) and on a mesh big enough
 (≥ :data:`geometry.kernels.MIN_SIZE` faces) for the compiled kernels, in the fork server, before it forks the
 first worker.  Nothing that starts threads runs here (pymeshlab's OpenMP/TBB, the metrics' worker thread): a
 process forked after that could deadlock in its thread pool.  Any error is swallowed: warming is an
 optimisation, never a reason for a run to fail.
+
+A method's own one-off costs are its :meth:`methods.Method.warm_up`, which :func:`bench.run.cell.run_cell`
+calls in the cell's process before timing ``reconstruct`` — not here: a plug-in's warm-up may start threads
+(a parallel numba kernel), and only the grid's methods should pay for it.
 """
 
 from __future__ import annotations

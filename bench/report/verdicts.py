@@ -34,7 +34,7 @@ from bench.metrics.flags import is_usable
 from bench.metrics.registry import METRICS
 from bench.perf.quality import same_within_tolerance
 
-from .pairwise import pairwise, recommendation
+from .pairwise import pairwise, recommendation, signed_rank_test
 
 __all__ = ["BLOCK_KEYS", "TRUTH_KEYS", "DEGRADED_KEYS", "FREE_KEYS", "MIN_BLOCKS", "ALPHA", "block_ranks", "leaderboards",
            "significance", "cd_figure", "board_html"]
@@ -141,7 +141,7 @@ def significance(ranks: np.ndarray, labels: list[str], values: np.ndarray | None
     if k == 2:
         d = (values[:, 0] - values[:, 1]) if values is not None else (ranks[:, 0] - ranks[:, 1])
         d = d[np.isfinite(d)]
-        p = 1.0 if not np.any(d != 0) else float(stats.wilcoxon(d, zero_method="zsplit").pvalue)
+        p = signed_rank_test(d)[0]
         out.update(test="Wilcoxon signed-rank (two methods)", p=p)
         out["cliques"] = [list(labels)] if p >= ALPHA else []
     else:

@@ -55,7 +55,7 @@ def test_an_unrepairable_remeshed_start_falls_back_to_the_start_as_grown(monkeyp
     from methods.shape_gradient import ShapeGradient
     from phantoms import get_phantom
 
-    def pierced(x, f, edge_length, iterations, closed=False):
+    def pierced(x, f, edge_length, iterations, closed=False, keep=None):
         x = np.array(x, dtype=float)
         top = int(np.argmax(x[:, 2]))
         x[top, 2] -= 1.2 * (x[:, 2].max() - x[:, 2].min())          # through the far side

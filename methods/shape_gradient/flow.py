@@ -329,7 +329,9 @@ class ShapeGradientFlow:
         # all the rounds (marching cubes' slivers); a later mesh is near isotropic: one round
         rounds = self.settings.remesh_iterations if it == 0 else 1
         before = (self.state.x, self.ops, self.state)
-        out = remesh(self.state.x, self.ops.faces, self.edge_length, rounds, closed=it > 0)
+        # keep_tips: the tips stay (the start, marching cubes' slivers, is remeshed freely)
+        keep = {"keep": self._tips()} if it > 0 and self.settings.keep_tips else {}
+        out = remesh(self.state.x, self.ops.faces, self.edge_length, rounds, closed=it > 0, **keep)
         if out is None:
             self.remesh_refused += 1
         else:
@@ -344,6 +346,13 @@ class ShapeGradientFlow:
             self.remesh_refused += 1                                           # the start as grown is safe
             self._set_mesh(*before)
             self._hold_stop = self._guard(it)
+
+    def _tips(self) -> np.ndarray:
+        """The vertices the remesher keeps: tips of sharply convex parts (mean curvature above ``tip_curvature``
+        per voxel, the tip extension's threshold), which its collapses would otherwise shorten (a thin leg's
+        hoof, issue 44); the start's marching-cubes mesh, with its slivers, is remeshed freely."""
+        H, _ = self.ops.curvature(self.state.geo)
+        return np.flatnonzero(np.isfinite(H) & (H * self.h > self.settings.tip_curvature))
 
     def _checked(self) -> bool:
         """True when the current mesh is the last one the intersection guard passed (nothing moved since)."""

@@ -4,7 +4,9 @@ Split edges longer than 4/3 ℓ, collapse those shorter than 4/5 ℓ, flip towar
 project back onto the mesh as it was: the surface keeps its shape while its triangles stay near ℓ, so a sphere
 shrinking onto a bunny gains vertices where it must reach into the ears and never stretches or crumples.
 The result is checked — one closed, consistently oriented genus-0 surface — and refused otherwise (the flow
-then keeps its mesh).
+then keeps its mesh).  Vertices passed as ``keep`` are the remesher's feature vertices: never collapsed or moved
+(the flow passes the tips of sharply convex parts, which the collapses otherwise shorten by a voxel or more at a
+time on a thin limb: issue 44, docs/NOTES.md).
 """
 
 from __future__ import annotations
@@ -18,29 +20,39 @@ from geometry.topology import is_sphere_like
 __all__ = ["remesh", "is_sphere_like"]
 
 
-def _botsch(V: np.ndarray, F: np.ndarray, iterations: int, edge_length: float, gpytoolbox, closed: bool = False):
+def _botsch(V: np.ndarray, F: np.ndarray, iterations: int, edge_length: float, gpytoolbox, closed: bool = False,
+            keep: np.ndarray | None = None):
     """gpytoolbox's Botsch–Kobbelt remesher.  The flow's meshes are closed and manifold (checked after every
     remesh), so its C++ kernel is called directly when this gpytoolbox has the known one: the public wrapper's
     input checks (boundary vertices, non-manifold edges: two ``np.unique`` over all edges) cost a third of the
-    remesh at 34k vertices.  Any other input, or another gpytoolbox, goes through the public wrapper."""
+    remesh at 34k vertices.  Any other input, or another gpytoolbox, goes through the public wrapper.  ``keep``: the
+    feature vertices (the kernel wants them first: the mesh is reordered so, as the wrapper does)."""
+    keep = np.zeros(0, dtype=np.int32) if keep is None else np.unique(np.asarray(keep, dtype=np.int32))
+    if len(keep):
+        order = np.concatenate([keep, np.delete(np.arange(len(V), dtype=np.int32), keep)])
+        rank = np.empty(len(V), dtype=np.int32)
+        rank[order] = np.arange(len(V), dtype=np.int32)
+        V, F = np.ascontiguousarray(V[order]), np.ascontiguousarray(rank[F])
+        keep = np.arange(len(keep), dtype=np.int32)
     try:
         from gpytoolbox_bindings import _remesh_botsch_cpp_impl
     except ImportError:
         _remesh_botsch_cpp_impl = None
     if _remesh_botsch_cpp_impl is not None and (closed or is_sphere_like(F, len(V))):
         try:
-            return _remesh_botsch_cpp_impl(V, F, iterations, edge_length, np.zeros(0, dtype=np.int32),
+            return _remesh_botsch_cpp_impl(V, F, iterations, edge_length, keep,
                                            np.zeros((0, 2), dtype=np.int32), True)
         except TypeError:     # another signature: use the public function
             pass
-    return gpytoolbox.remesh_botsch(V, F, iterations, edge_length, True)
+    return gpytoolbox.remesh_botsch(V, F, iterations, edge_length, True, feature=keep)
 
 
 def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iterations: int = 3, *,
-           closed: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
+           closed: bool = False, keep: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """The mesh remeshed toward edge length ``edge_length`` (world units), or None when the remesher's output
     is not sphere-like (:func:`is_sphere_like`) and the caller should keep its mesh.  ``closed=True``: the
-    caller knows the input is one closed manifold surface (the flow's meshes are), so it is not re-checked."""
+    caller knows the input is one closed manifold surface (the flow's meshes are), so it is not re-checked.
+    ``keep``: indices of vertices the remesher must keep where they are (they come first in the output)."""
     with warnings.catch_warnings():      # gpytoolbox's own imports use deprecated numpy paths
         warnings.simplefilter("ignore", DeprecationWarning)
         import gpytoolbox
@@ -48,7 +60,7 @@ def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iteratio
     V = np.ascontiguousarray(vertices, dtype=np.float64)
     F = np.ascontiguousarray(faces, dtype=np.int32)
     try:
-        U, G = _botsch(V, F, int(iterations), float(edge_length), gpytoolbox, closed)
+        U, G = _botsch(V, F, int(iterations), float(edge_length), gpytoolbox, closed, keep)
     except ValueError:  # the remesher refuses non-manifold input
         return None
     U = np.asarray(U, dtype=np.float64)

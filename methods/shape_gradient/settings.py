@@ -95,6 +95,8 @@ class FlowSettings:
         Iterations whose vertices are kept.
     presmooth, start_smooth : float
         The Gaussian σ (voxels) of the derivative grids and of the start's values, as decided (reported).
+    keep_tips : bool
+        The remesher keeps the tips of sharply convex parts (mean curvature above ``tip_curvature``) in place.
     parameters : Mapping
         The parameters as the run reports them (``info['parameters']``): every parameter with ``'auto'``
         decided, plus the values derived from them.
@@ -131,6 +133,7 @@ class FlowSettings:
     presmooth: float
     start_smooth: float
     parameters: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    keep_tips: bool = False
 
     @classmethod
     def resolve(cls, config: Mapping[str, Any], *, h: float, clean: bool, noise: float, presmooth: float,
@@ -191,7 +194,7 @@ class FlowSettings:
             tip_curvature=float(c["tip_curvature"]), noise_variance=float(c["noise_variance"]),
             stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),
             snapshots=tuple(c["snapshots"]), presmooth=c["presmooth_used"], start_smooth=c["start_smooth_used"],
-            parameters=_reported(c))
+            parameters=_reported(c), keep_tips=bool(c.get("keep_tips", False)))
 
     def reported_parameters(self) -> dict[str, Any]:
         """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""

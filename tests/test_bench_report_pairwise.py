@@ -105,3 +105,15 @@ def test_no_input_in_common_still_gives_a_board_with_its_pairs():
     assert board["n_blocks"] == 0 and board["n_inputs"] == 16
     assert board["rows"][0]["label"] == "A"                             # the only pair with inputs in common
     assert "not tested against C (only 0 shared inputs; a test needs 6)" in recommendation(board)
+
+
+def test_a_skipped_input_is_left_out_not_counted_against_the_method():
+    base = {i: 1.0 + i for i in range(8)}
+    rows = _rows({"A": base, "B": {i: v * 1.2 for i, v in base.items()}})
+    for r in rows:
+        if r["label"] == "B" and r["phantom"] in ("p0", "p1"):
+            r.update(status="skipped", hausdorff_h=None)               # B declines two inputs
+    board = leaderboards(rows)[0]
+    b = next(r for r in board["rows"] if r["label"] == "B")
+    assert b["cells"] == 6 and b["valid_pct"] == 100.0 and b["usable_pct"] == 100.0
+    assert board["n_blocks"] == 6 and board["pairwise"]["pairs"][("A", "B")]["n"] == 6

@@ -249,8 +249,11 @@ def _compare_pair(cmp: Comparison, name: str, ra: dict, rb: dict) -> None:
     qa, qb = (next(iter(cells_from_rows([r], "x").values())) for r in (ra, rb))
     if qa["status"] != qb["status"] or qa["flags"] != qb["flags"]:
         gained = set(qb["flags"]) - set(qa["flags"])
-        worse = (qa["status"] == "ok" and qb["status"] != "ok") or (qb["status"] == qa["status"] and gained)
-        better = (qb["status"] == "ok" and qa["status"] != "ok") or (qb["status"] == qa["status"] and not gained)
+        declined = "skipped" in (qa["status"], qb["status"])   # a method that declines an input: not comparable
+        worse = not declined and ((qa["status"] == "ok" and qb["status"] != "ok") or (qb["status"] == qa["status"]
+                                                                                       and gained))
+        better = not declined and ((qb["status"] == "ok" and qa["status"] != "ok") or (qb["status"] == qa["status"]
+                                                                                        and not gained))
         cmp.states.append({"cell": name, "label": ra.get("label"), "status": f"{qa['status']} → {qb['status']}",
                            "flags": _flag_change(qa["flags"], qb["flags"]),
                            "verdict": "worse" if worse else "better" if better else "changed"})

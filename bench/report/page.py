@@ -62,7 +62,7 @@ def _load_meta(out: Path) -> dict:
 
 def _failed(df, records: dict) -> list[dict]:
     failed = []
-    for _, r in df[df["status"] != "ok"].iterrows():
+    for _, r in df[~df["status"].isin(["ok", "skipped"])].iterrows():     # a skipped input is not a failure
         rec = records.get(r["cell_id"], {})
         where = f"cells/{r['cell_id']}.json"          # the full texts; the page shows the capped ones
         tb = rec.get("traceback")

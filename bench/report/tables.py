@@ -204,9 +204,11 @@ FLAG_TITLES = {
 
 def status_badges(status: str, flags, valid: bool) -> str:
     """The status cell: the status text (a red ``invalid`` / grey ``failed`` badge when no seed gave a valid
-    result) followed by one amber badge per flag, named in text (the report's CSS colours ``.badge``)."""
+    result, a neutral ``skipped`` one when the method declined the input) followed by one amber badge per flag, named in text (the report's CSS colours ``.badge``)."""
     text = html.escape(str(status))
-    if not valid:
+    if not valid and str(status).strip() == "skipped":     # the method declined this input: not a failure
+        text = f'<span class="badge badge-skipped" title="the method does not take this input">{text}</span>'
+    elif not valid:
         kind = "invalid" if "invalid" in str(status) else "failed"
         text = f'<span class="badge badge-{kind}" title="no valid result: never ranked best">{text}</span>'
     for f in flags or ():

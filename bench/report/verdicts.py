@@ -267,7 +267,9 @@ def leaderboards(rows: list[dict]) -> list[dict]:
     """The boards of a run (see the module docstring): with ground truth, and truth-free (cells without).
 
     A run with degraded inputs (``degrade``) gets one board per degradation first, each answering "from this
-    input, which method?" on :data:`DEGRADED_KEYS`; the undegraded cells follow as usual."""
+    input, which method?" on :data:`DEGRADED_KEYS`; the undegraded cells follow as usual.  A cell a method
+    declined (status ``skipped``: it does not take that input) is left out: the method does not have that input."""
+    rows = [r for r in rows if r.get("status") != "skipped"]
     boards = []
     degrades = list(dict.fromkeys(_degrade(r) for r in rows))
     for d in [d for d in degrades if d != "none"]:

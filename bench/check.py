@@ -54,7 +54,7 @@ from phantoms import InputError, Volume, add_noise, get_phantom
 
 from .metrics.validity import check_mesh
 from .run.values import error_text, plain
-from .terminal import redirect_output
+from .terminal import capture_output, redirect_output
 
 __all__ = ["CASES", "CaseResult", "check_method", "case_volumes", "HINTS"]
 
@@ -311,7 +311,11 @@ def check_method(method, n: int = 24, cases=CASES, seed: int = 0, timeout: float
     """
     volumes = case_volumes(n, seed)
     if timeout is None or "fork" not in mp.get_all_start_methods():
-        results = [run_case(method, c, *volumes[c]) for c in cases]
+        results = []
+        for c in cases:                 # in this process: the method's prints kept, not shown raw
+            with capture_output() as fd:
+                res = run_case(method, c, *volumes[c])
+                results.append(_captured(res, fd))
     else:
         results = [_run_case_isolated(method, c, volumes[c], timeout) for c in cases]
     if results and all(r.outcome == "skipped" for r in results):

@@ -9,12 +9,14 @@ report escapes its text itself (Jinja autoescape).
 
 from __future__ import annotations
 
+import contextlib
 import faulthandler
 import os
 import re
 import sys
+import tempfile
 
-__all__ = ["printable", "redirect_output", "captured_head"]
+__all__ = ["printable", "redirect_output", "captured_head", "capture_output", "show_captured"]
 
 _CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
 
@@ -54,3 +56,37 @@ def captured_head(fd: int, kept: int) -> tuple[int, str]:
             pass
     size = os.fstat(fd).st_size
     return size, (printable(os.pread(fd, kept, 0).decode("utf-8", "replace")) if size else "")
+
+
+@contextlib.contextmanager
+def capture_output():
+    """In this process: what is written on file descriptors 1 and 2 (``sys.stdout`` / ``sys.stderr``, C code)
+    inside the block goes to a temporary file, restored after; yields the file's descriptor (read it with
+    :func:`captured_head` before the block ends)."""
+    saved = [os.dup(1), os.dup(2)]
+    streams = sys.stdout, sys.stderr
+    with tempfile.TemporaryFile() as out:
+        try:
+            redirect_output(out.fileno())
+            yield out.fileno()
+        finally:
+            for stream in (sys.stdout, sys.stderr):
+                try:
+                    stream.flush()
+                except (OSError, ValueError):
+                    pass
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            sys.stdout, sys.stderr = streams
+
+
+def show_captured(size: int, head: str, kept: int, who: str) -> None:
+    """Print on stderr what ``who`` wrote (its first ``kept`` bytes, escaped; the size when there was more)."""
+    if not size:
+        return
+    more = f", first {kept} shown" if size > kept else ""
+    print(f"{who} wrote {size} bytes on stdout / stderr (control characters escaped{more}):", file=sys.stderr)
+    for line in head.splitlines():
+        print(f"  | {line}", file=sys.stderr)

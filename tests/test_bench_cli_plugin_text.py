@@ -83,6 +83,27 @@ def test_check_method_captures_the_methods_own_output_and_shows_its_head_escaped
     assert out.strip().splitlines()[-1].startswith("ok: 1 cases honour the method contract")
 
 
+def test_check_method_without_a_child_process_captures_the_output_too(shouting, capfd):
+    """``--timeout 0`` runs the cases in this process: the method's prints are captured all the same."""
+    code = main(["check-method", shouting, "--import", "shouting_plugin", "--case", "sphere", "--timeout", "0"])
+    out, err = capfd.readouterr()
+    assert code == 0, out
+    assert err == "" and not RAW.search(out)
+    assert re.search(r"output: the method wrote \d+ bytes on stdout / stderr", out)
+    assert "| \\x1b]0;stdout title\\x07oooo" in out
+
+
+def test_reconstruct_shows_the_methods_own_output_escaped(shouting, capfd, tmp_path):
+    save_volume(tmp_path / "s.npz", get_phantom("sphere").volume(n=24))
+    code = main(["reconstruct", "--method", shouting, str(tmp_path / "s.npz"), "-o", str(tmp_path / "m.ply"),
+                 "--import", "shouting_plugin"])
+    out, err = capfd.readouterr()
+    assert code == 0, err
+    assert not RAW.search(out) and not RAW.search(err), [ln for ln in err.splitlines() if RAW.search(ln)][:3]
+    assert "wrote" in err and "bytes on stdout / stderr (control characters escaped, first 4096 shown)" in err
+    assert "| \\x1b]0;stdout title\\x07oooo" in err and len(err) < 4096 * 2 + 2000
+
+
 def test_a_quiet_method_prints_no_output_section(capsys):
     assert main(["check-method", "marching_cubes", "--case", "sphere", "--timeout", "60"]) == 0
     assert "output:" not in capsys.readouterr().out

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -23,7 +24,7 @@ from phantoms import InputError, load_volume
 from geometry.files import atomic_write
 
 from ..metrics.validity import check_mesh
-from ..terminal import printable
+from ..terminal import captured_head, printable, show_captured
 from .outputs import check_outputs, refuse_non_finite, write_mesh
 
 MESH_SUFFIXES = {".ply": "ply", ".obj": "obj", ".stl": "stl"}
@@ -116,8 +117,11 @@ def _fmt(value) -> str:
     return str(value)
 
 
-def _in_child(conn, fn, method, volume) -> None:
+def _in_child(conn, fn, method, volume, out_fd: int) -> None:
+    from ..terminal import redirect_output
+
     try:
+        redirect_output(out_fd)             # the method's own prints: shown escaped by the parent
         conn.send(("ok", fn(method, volume)))
     except BaseException as exc:  # noqa: BLE001 — sent back and judged in the parent
         try:
@@ -126,6 +130,10 @@ def _in_child(conn, fn, method, volume) -> None:
             conn.send(("raised", RuntimeError(f"{type(exc).__name__}: {exc}")))
     finally:
         conn.close()
+
+
+#: bytes of a method's own output ``reconstruct`` shows (escaped)
+OUTPUT_SHOWN = 4096
 
 
 def _isolated(fn, method, volume):
@@ -140,20 +148,22 @@ def _isolated(fn, method, volume):
         return fn(method, volume)
     ctx = mp.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_in_child, args=(send, fn, method, volume), daemon=True)
-    proc.start()
-    send.close()
-    try:
-        kind, value = recv.recv()
-    except (EOFError, OSError):
-        proc.join()
-        code = proc.exitcode
-        how = (f"signal {signal.Signals(-code).name}" if code is not None and code < 0 else f"exit code {code}")
-        raise ReconstructionFailed(f"method {method.name!r} ended its process ({how}: an abort or a crash in "
-                                   "compiled code) instead of returning or raising") from None
-    finally:
-        recv.close()
-    proc.join()
+    with tempfile.TemporaryFile() as out:
+        proc = ctx.Process(target=_in_child, args=(send, fn, method, volume, out.fileno()), daemon=True)
+        proc.start()
+        send.close()
+        try:
+            kind, value = recv.recv()
+        except (EOFError, OSError):
+            proc.join()
+            code = proc.exitcode
+            how = (f"signal {signal.Signals(-code).name}" if code is not None and code < 0 else f"exit code {code}")
+            raise ReconstructionFailed(f"method {method.name!r} ended its process ({how}: an abort or a crash in "
+                                       "compiled code) instead of returning or raising") from None
+        finally:
+            recv.close()
+            proc.join()
+            show_captured(*captured_head(out.fileno(), OUTPUT_SHOWN), OUTPUT_SHOWN, f"method {method.name!r}")
     if kind == "raised":
         raise value
     return value

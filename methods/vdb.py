@@ -60,8 +60,17 @@ def _faces(mesh) -> np.ndarray:
 
 
 def vdb_polygons(volume: Volume, adaptivity: float = 0.0):
-    """OpenVDB's mesh of ``volume``'s zero level set: (vertices (V, 3) world, triangles (F, 3), facts)."""
-    from lagrange import volume as lvol
+    """OpenVDB's mesh of ``volume``'s zero level set: (vertices (V, 3) world, triangles (F, 3), facts).
+
+    lagrange bundles a newer TBB than pymeshlab: in a process where pymeshlab was loaded first, the dynamic
+    linker has bound ``libtbb.so.12`` to pymeshlab's copy and lagrange's import fails on a missing symbol — the
+    mesh is then made in a fresh interpreter (:func:`_in_fresh_process`)."""
+    try:
+        from lagrange import volume as lvol
+    except ImportError as exc:
+        if "undefined symbol" not in str(exc):
+            raise
+        return _in_fresh_process(volume, adaptivity)
 
     values = _nudge_zeros(volume.values)
     index = np.indices(values.shape, dtype=np.int32).reshape(3, -1).T.copy()
@@ -78,6 +87,36 @@ def vdb_polygons(volume: Volume, adaptivity: float = 0.0):
     faces = _faces(mesh)
     facts = {"polygons": int(mesh.num_facets), "quads_split": int(len(faces) - mesh.num_facets)}
     return vertices, faces, facts
+
+
+def _in_fresh_process(volume: Volume, adaptivity: float):
+    """:func:`vdb_polygons` run by ``python -m methods.vdb`` on the volume saved to a temporary folder."""
+    import json
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as tmp:
+        src, dst = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
+        np.savez(src, values=np.asarray(volume.values), origin=np.asarray(volume.origin),
+                 spacing=np.asarray(volume.spacing), adaptivity=float(adaptivity))
+        res = subprocess.run([sys.executable, "-m", "methods.vdb", str(src), str(dst)], capture_output=True,
+                             text=True)
+        if res.returncode != 0 or not dst.is_file():
+            last = (res.stderr.strip().splitlines() or ["(no message)"])[-1]
+            raise RuntimeError(f"OpenVDB in a fresh process failed (exit {res.returncode}): {last}")
+        with np.load(dst) as out:
+            return np.asarray(out["vertices"]), np.asarray(out["faces"]), json.loads(str(out["facts"]))
+
+
+def _main(src: str, dst: str) -> None:
+    import json
+
+    with np.load(src) as a:
+        vol = Volume(np.array(a["values"]), a["origin"], a["spacing"])
+        v, f, facts = vdb_polygons(vol, float(a["adaptivity"]))
+    np.savez(dst, vertices=v, faces=f, facts=json.dumps(facts))
 
 
 class VDB(Method):
@@ -111,3 +150,9 @@ class VDB(Method):
         orient_outward(mesh)
         info = {"iterations": 0, "stop_reason": "done", **facts, "wall_vdb_s": time.perf_counter() - t0}
         return Reconstruction(mesh, info)
+
+
+if __name__ == "__main__":      # the fresh process of _in_fresh_process
+    import sys
+
+    _main(sys.argv[1], sys.argv[2])

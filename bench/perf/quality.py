@@ -3,7 +3,8 @@
 The time gate (:mod:`.gate`) catches a change that makes the suite slower; this one catches a change that makes a
 result *worse*.  :func:`run_quality` runs the grids of :data:`QUALITY_CONFIGS` — the quick grid (two phantoms ×
 clean / paper noise × three methods at N = 48) and ``quality_real`` (the bunny at N = 48, clean, the shape
-gradient and marching cubes) — and keeps per cell its status, its flags and the metrics of :data:`TOLERANCES`.
+gradient and marching cubes) — and keeps per cell its status, its flags and the metrics of :data:`TOLERANCES`
+(:mod:`bench.metrics.tolerances`, re-exported here).
 :func:`quality_gate` (pure) compares two such summaries; a cell **fails** when
 
 * its status was ``ok`` and is not (``invalid``, ``failed``, ``timeout``), or it gained a flag
@@ -38,6 +39,7 @@ from pathlib import Path
 
 from phantoms import InputError
 
+from ..metrics.tolerances import TOLERANCES, Tolerance, same_within_tolerance
 from .baseline import read_json_file
 
 __all__ = ["QUALITY_FORMAT", "QUALITY_BASELINE", "QUALITY_CONFIGS", "TOLERANCES", "Tolerance", "run_quality",
@@ -55,52 +57,6 @@ QUALITY_CONFIGS = ("quick", "quality_real")
 EXACT_METHODS = ("marching_cubes",)
 #: the relative difference an exact row's value may have on another machine or other library versions
 EXACT_REL_ELSEWHERE = 1e-9
-
-
-@dataclass(frozen=True)
-class Tolerance:
-    """How much worse a metric may get: ``better`` is ``"min"``, ``"max"``, ``"count"`` (an integer to keep
-    as low: any increase fails), ``"target"`` (distance to the truth's value may not grow) or ``"true"`` (may
-    not turn false); the allowed worsening is ``rel · |baseline| + abs``."""
-
-    better: str
-    rel: float = 0.0
-    abs: float = 0.0
-
-
-#: the gated metrics (results.csv columns) and their tolerances
-TOLERANCES: dict[str, Tolerance] = {
-    "hausdorff_h": Tolerance("min", 0.05, 0.01),
-    "hausdorff_95_h": Tolerance("min", 0.05, 0.005),
-    "mean_dist_h": Tolerance("min", 0.05, 0.002),
-    "rms_dist_h": Tolerance("min", 0.05, 0.002),
-    "normal_consistency": Tolerance("max", 0.0, 0.002),
-    "fscore@h": Tolerance("max", 0.0, 0.01),
-    "coverage_pct": Tolerance("max", 0.0, 0.1),
-    "H_rms_err": Tolerance("min", 0.10, 0.01),
-    "K_rms_err": Tolerance("min", 0.10, 0.01),
-    "roughness_deg": Tolerance("min", 0.10, 0.1),
-    "min_angle_deg": Tolerance("max", 0.10, 0.1),
-    "pct_angle_lt_10": Tolerance("min", 0.10, 0.5),
-    "sdf_rms_h": Tolerance("min", 0.05, 0.005),
-    "sdf_p95_h": Tolerance("min", 0.05, 0.005),
-    "phi_mean_h": Tolerance("min", 0.05, 0.002),
-    "phi_p95_h": Tolerance("min", 0.05, 0.005),
-    "sign_err_pct": Tolerance("min", 0.05, 0.01),
-    "self_intersections": Tolerance("count"),
-    "euler": Tolerance("target"),
-    "components": Tolerance("target"),
-    "watertight": Tolerance("true"),
-}
-
-
-def same_within_tolerance(metric: str, a: float, b: float) -> bool:
-    """Whether two values of ``metric`` are the same at its resolution: ``|a − b| ≤ rel · max(|a|, |b|) + abs``
-    of its gate tolerance (integers and flags exactly; an ungated metric: 1e-9 relative)."""
-    tol = TOLERANCES.get(metric, Tolerance("min", 1e-9, 0.0))
-    if tol.better in ("count", "target", "true"):
-        return a == b
-    return abs(a - b) <= tol.rel * max(abs(a), abs(b)) + tol.abs
 
 
 def _finite(v) -> float | None:

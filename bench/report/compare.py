@@ -31,7 +31,8 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench.perf.quality import TOLERANCES, cells_from_rows, compare_value
+from bench.metrics.tolerances import TOLERANCES
+from bench.perf.quality import cells_from_rows, compare_value
 
 from ..run.store import read_results
 from .export import phantom_genus

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.perf.quality import same_within_tolerance
+from bench.metrics.tolerances import same_within_tolerance
 
 __all__ = ["MIN_PAIRED", "ALPHA", "pairwise", "holm", "signed_rank_test", "median_interval", "recommendation",
            "pairwise_html"]

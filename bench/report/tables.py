@@ -172,7 +172,7 @@ def _best_index(vals: np.ndarray, rule, metric: str | None = None) -> int | None
     if np.any(np.isclose(score[others], score[i], rtol=1e-9, atol=1e-12)):
         return None
     if metric is not None:
-        from bench.perf.quality import same_within_tolerance
+        from bench.metrics.tolerances import same_within_tolerance
 
         if any(same_within_tolerance(metric, float(vals[i]), float(vals[j])) for j in others):
             return None

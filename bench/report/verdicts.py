@@ -32,7 +32,7 @@ import numpy as np
 
 from bench.metrics.flags import is_usable
 from bench.metrics.registry import METRICS
-from bench.perf.quality import same_within_tolerance
+from bench.metrics.tolerances import same_within_tolerance
 
 from .pairwise import pairwise, recommendation, signed_rank_test
 

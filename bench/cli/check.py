@@ -10,6 +10,7 @@ from __future__ import annotations
 from ..check import CASES, OUTPUT_KEPT, check_method, hint
 from ..terminal import printable
 from .methods import add_import_option, import_modules, parse_assignments
+from .validators import case_timeout, int_between
 
 HELP = """\
 Run a method on small test volumes (sphere; anisotropic off-centre ellipsoid; noisy sphere; torus; a volume
@@ -84,32 +85,6 @@ def _cmd_check(args) -> int:
     return 0
 
 
-def _grid_points(text: str) -> int:
-    import argparse
-
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if not 12 <= n <= 128:
-        raise argparse.ArgumentTypeError(f"must be in [12, 128]: {text!r}")
-    return n
-
-
-def _case_timeout(text: str) -> float:
-    import argparse
-
-    from ..run.limits import MAX_SECONDS
-
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0 <= v <= MAX_SECONDS:
-        raise argparse.ArgumentTypeError(f"must be between 0 (no limit) and {MAX_SECONDS:.0f}: {text!r}")
-    return v
-
-
 def register(subparsers) -> None:
     import argparse
 
@@ -118,10 +93,10 @@ def register(subparsers) -> None:
     p.add_argument("name", metavar="NAME", help="method name (see: python -m bench methods)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="set a method parameter (repeatable)")
     add_import_option(p)
-    p.add_argument("--n", type=_grid_points, default=24, help="grid points per axis of the test volumes "
+    p.add_argument("--n", type=int_between(12, 128), default=24, help="grid points per axis of the test volumes "
                                                               "(default 24)")
     p.add_argument("--case", action="append", choices=CASES, help="run only this case (repeatable)")
-    p.add_argument("--timeout", type=_case_timeout, default=120.0, metavar="S",
+    p.add_argument("--timeout", type=case_timeout, default=120.0, metavar="S",
                    help="seconds per case before the method is stopped and the case is a violation; each case "
                         "runs in its own process, so a crash is reported too (0 = no limit, in this process; "
                         "default 120)")

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import math
 import sys
 
 from .. import perf
+from .validators import int_at_least, nonneg_float
 
 PERF_HELP = """\
 Run the pytest-benchmark suites (tests/benchmarks) and print each benchmark's median time and its ratio to
@@ -33,49 +33,27 @@ worse status or a new flag fails. History (--history FILE.jsonl): each run appen
   python -m bench perf --plot perf-history.jsonl -o perf-history.html"""
 
 
-def _tolerance(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (v >= 0 and math.isfinite(v)):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0: {text!r}")
-    return v
-
-
-def _count(minimum: int):
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-        if v < minimum:
-            raise argparse.ArgumentTypeError(f"must be >= {minimum}: {text!r}")
-        return v
-    return parse
-
-
 def register(subparsers) -> None:
     p = subparsers.add_parser("perf", help="run the performance suites and gate against a baseline",
                               description=PERF_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--compare", metavar="BASELINE.json",
                    help="baseline to compare with (a perf summary or a pytest-benchmark JSON file)")
     p.add_argument("--save", metavar="OUT.json", help="write this run's summary (e.g. a new baseline)")
-    p.add_argument("--tolerance", type=_tolerance, default=perf.DEFAULT_TOLERANCE, metavar="T",
+    p.add_argument("--tolerance", type=nonneg_float, default=perf.DEFAULT_TOLERANCE, metavar="T",
                    help="fail when ratio > baseline ratio × (1 + T) (default 0.5, i.e. 50 %% slower)")
     p.add_argument("--quick", action="store_true",
                    help="short mode: fewer rounds, benchmarks marked perf_slow skipped (CI)")
-    p.add_argument("--repeat", type=_count(1), default=1, metavar="K",
+    p.add_argument("--repeat", type=int_at_least(1), default=1, metavar="K",
                    help="run the suite K times and keep per benchmark the median ratio (for baselines)")
-    p.add_argument("--retries", type=_count(0), default=1, metavar="R",
+    p.add_argument("--retries", type=int_at_least(0), default=1, metavar="R",
                    help="rerun the benchmarks over the tolerance up to R times, keeping their best ratio "
                         "(default 1; 0 = none)")
-    p.add_argument("--rounds", type=_count(1), default=None, metavar="N",
+    p.add_argument("--rounds", type=int_at_least(1), default=None, metavar="N",
                    help="force N rounds for every benchmark (default: each benchmark's own for the mode)")
     p.add_argument("--metric", choices=("cpu", "wall"), default="cpu",
                    help="ratio the gate compares: CPU time (default; robust to other load on the machine) or "
                         "wall-clock time")
-    p.add_argument("--cpus", type=_count(0), default=1, metavar="C",
+    p.add_argument("--cpus", type=int_at_least(0), default=1, metavar="C",
                    help="pin the suite to C CPUs (default 1: a multi-threaded benchmark's ratio then does not "
                         "depend on how many cores are free; 0 = no pinning)")
     p.add_argument("-k", dest="keyword", metavar="EXPR", help="only the benchmarks matching this pytest -k "

@@ -14,39 +14,13 @@ from phantoms import InputError
 from ..config import RunConfig, builtin_config, config_from_dict, load_config, parse_degrade_list, parse_noise_spec
 from ..specs import parse_method_spec
 from ..terminal import printable
+from .validators import int_list, nonneg_float, positive_int
 
 RUN_HELP = """\
 Run a phantom x noise x method grid and write results.csv, run.json and index.html into --out.
 Without --config or --quick it runs the paper's grid (bench/configs/paper.toml).
 Grid options (--phantoms, --n, --noise, --seeds, --method, --add-method) override the config.
 Exit code 0 when the grid ran (failed cells are rows of the results), 2 on bad input."""
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1: {text!r}")
-    return v
-
-
-def _nonneg_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not v >= 0 or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0: {text!r}")
-    return v
-
-
-def _int_list(text: str) -> list[int]:
-    try:
-        return [int(t) for t in text.split(",") if t.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated integers: {text!r}") from None
 
 
 def register(subparsers) -> None:
@@ -57,7 +31,7 @@ def register(subparsers) -> None:
     src.add_argument("--config", metavar="FILE.toml", help="grid configuration (see bench/configs/*.toml)")
     src.add_argument("--quick", action="store_true", help="the CI-size grid (bench/configs/quick.toml)")
     p.add_argument("--out", metavar="DIR", help="output folder (default reports/<timestamp>/)")
-    p.add_argument("--jobs", type=_positive_int, default=None, help="worker processes (default: CPU cores)")
+    p.add_argument("--jobs", type=positive_int, default=None, help="worker processes (default: CPU cores)")
     p.add_argument("--resume", action="store_true",
                    help="skip the cells already finished in --out (with neither --config nor --quick, "
                         "the folder's own config is used)")
@@ -65,15 +39,15 @@ def register(subparsers) -> None:
                    help="with --resume: accept cells computed by another version of the suite (run.json and "
                         "the report then say so)")
     p.add_argument("--retry-failed", action="store_true", help="with --resume: rerun failed and timed-out cells")
-    p.add_argument("--timeout", type=_nonneg_float, default=None, metavar="S",
+    p.add_argument("--timeout", type=nonneg_float, default=None, metavar="S",
                    help="seconds per cell before it is killed and recorded as timeout (0 = none; "
                         "default: the config's run.timeout)")
-    p.add_argument("--method-timeout", type=_nonneg_float, default=None, metavar="S",
+    p.add_argument("--method-timeout", type=nonneg_float, default=None, metavar="S",
                    help="seconds for the method alone (method.reconstruct; 0 = none; default: run.method_timeout)")
-    p.add_argument("--score-timeout", type=_nonneg_float, default=None, metavar="S",
+    p.add_argument("--score-timeout", type=nonneg_float, default=None, metavar="S",
                    help="seconds for the scoring alone (validity check and metrics, after the method returned; "
                         "0 = none; default: run.score_timeout)")
-    p.add_argument("--memory-limit", type=_nonneg_float, default=None, metavar="GB",
+    p.add_argument("--memory-limit", type=nonneg_float, default=None, metavar="GB",
                    help="address space per cell process in GB (2**30 bytes); a cell over it is a failed row "
                         "('memory limit ... exceeded in the method / in scoring') and the run goes on (0 = none; "
                         "default: the config's run.memory_limit, else 75%% of the physical memory / --jobs)")
@@ -85,18 +59,18 @@ def register(subparsers) -> None:
     p.add_argument("--dry-run", action="store_true", help="validate, list the cells and exit")
     g = p.add_argument_group("grid overrides")
     g.add_argument("--phantoms", metavar="A,B", help="comma-separated phantoms")
-    g.add_argument("--n", type=_int_list, metavar="N[,N]", help="grid points per axis")
+    g.add_argument("--n", type=int_list, metavar="N[,N]", help="grid points per axis")
     g.add_argument("--noise", metavar="SPEC", help="e.g. none,gaussian,uniform@40 (no @: the paper's SNR)")
     g.add_argument("--degrade", metavar="SPEC", help="input degradations, e.g. none,mask,partial_volume,"
                    "thick_slices@3+mask,label_noise@0.1+mask (docs/PHANTOMS.md)")
-    g.add_argument("--seeds", type=_int_list, metavar="S[,S]", help="noise seeds")
+    g.add_argument("--seeds", type=int_list, metavar="S[,S]", help="noise seeds")
     g.add_argument("--method", action="append", metavar="SPEC", default=None,
                    help="replace the config's methods; SPEC = [LABEL=]NAME[:key=value,...]; repeatable")
     g.add_argument("--add-method", action="append", metavar="SPEC", default=None,
                    help="add a method to the config's ones (same SPEC); repeatable")
     g.add_argument("--import", dest="imports", action="append", metavar="MODULE", default=None,
                    help="import MODULE first (e.g. one that calls methods.register_method); repeatable")
-    g.add_argument("--n-samples", type=_positive_int, default=None, help="surface samples for the distances")
+    g.add_argument("--n-samples", type=positive_int, default=None, help="surface samples for the distances")
     e = p.add_argument_group("executor")
     e.add_argument("--executor", choices=("local", "dask"), default="local",
                    help="local: a process pool on this machine (default); dask: one Dask task per cell "
@@ -104,7 +78,7 @@ def register(subparsers) -> None:
     e.add_argument("--scheduler", metavar="ADDRESS",
                    help="with --executor dask: the scheduler of a running Dask cluster, e.g. tcp://host:8786 "
                         "(default: a local cluster of --workers processes)")
-    e.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+    e.add_argument("--workers", type=positive_int, default=None, metavar="N",
                    help="with --executor dask and no --scheduler: worker processes of the local cluster "
                         "(default: CPU cores)")
     p.set_defaults(func=_cmd_run)

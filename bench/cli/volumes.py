@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import argparse
-import math
-
 from phantoms import (NOISE_KINDS, PHANTOMS, VARIANTS, InputError, add_noise, check_volume_output, get_phantom,
                       load_volume, save_volume)
 from phantoms.user import parse_spec
 
 from ..terminal import printable
+from .validators import finite_float
 
 
 def _cmd_phantoms(args) -> int:
@@ -74,16 +72,6 @@ def _cmd_info(args) -> int:
     return 0
 
 
-def _finite_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"must be finite: {text!r}")
-    return v
-
-
 def register(sub) -> None:
     p = sub.add_parser("phantoms", help="list the phantoms and their parameters",
                        description="List the built-in phantoms, their parameters and the paper's SNR.")
@@ -94,10 +82,10 @@ def register(sub) -> None:
                                    "(keys values, origin, spacing) and print the achieved SNR.")
     p.add_argument("phantom", help=f"one of: {', '.join(PHANTOMS)}, a real shape, mesh:PATH or volume:PATH")
     p.add_argument("--n", type=int, default=96, help="grid points per axis (>= 8; default 96)")
-    p.add_argument("--extent", type=_finite_float, default=2.5, help="grid covers [-E, E]³ (default 2.5)")
+    p.add_argument("--extent", type=finite_float, default=2.5, help="grid covers [-E, E]³ (default 2.5)")
     p.add_argument("--variant", choices=VARIANTS, default="sdf", help="sdf (exact distance) or paper polynomial")
     p.add_argument("--noise", choices=NOISE_KINDS, default="none", help="noise kind (default none)")
-    p.add_argument("--snr", type=_finite_float, default=None,
+    p.add_argument("--snr", type=finite_float, default=None,
                    help="requested SNR in dB (default: the paper's SNR for the phantom)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("-o", "--output", required=True, help="output .npz file")

@@ -24,7 +24,7 @@ Typical uses:
   python -m bench perf --repeat 5 --save bench/perf/baseline.json    # refresh the baseline (quiet machine)
 
 Quality (--quality / --save-quality): the quick grid and a bunny cell are run and each cell's metrics compared
-with the committed bench/perf/quality.json (bench/perf/quality.py: tolerances per metric); a worse value, a
+with the committed bench/perf/quality.json (bench/metrics/tolerances.py: tolerances per metric); a worse value, a
 worse status or a new flag fails. History (--history FILE.jsonl): each run appended as a JSON line;
 --plot FILE.jsonl -o history.html draws it.
   python -m bench perf --quick --compare bench/perf/baseline.json --quality bench/perf/quality.json   # CI

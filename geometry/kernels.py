@@ -8,7 +8,7 @@ the tests compare both (``tests/test_geometry_kernels.py``):
   iteration in three passes over the vectors instead of a dozen numpy calls;
 * :func:`ring_curvature` — :meth:`geometry.operators.MeshOperators.curvature` (the 1-ring gather and
   :func:`geometry.curvature.fit_ring`) vertex by vertex, nothing but the result written to memory;
-* :func:`trilinear` — :func:`phantoms.volume.trilinear_channels` point by point;
+* :func:`trilinear` — :func:`geometry.trilinear.trilinear_channels` point by point;
 * :func:`face_geometry`, :func:`vertex_sums`, :func:`face_edges` — the face and vertex quantities of
   :class:`geometry.operators.MeshGeometry` (cross products, normals, areas, centroids; vertex normal and
   area sums) in one pass each, without the (3, 3, F) corner array;
@@ -313,7 +313,7 @@ def _trilinear(flat, n0, n1, n2, idx_t, out):
 
 
 def trilinear(flat: np.ndarray, shape, idx_t: np.ndarray, channels: int | None = None) -> np.ndarray:
-    """:func:`phantoms.volume.trilinear_channels` point by point: (C, P) from the stacked grids ``flat``
+    """:func:`geometry.trilinear.trilinear_channels` point by point: (C, P) from the stacked grids ``flat``
     (N, C) at the fractional indices ``idx_t`` (3, P), finite and inside [0, N − 1] per axis; ``channels``:
     only the first this many grids (C = ``channels``)."""
     n = flat.shape[1] if channels is None else int(channels)

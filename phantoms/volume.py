@@ -7,7 +7,7 @@ Conventions
 * Interpolation is trilinear.  The derivative grids (central differences, one-sided at the border,
   via :func:`numpy.gradient`) are computed once and cached (:meth:`Volume.channels`), and φ, ∇φ and the
   Hessian at a batch of points come from **one** gather of the 8 corner values of that stacked channel
-  array (:func:`trilinear_channels`).
+  array (:func:`geometry.trilinear.trilinear_channels`, re-exported here).
 * For many calls on one volume (an iterative method's inner loop), :meth:`Volume.sampler` returns a
   :class:`VolumeSampler`: the same interpolation without the per-call checks, points clamped onto the box.
 """
@@ -21,6 +21,7 @@ import numpy as np
 from geometry import kernels
 from geometry.errors import InputError
 from geometry.grid_derivatives import derivative_stack
+from geometry.trilinear import trilinear_channels
 
 from .memory import available_memory, check_memory
 
@@ -119,65 +120,6 @@ def _derivative_channels(values: np.ndarray, spacing, order: int) -> np.ndarray:
                 else:
                     out[..., slot[i, j]] = 0.5 * (out[..., slot[i, j]] + second[b])
             del second
-    return out
-
-
-_CHUNK = 4096   # points per block of trilinear_channels: the block's 8 corner rows stay in the L2 cache
-
-
-def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, channels: int | None = None,
-                       reference: bool = False) -> np.ndarray:
-    """Trilinear interpolation of stacked grids at fractional grid indices: the one gather.
-
-    ``flat`` (N0·N1·N2, C): C grids of ``shape`` (N0, N1, N2), raveled in C order, all channels of a
-    grid point adjacent in memory.  ``idx_t`` (3, P): fractional indices, already inside
-    [0, N − 1] per axis (callers check or clamp).  Returns (C, P).  One ``np.take`` fetches the 8
-    corner rows of every point (~13× faster than fancy indexing with numpy 2.x); the weights are 8
-    products of coordinate arrays.  Shared by :meth:`Volume.sample` and the shape-gradient flow's
-    inner loop.
-
-    The gather and the weighted sum run over blocks of ``_CHUNK`` points into one reused buffer: the
-    (8, P, C) corner array of all points at once (64 MB for 100k points and 10 channels) would be a
-    fresh allocation per call, paid in page faults, and read back from main memory by the sum.  Each
-    output value is the same 8-term sum either way (bit-identical results).
-
-    ``channels``: interpolate only the first this many of the C grids (e.g. φ and ∇φ of a stack that also
-    holds the Hessian: one stack serves every order, no copy of its first columns).
-
-    With numba, the compiled :func:`geometry.kernels.trilinear` (the same sum, point by point) runs
-    instead; ``reference=True`` keeps this numpy form.
-    """
-    if (kernels.wanted(idx_t.shape[1]) and not reference and flat.dtype in (np.float64, np.float32)
-            and flat.flags.c_contiguous):
-        return kernels.trilinear(flat, shape, idx_t, channels)
-    if channels is not None:
-        flat = flat[:, :channels]
-    idx_t = np.asarray(idx_t, dtype=np.float64)
-    if idx_t.shape[1] and not ((idx_t.min(axis=1) >= 0).all()                # NaN fails both tests
-                               and (idx_t.max(axis=1) <= np.asarray(shape) - 1).all()):
-        raise IndexError("trilinear_channels: fractional indices outside the grid (or not finite)")
-    n1, n2 = int(shape[1]), int(shape[2])
-    sx = n1 * n2
-    ijk, frac = [], []
-    for c in range(3):
-        i0 = np.minimum(idx_t[c].astype(np.intp), int(shape[c]) - 2)   # idx >= 0: truncation is floor
-        ijk.append(i0)
-        frac.append(idx_t[c] - i0)
-    base = ijk[0] * sx + ijk[1] * n2 + ijk[2]
-    offsets = np.array([0, 1, n2, n2 + 1, sx, sx + 1, sx + n2, sx + n2 + 1], dtype=np.intp)[:, None]
-    P, C = len(base), flat.shape[1]
-    tx, ty, tz = frac
-    ux, uy, uz = 1.0 - tx, 1.0 - ty, 1.0 - tz
-    a00, a01, a10, a11 = ux * uy, ux * ty, tx * uy, tx * ty
-    w = np.stack([a00 * uz, a00 * tz, a01 * uz, a01 * tz, a10 * uz, a10 * tz, a11 * uz, a11 * tz])
-    out = np.empty((C, P))
-    buf = np.empty((8, min(P, _CHUNK), C), dtype=flat.dtype)
-    for s in range(0, P, _CHUNK):
-        e = min(P, s + _CHUNK)
-        corners = buf[:, :e - s]
-        # indices are checked above, so 'clip' only skips numpy's own bounds buffering
-        np.take(flat, base[s:e] + offsets, axis=0, out=corners, mode="clip")   # (8, n, C)
-        np.einsum("kpc,kp->cp", corners, w[:, s:e], out=out[:, s:e])
     return out
 
 

@@ -203,6 +203,13 @@ _EULER = re.compile(r"\w*(?:n_?v|vert)\w*[)\]]?\s*-\s*\w*\(?\w*(?:n_?e|edge)\w*[
                     re.IGNORECASE)
 
 
+#: trilinear weights: a weight times (1 − t) and times t of one axis in one statement (``a00 * uz, a00 * tz``)
+_TRILINEAR = re.compile(r"\b(\w+)\s*\*\s*u[xyz]\s*,\s*\1\s*\*\s*t[xyz]\b")
+#: the compiled copies of geometry.trilinear's sum, each compared with it by the tests: the batch kernel and
+#: DistMesh's per-point sample inside its jitted loop (numba's cache does not follow a call into another file)
+TRILINEAR_COMPILED = ("geometry.kernels", "methods.distmesh_loop")
+
+
 def primitive_copies(sources: dict[str, Path], home: str, pattern: re.Pattern = _SIGNED_VOLUME) -> list[str]:
     """Source lines outside ``home`` that compute the primitive ``pattern`` matches themselves."""
     hits = []
@@ -227,6 +234,14 @@ def test_edges_and_euler_characteristic_have_one_home():
     assert primitive_copies(_sources(), "geometry.topology", _EULER) == []
 
 
+def test_trilinear_sampling_has_one_reference():
+    """geometry.trilinear.trilinear_channels is the one numpy trilinear gather; the only other sums of its weights
+    are the compiled copies of TRILINEAR_COMPILED (tests/test_geometry_kernels.py and
+    tests/test_methods_distmesh_loop.py compare them with it)."""
+    sources = {k: v for k, v in _sources().items() if k not in TRILINEAR_COMPILED}
+    assert primitive_copies(sources, "geometry.trilinear", _TRILINEAR) == []
+
+
 def test_the_primitive_check_finds_a_copy(tmp_path):
     p = tmp_path / "copy.py"
     p.write_text("vol = float(np.einsum('ij,ij->i', a, np.cross(b, c)).sum()) / 6.0\n")
@@ -239,6 +254,8 @@ def test_the_primitive_check_finds_a_copy(tmp_path):
                      "chi2 = n_vertices - n_edges + n_faces\n")
         assert len(primitive_copies({"copy": p}, "geometry.topology", _EDGES)) == 1
         assert len(primitive_copies({"copy": p}, "geometry.topology", _EULER)) == 2
+        p.write_text("w = (a * uz, a * tz)\nv = (a * uz, b * tz)\n")
+        assert len(primitive_copies({"copy": p}, "geometry.trilinear", _TRILINEAR)) == 1
     finally:
         REPO = saved
 

@@ -9,8 +9,8 @@ import pytest
 from geometry import kernels
 from geometry.operators import MeshOperators, jacobi_cg
 from geometry.sphere import fibonacci_sphere
+from geometry.trilinear import trilinear_channels
 from phantoms import get_phantom
-from phantoms.volume import trilinear_channels
 
 pytestmark = pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed")
 
@@ -130,7 +130,7 @@ def test_face_energies_kernel_equals_numpy():
 
 def test_trilinear_reads_only_the_first_channels_when_asked_equal_to_a_copy_of_them():
     from geometry import kernels
-    from phantoms.volume import trilinear_channels
+    from geometry.trilinear import trilinear_channels
 
     rng = np.random.default_rng(5)
     flat = rng.normal(size=(6 * 7 * 8, 10))

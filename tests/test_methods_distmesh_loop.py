@@ -1,12 +1,14 @@
 """Tests of ``methods.distmesh_loop``: the compiled DistMesh iterations — :func:`flip_candidates` equals the
-numpy flip test, and a DistMesh run through :func:`relax` (``compiled=True``) ends where the numpy iterations
-end, to rounding."""
+numpy flip test, its own compiled trilinear sample equals the one trilinear reference, and a DistMesh run
+through :func:`relax` (``compiled=True``) ends where the numpy iterations end, to rounding."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from geometry import kernels
+from geometry.trilinear import trilinear_channels
 from methods import distmesh_loop
 from methods.distmesh import DistMesh, _flip_candidates
 from phantoms import get_phantom
@@ -37,6 +39,26 @@ def test_a_thin_quad_flips_to_its_short_diagonal():
     p_good = np.array([[-0.2, 0, 0], [0.2, 0, 0], [0, 1.0, 0], [0, -1.0, 0]])   # (a, b) already the short diagonal
     cand, _ = distmesh_loop.flip_candidates(p_good, b, a, c, d, 0.9, 0.01)
     assert not cand[0]
+
+
+def test_the_compiled_sample_is_the_trilinear_reference_clamped_onto_the_grid():
+    """``_sample`` is a compiled copy of the trilinear sum inside the jitted loop (numba's cache would not see a
+    change of a jitted function in another file): bit for bit the compiled kernel's sum at the clamped grid
+    indices, and geometry.trilinear.trilinear_channels' numpy reference to rounding."""
+    vol = get_phantom("ellipsoid").volume(n=20)
+    sampler = vol.sampler(1)
+    flat, shape = sampler.flat, np.asarray(sampler.shape)
+    origin, spacing = np.asarray(sampler.origin, float), np.asarray(sampler.spacing, float)
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(vol.lower - 0.3, vol.upper + 0.3, size=(2000, 3))    # some outside: clamped
+    pts[:3] = [vol.lower, vol.upper, (vol.lower + vol.upper) / 2]
+    got = np.empty((len(pts), 4))
+    for i, (x, y, z) in enumerate(pts):
+        distmesh_loop._sample(flat, *map(int, shape), origin, spacing, x, y, z, got[i])
+    idx_t = np.ascontiguousarray(np.clip((pts - origin) / spacing, 0.0, shape - 1).T)
+    np.testing.assert_array_equal(got.T, kernels.trilinear(flat, shape, idx_t))
+    ref = trilinear_channels(flat, shape, idx_t, reference=True)
+    np.testing.assert_allclose(got.T, ref, rtol=1e-14, atol=1e-14 * np.abs(ref).max())
 
 
 def test_the_compiled_iterations_end_where_the_numpy_ones_end():

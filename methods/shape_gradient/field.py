@@ -7,8 +7,8 @@ import weakref
 
 import numpy as np
 
+from geometry.trilinear import trilinear_channels
 from phantoms import Sample, Volume
-from phantoms.volume import trilinear_channels
 
 __all__ = ["GridSampler", "FLOAT32_ABOVE_BYTES", "stack_dtype", "as_field", "estimate_noise", "smoothed_field", "start_smoothing",
            "noise_after_smoothing"]
@@ -64,7 +64,7 @@ class GridSampler:
     """Trilinear φ, ∇φ, D²φ of a :class:`phantoms.Volume` at many points: one gather of the 8 corners.
 
     The interpolation of :meth:`phantoms.Volume.sample` (the same kernel,
-    :func:`phantoms.volume.trilinear_channels`, on the volume's own cached stacked derivative grids),
+    :func:`geometry.trilinear.trilinear_channels`, on the volume's own cached stacked derivative grids),
     laid out for an inner loop: points given and results returned by coordinate/channel ((3, P) in,
     (C, P) out), no bounds check.  Points outside the grid box are clamped onto it; callers check
     :meth:`contains_t` first.

@@ -10,9 +10,10 @@ farther from the point than the best distance so far is not opened: a closer tri
 point in a cell it is bucketed in, and that cell would be closer.  A point far outside the
 mesh's box is searched the same way from the nearest cell.
 
-Measured on this 2-core machine (100,000 ellipsoid samples against marching cubes' 22,732-face ellipsoid at
-N = 96): 0.05 s, against pymeshlab's ``compute_scalar_by_distance_from_another_mesh_per_vertex`` 0.4 s (which
-also returns float32).  The tests compare it with a brute-force numpy distance and with pymeshlab.
+Why not pymeshlab's ``compute_scalar_by_distance_from_another_mesh_per_vertex``: it returns float32 and is
+slower on these queries; this search also releases the GIL, so the metrics run it beside numpy's work (timings
+and the command that measures them: docs/NOTES.md, "The exact distance query").  The tests compare this
+search with a brute-force numpy distance and with pymeshlab.
 """
 
 from __future__ import annotations

@@ -9,11 +9,10 @@ Two directed distance sets:
   of the true surface (``phantom.sample_surface``) to the mesh (:func:`point_mesh_distance`).
 
 The exact point-to-triangle distance is :func:`geometry.closest.point_mesh_distance` (a compiled uniform-grid
-search, float64): on 100,000 true ellipsoid samples against marching cubes' 22,732-face ellipsoid at N = 96 it
-took 0.18–0.26 s beside pymeshlab's ``compute_scalar_by_distance_from_another_mesh_per_vertex`` (VCG) at
-0.35–0.6 s in the same session (a loaded 2-core machine; pymeshlab also rounds to float32), and trimesh's
-``proximity.closest_point`` 8 s.  The tests compare it with pymeshlab (relative difference ≤ 1e-7, pymeshlab's
-float32) and with a brute-force numpy distance.
+search, float64), not pymeshlab's ``compute_scalar_by_distance_from_another_mesh_per_vertex`` (VCG: float32, and
+slower) nor trimesh's ``proximity.closest_point`` (tens of times slower); the timings and the command that
+measures them are in docs/NOTES.md, "The exact distance query".  The tests compare it with pymeshlab (relative
+difference ≤ 1e-7, pymeshlab's float32) and with a brute-force numpy distance.
 
 Statistics (see :func:`distance_metrics`): maxima use every point of a set (mesh vertices included, so a
 single pulled-out vertex shows); percentiles, means, RMS and the F-score use the area-uniform samples only,

@@ -7,7 +7,7 @@ paraboloid fit of docs/METHOD.md, with the linear terms), over a neighbourhood o
 k = :data:`geometry.MAX_NEIGHBORS` = 96: the 1-ring, then the nearest others), and area-weighted vertex normals
 (:func:`geometry.vertex_normals`).  Marching cubes at N = 48..96 puts ≤ 24 vertices in a 2h ball, so k binds
 only on meshes far denser than their grid, where it bounds the cost: :func:`geometry.radius_curvature` queries
-and fits block by block, O(V · k) time and O(block · k) memory whatever the density (issue 30).  The mesh is
+and fits block by block, O(V · k) time and O(block · k) memory whatever the density.  The mesh is
 made outward-facing first (normals flipped when its enclosed signed volume is negative), so H > 0 on a convex
 surface whatever the method's winding.
 

@@ -350,7 +350,7 @@ class ShapeGradientFlow:
     def _tips(self) -> np.ndarray:
         """The vertices the remesher keeps: tips of sharply convex parts (mean curvature above ``tip_curvature``
         per voxel, the tip extension's threshold), which its collapses would otherwise shorten (a thin leg's
-        hoof, issue 44); the start's marching-cubes mesh, with its slivers, is remeshed freely."""
+        hoof); the start's marching-cubes mesh, with its slivers, is remeshed freely."""
         H, _ = self.ops.curvature(self.state.geo)
         return np.flatnonzero(np.isfinite(H) & (H * self.h > self.settings.tip_curvature))
 

@@ -171,8 +171,8 @@ class ShapeGradient(Method):
                              "sample q; halved, then kept back, where faces would meet", bool),
         "keep_tips": Param(False, "the remesher keeps the vertices of sharply convex parts (mean curvature above "
                            "tip_curvature per voxel) where they are: its collapses otherwise shorten a thin limb's "
-                           "tip by a voxel or more per remesh (issue 44: better on the development shapes with thin "
-                           "limbs, worse on the N = 32 needle's tip extension; off by default, docs/NOTES.md)", bool),
+                           "tip by a voxel or more per remesh (better on the development shapes with thin limbs, worse "
+                           "on the N = 32 needle's tip extension; off by default, docs/NOTES.md)", bool),
         "tip_curvature": Param(0.3, "tip extension: the least mean curvature, per voxel, of a vertex that may move",
                                float, min=0.0),
         "strict_topology": Param(False, "refuse (error) when the region φ < 0 is not compatible with one genus-0 "

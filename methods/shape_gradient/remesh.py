@@ -6,7 +6,7 @@ shrinking onto a bunny gains vertices where it must reach into the ears and neve
 The result is checked — one closed, consistently oriented genus-0 surface — and refused otherwise (the flow
 then keeps its mesh).  Vertices passed as ``keep`` are the remesher's feature vertices: never collapsed or moved
 (the flow passes the tips of sharply convex parts, which the collapses otherwise shorten by a voxel or more at a
-time on a thin limb: issue 44, docs/NOTES.md).
+time on a thin limb: docs/NOTES.md).
 """
 
 from __future__ import annotations

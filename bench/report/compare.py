@@ -6,7 +6,7 @@ cell id, so ids are not used; a method whose label changed too (the default labe
 ``mc_taubin[iterations=30]``) is matched by its method name when it is the only unmatched label of that method
 in each run.  Changed parameters are listed per label.
 
-Each metric of the quality gate (:data:`bench.perf.quality.TOLERANCES`) is judged as the gate judges it
+Each metric of the quality gate (:data:`bench.metrics.tolerances.TOLERANCES`) is judged as the gate judges it
 (:func:`bench.perf.quality.compare_value`, the same tolerances): *better*, *worse* or *same* within the
 tolerance.  A cell whose status or flags changed is listed apart (``ok`` → anything else, or a gained flag, is
 worse).  Time is not judged (one cell's time is noise on a shared machine: ``bench perf`` measures it); the

@@ -3,7 +3,7 @@
 Ranking (:func:`block_ranks`)
     A *block* is one input — (phantom, variant, N, noise, SNR, seed) — on which every method was run. Within a
     block the methods are ranked on one key metric: values the same at the metric's resolution (the quality
-    gate's tolerance, :func:`bench.perf.quality.same_within_tolerance`) share the average of their ranks; a
+    gate's tolerance, :func:`bench.metrics.tolerances.same_within_tolerance`) share the average of their ranks; a
     cell that is not ``ok`` (invalid, failed, timeout) or has no value ranks last.  Ranks, never raw values,
     are then averaged over blocks, so a shape with large distances does not outweigh one with small ones.
 
@@ -20,7 +20,12 @@ Significance (:func:`significance`)
     Nemenyi post-hoc critical difference CD = q_α √(k(k + 1) / 6N) (Demšar 2006; q_α from the studentized range
     distribution, scipy.stats), with two methods the Wilcoxon signed-rank test; α = 0.05.  Methods whose mean
     ranks differ by less than CD (two methods: p ≥ α) are joined by a bar: this run cannot tell them apart.
-    With fewer than :data:`MIN_BLOCKS` blocks no test is run and no bar is drawn.
+    With fewer than :data:`MIN_BLOCKS` blocks no test is run and no bar is drawn.  The methods run on every
+    input of a board are tested over all of them (``core``) when they are fewer than the board's methods.
+
+Beyond the shared set (:mod:`bench.report.pairwise`)
+    Every pair is tested on the inputs both have (``pairwise``); each board has a twin that ranks unusable
+    results last (``usable_board``, :func:`bench.metrics.flags.is_usable`) and a generated ``recommendation``.
 """
 
 from __future__ import annotations

@@ -39,7 +39,6 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
-import sys
 import tempfile
 import time
 import traceback
@@ -54,7 +53,7 @@ from phantoms import InputError, Volume, add_noise, get_phantom
 
 from .metrics.validity import check_mesh
 from .run.values import error_text, plain
-from .terminal import capture_output, redirect_output
+from .terminal import capture_output, flush_std, redirect_output
 
 __all__ = ["CASES", "CaseResult", "check_method", "case_volumes", "HINTS"]
 
@@ -338,11 +337,7 @@ def _case_child(conn, method, case: str, volume: Volume, clean: Volume, out_fd: 
                                   "raise methods.ReconstructionFailed or phantoms.InputError with a message")
         conn.send(res)
     finally:
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):
-                pass
+        flush_std()
         conn.close()
 
 

@@ -16,7 +16,7 @@ import re
 import sys
 import tempfile
 
-__all__ = ["printable", "redirect_output", "captured_head", "capture_output", "show_captured"]
+__all__ = ["printable", "flush_std", "redirect_output", "captured_head", "capture_output", "show_captured"]
 
 _CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
 
@@ -31,14 +31,19 @@ def printable(text) -> str:
     return _CONTROL.sub(_escape, str(text))
 
 
-def redirect_output(fd: int) -> None:
-    """In a child process: file descriptors 1 and 2 (C code, subprocesses), ``sys.stdout`` / ``sys.stderr`` and
-    faulthandler's crash report go to ``fd`` — what a plug-in writes never reaches the terminal raw."""
+def flush_std() -> None:
+    """Flush ``sys.stdout`` and ``sys.stderr`` (a closed or broken stream is let be)."""
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
         except (OSError, ValueError):
             pass
+
+
+def redirect_output(fd: int) -> None:
+    """In a child process: file descriptors 1 and 2 (C code, subprocesses), ``sys.stdout`` / ``sys.stderr`` and
+    faulthandler's crash report go to ``fd`` — what a plug-in writes never reaches the terminal raw."""
+    flush_std()
     os.dup2(fd, 1)
     os.dup2(fd, 2)
     sys.stdout = open(1, "w", buffering=1, errors="backslashreplace", closefd=False)
@@ -49,11 +54,7 @@ def redirect_output(fd: int) -> None:
 
 def captured_head(fd: int, kept: int) -> tuple[int, str]:
     """(bytes written to the file ``fd``, its first ``kept`` bytes as text, control characters escaped)."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
+    flush_std()
     size = os.fstat(fd).st_size
     return size, (printable(os.pread(fd, kept, 0).decode("utf-8", "replace")) if size else "")
 
@@ -70,11 +71,7 @@ def capture_output():
             redirect_output(out.fileno())
             yield out.fileno()
         finally:
-            for stream in (sys.stdout, sys.stderr):
-                try:
-                    stream.flush()
-                except (OSError, ValueError):
-                    pass
+            flush_std()
             os.dup2(saved[0], 1)
             os.dup2(saved[1], 2)
             for fd in saved:

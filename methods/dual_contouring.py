@@ -9,7 +9,7 @@ vertex positions with an update of the Hermite data (points and normals) from th
 One vertex per cell cannot carry two sheets: where a part thinner than a cell (the bunny's ears at N = 24–48,
 the cortex) or noise puts two sheets in one cell, the library's mesh has non-manifold edges and vertices.
 So the adapter keeps the library's vertices (row r of its output is the r-th crossed cell, first axis
-fastest) and builds the faces itself (``geometry/dc_manifold.py``): each crossed cell's sign-changing edges
+fastest) and builds the faces itself (``methods/dc_manifold.py``): each crossed cell's sign-changing edges
 are grouped into its marching-cubes patches, each patch has its own vertex, and the quad around a
 sign-changing grid edge uses, in each of its four cells, the vertex of the patch holding that edge.
 
@@ -51,15 +51,21 @@ import time
 import numpy as np
 import trimesh
 
-from phantoms import InputError, Volume
-
-from geometry.dc_manifold import (TUNNEL_CUBES, bridge_tunnels, cell_patches, dual_quads, fan_triangles,
-                                  patch_centroids, split_double_edges)
 from geometry.levelset import newton_project
 from geometry.mesh import mesh_facts
+from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
 from .cost import PowerLaw
+from .dc_manifold import (
+    TUNNEL_CUBES,
+    bridge_tunnels,
+    cell_patches,
+    dual_quads,
+    fan_triangles,
+    patch_centroids,
+    split_double_edges,
+)
 from .marching_cubes import _nudge_zeros, orient_outward
 
 __all__ = ["DualContouring", "split_quads", "band_box", "library_grid"]
@@ -176,7 +182,7 @@ def _project(volume: Volume, points: np.ndarray, box_lo: np.ndarray, box_hi: np.
 
 def _manifold_mesh(volume: Volume, values: np.ndarray, lo: np.ndarray, V: np.ndarray):
     """The library's vertices in cells with one patch, a vertex per patch elsewhere, the quads around the
-    sign changes (module :mod:`geometry.dc_manifold`); returns (triangle mesh, facts for ``info``)."""
+    sign changes (module :mod:`methods.dc_manifold`); returns (triangle mesh, facts for ``info``)."""
     patches = cell_patches(values)
     if len(patches.cells) != len(V):
         raise ReconstructionFailed(f"method 'dual_contouring': the library returned {len(V)} vertices for "

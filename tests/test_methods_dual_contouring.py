@@ -1,5 +1,5 @@
 """Dual contouring of signed distance data (gpytoolbox) made manifold (one vertex per marching-cubes patch,
-``geometry/dc_manifold.py``): closed, outward, χ = 2 and within 1.5 h (symmetric Hausdorff, the suite's metric
+``methods/dc_manifold.py``): closed, outward, χ = 2 and within 1.5 h (symmetric Hausdorff, the suite's metric
 code) on the four paper phantoms at N = 24 (the library is slow: ≈ 0.5 s per outer iteration at this size) and
 on the bunny at N = 24, 32 and 48, whose ears put two sheets in some cells; the library's own mesh wherever
 every cell has one patch; what the iterations do to split cells; world coordinates on an anisotropic,
@@ -9,13 +9,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _peers_common import (
+    PAPER_PHANTOMS,
+    RADIUS,
+    check_closed_outward,
+    edge_and_vertex_manifold,
+    hausdorff_h,
+    offcentre_sphere,
+    sphere_errors,
+    volume,
+)
 
 from methods import get_method
 from methods.dual_contouring import band_box, split_quads
 from phantoms import InputError
-
-from _peers_common import (PAPER_PHANTOMS, RADIUS, check_closed_outward, edge_and_vertex_manifold, hausdorff_h,
-                           offcentre_sphere, sphere_errors, volume)
 
 N = 24
 CASES = PAPER_PHANTOMS        # 3 outer iterations: 1–2 s each

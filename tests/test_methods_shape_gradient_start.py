@@ -182,9 +182,10 @@ def test_a_noise_pinhole_in_a_thin_sheet_does_not_cut_the_start():
     # the bunny's ear at N = 64): the growth stops at it and the start is slit open behind it, unless it is closed
     import sys
     from pathlib import Path
+
     from phantoms import Volume
     sys.path.insert(0, str(Path(__file__).parent))
-    from test_geometry_pinholes import ball_with_sheet
+    from test_methods_shape_gradient_pinholes import ball_with_sheet
     phi, _ = ball_with_sheet()
     h = 0.05
     vol = Volume(phi * h, np.zeros(3), np.full(3, h))

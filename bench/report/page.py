@@ -15,14 +15,13 @@ from ..run.values import cap_tail, cap_text
 from .artifacts import Artifacts
 from .claims import VARIANTS as CLAIM_VARIANTS
 from .claims import check_claims, variant_of
-
+from .colours import method_colour
 from .cost import cost_section
 from .interactive import VIEW_FACES, pareto_figure, plotly_js, robustness_figures, viewer_payload
+from .pairwise import pairwise_html
 from .paper import gallery_tables, paper_layout, paper_tables
 from .tables import BEST_DIRECTION, complete_inputs, summary_tables
-from .pairwise import pairwise_html
 from .verdicts import board_html, cd_figure, leaderboards
-from .colours import method_colour
 
 __all__ = ["TEMPLATE_DIR", "write_report", "preload"]
 
@@ -209,6 +208,7 @@ def preload() -> None:
     import jinja2  # noqa: F401
     import matplotlib.colors  # noqa: F401
     import narwhals  # noqa: F401  (plotly reads data frames through it)
+    import numpy as np
     import pandas
     import plotly.graph_objects as go
     import plotly.io
@@ -219,9 +219,7 @@ def preload() -> None:
     from matplotlib import colormaps  # noqa: F401
     from PIL import Image, features
 
-    import numpy as np
-
-    from geometry.picture import rasterize
+    from .picture import rasterize
 
     Image.init()
     features.check("webp")

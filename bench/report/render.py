@@ -2,7 +2,7 @@
 
 Meshes are drawn with faces coloured by mean curvature (paraboloid fit over a 2h neighbourhood, computed in
 the worker) with a colour strip; the callers share the camera and the colour scale across a table row.
-Rendering is an orthographic painter's algorithm filled by the compiled :func:`geometry.picture.rasterize`
+Rendering is an orthographic painter's algorithm filled by the compiled :func:`bench.report.picture.rasterize`
 (≈ 60× faster than matplotlib's Agg on meshes of 10⁵ faces) and stored as WebP; energy curves are SVG.
 """
 
@@ -117,7 +117,7 @@ def render_mesh(vertices, faces, H, *, vmin: float, vmax: float, extent: tuple[f
     from matplotlib import colormaps
     from matplotlib.colors import Normalize
 
-    from geometry.picture import rasterize
+    from .picture import rasterize
 
     v = np.asarray(vertices, float)
     tri, fi, nz = _visible_faces(v, np.asarray(faces, np.int64), elev, azim)

@@ -137,7 +137,7 @@ class ShapeGradient(Method):
         "close_pinholes": Param(True, "init='genus0' on a noisy volume: where noise lifted one sample of a thin sheet "
                                 "(an ear, a wing) above 0, the growth would stop at the pinhole and the start lose "
                                 "the tip beyond it; close such holes — one sample below max(noise std, 1/4 voxel), "
-                                "next to the samples left out (geometry.pinholes; docs/NOTES.md). Wider gaps (sulcal "
+                                "next to the samples left out (methods.shape_gradient.pinholes; docs/NOTES.md). Wider gaps (sulcal "
                                 "banks touching) stay open", bool),
         "sign_guard": Param(True, "with the genus-0 start on a clean volume: at every remesh, count the grid samples "
                             "that are clearly inside or outside (|φ| > h/4, within 3 h of φ = 0) but on the wrong side "

@@ -1,4 +1,4 @@
-"""Manifold dual contouring (geometry/dc_manifold.py): the patch table on marching-cubes cases with known
+"""Manifold dual contouring (methods/dc_manifold.py): the patch table on marching-cubes cases with known
 answers; hand-built volumes whose one cell holds two patches (two cavities), two patches joined by two
 segments (a thin tube through a face) and a tunnel (inside corners touching only through the cell) — each
 with the known vertex count and topology, where one vertex per cell (the library's mesh) is not a manifold;
@@ -9,14 +9,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from _peers_common import edge_and_vertex_manifold
 from scipy import ndimage
 
-from geometry.dc_manifold import (EDGE_AXIS, EDGE_CORNERS, TUNNEL_CUBES, _patches_of, cell_patches,
-                                  patch_centroids)
 from methods import get_method
+from methods.dc_manifold import EDGE_AXIS, EDGE_CORNERS, TUNNEL_CUBES, _patches_of, cell_patches, patch_centroids
 from phantoms import Volume
-
-from _peers_common import edge_and_vertex_manifold
 
 
 def patches(cube: int, joined: int = 63) -> list[set[int]]:

@@ -1,11 +1,11 @@
-"""Tests of ``geometry.picture``: :func:`rasterize` paints triangles in order, the pixels inside each,
+"""Tests of ``bench.report.picture``: :func:`rasterize` paints triangles in order, the pixels inside each,
 anti-aliased by supersampling, with optional edges."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from geometry.picture import rasterize
+from bench.report.picture import rasterize
 
 
 def test_rasterize_fills_the_pixels_inside_the_triangles_in_order():

@@ -1,4 +1,4 @@
-"""geometry.pinholes and geometry.digital.homotopic_thinning: a noise pinhole in a thin sheet is closed (the
+"""methods.shape_gradient.pinholes and methods.shape_gradient.digital.homotopic_thinning: a noise pinhole in a thin sheet is closed (the
 growth then takes the whole sheet), a real hole is not, and the thinning keeps the topology and removes every
 sample it may."""
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from skimage.measure import euler_number, label
 
-from geometry.digital import homotopic_growth, homotopic_thinning
 from geometry.kernels import AVAILABLE
-from geometry.pinholes import close_pinholes
+from methods.shape_gradient.digital import homotopic_growth, homotopic_thinning
+from methods.shape_gradient.pinholes import close_pinholes
 
 
 def is_ball(solid):

@@ -37,7 +37,7 @@ import heapq
 import numpy as np
 from scipy import ndimage
 
-from .kernels import AVAILABLE, _jit
+from geometry.kernels import AVAILABLE, _jit
 
 __all__ = ["homotopic_growth", "homotopic_thinning", "is_simple_reference", "ball_field", "ambiguous_cells",
            "surface_is_sphere", "NEIGHBOUR_OFFSETS"]
@@ -366,7 +366,7 @@ def surface_is_sphere(field: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None
     genus-0 surface, else None."""
     from skimage.measure import marching_cubes
 
-    from .topology import is_sphere_like
+    from geometry.topology import is_sphere_like
     try:
         v, f, _, _ = marching_cubes(field, 0.0, method="lewiner", allow_degenerate=False)
     except (ValueError, RuntimeError):

@@ -1,4 +1,4 @@
-"""geometry.digital: the simple-point test against its scipy reference, the homotopic growth's topology (one
+"""methods.shape_gradient.digital: the simple-point test against its scipy reference, the homotopic growth's topology (one
 component, no handle, no cavity) on volumes with known handles, and marching cubes of ball_field giving exactly
 one closed genus-0 surface — also on random fields full of handles."""
 
@@ -9,9 +9,21 @@ import pytest
 from scipy import ndimage
 from skimage.measure import euler_number, label
 
-from geometry.digital import (_is_simple, _ADJ6, _ADJ26, _ALL, _FACE6, _N18, NEIGHBOUR_OFFSETS, ambiguous_cells,
-                              ball_field, homotopic_growth, is_simple_reference, surface_is_sphere)
 from geometry.kernels import AVAILABLE
+from methods.shape_gradient.digital import (
+    _ADJ6,
+    _ADJ26,
+    _ALL,
+    _FACE6,
+    _N18,
+    NEIGHBOUR_OFFSETS,
+    _is_simple,
+    ambiguous_cells,
+    ball_field,
+    homotopic_growth,
+    is_simple_reference,
+    surface_is_sphere,
+)
 
 
 def _grid(n=32, lo=-1.6, hi=1.6):

@@ -1,4 +1,4 @@
-"""Pieces of a sampled region and their lowest saddles (geometry/saddles.py): which pieces are joined, through
+"""Pieces of a sampled region and their lowest saddles (methods/shape_gradient/saddles.py): which pieces are joined, through
 which samples, and that the growth through the joined values is one genus-0 solid."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 from scipy import ndimage
 from skimage.measure import euler_number
 
-from geometry.digital import homotopic_growth, surface_is_sphere
-from geometry.saddles import join_pieces, piece_saddles
+from methods.shape_gradient.digital import homotopic_growth, surface_is_sphere
+from methods.shape_gradient.saddles import join_pieces, piece_saddles
 
 
 def _blobs(shape=(40, 20, 20)):

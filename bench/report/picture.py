@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .kernels import _jit
+from geometry.kernels import _jit
 
 __all__ = ["rasterize"]
 

@@ -51,13 +51,17 @@ def test_mask_of_a_known_sphere_zero_level_and_distances():
 
 
 @pytest.mark.parametrize("spacing", [(1.0, 1.0, 1.0), (0.8, 0.8, 3.0)])
-def test_the_distance_transforms_equal_scipys_reference(spacing):
-    """``edt`` (the fast path) against :func:`scipy.ndimage.distance_transform_edt`, anisotropic too."""
+@pytest.mark.parametrize("shape", ["ball_and_speckle", "small_off_centre", "touching_a_wall"])
+def test_the_distance_transforms_equal_scipys_reference(spacing, shape):
+    """``edt`` (the fast path, the inside transform cropped to the object's box) against
+    :func:`scipy.ndimage.distance_transform_edt`, anisotropic too."""
     from phantoms.masks import mask_distances
 
     rng = np.random.default_rng(0)
     x = np.mgrid[-1:1:40j, -1:1:36j, -1:1:30j]
-    m = ((x ** 2).sum(0) < 0.5) | (rng.random(x.shape[1:]) < 0.01)      # a ball and speckle
+    m = {"ball_and_speckle": ((x ** 2).sum(0) < 0.5) | (rng.random(x.shape[1:]) < 0.01),
+         "small_off_centre": ((x - np.array([0.4, -0.3, 0.2])[:, None, None, None]) ** 2).sum(0) < 0.12,
+         "touching_a_wall": (np.abs(x[0] + 0.8) < 0.35) & (np.abs(x[1]) < 0.5) & (np.abs(x[2] - 0.3) < 0.9)}[shape]
     fast = mask_distances(m, np.asarray(spacing))
     ref = mask_distances(m, np.asarray(spacing), reference=True)
     for a, b in zip(fast, ref):

@@ -1,8 +1,10 @@
 """Run a grid into a run folder: the cells not done yet, through an executor, each result stored at once.
 
 :func:`run_grid` expands the config, skips the cells already in the folder (``resume``), hands the rest to an
-executor (the local process pool by default), writes every finished cell, ``results.csv`` and ``run.json``
-through :mod:`bench.run.store`, shows progress, and returns a :class:`RunSummary`.  It does not render the
+executor (the local process pool by default), writes every finished cell's record at once through
+:mod:`bench.run.store` and ``results.csv`` / ``results.parquet`` at checkpoints (:mod:`bench.run.checkpoints`:
+their writing grows with the grid, not with its square; always at the end of the session, an interrupted one
+too), writes ``run.json``, shows progress, and returns a :class:`RunSummary`.  It does not render the
 report: the command line does that after the run.
 """
 
@@ -22,21 +24,21 @@ import numpy as np
 from geometry.files import WriteError
 
 from ..terminal import printable
+from .audit import REJECTED, set_aside
+from .checkpoints import ResultTables
 from .contracts import Cell, CellResult
 from .estimate import screen_cells
 from .executors.local import LocalExecutor
 from .grid import expand_grid
-from .limits import TimeLimits, default_memory_gb
-from .provenance import environment
-from .identity import MixedCodeError, changed_methods, config_fingerprint, code_identity, mixed_code
+from .identity import MixedCodeError, changed_methods, code_identity, config_fingerprint, mixed_code
 from .inputs import ExecutorSpec, check_run_inputs
-from .lock import RunLock
-from .audit import REJECTED, set_aside
 from .integrity import UNSEALED
-from .store import (CACHE_DIR, IGNORED, clean_temp_files, read_json, save_cell, scan_cells, write_json,
-                    write_results_csv)
+from .limits import TimeLimits, default_memory_gb
+from .lock import RunLock
+from .provenance import environment
+from .store import CACHE_DIR, IGNORED, clean_temp_files, read_json, save_cell, scan_cells, write_json
 
-__all__ = ["run_grid", "RunSummary", "time_limits", "memory_limit"]
+__all__ = ["RunSummary", "memory_limit", "run_grid", "time_limits"]
 
 STATUSES = ("ok", "invalid", "failed", "timeout")
 #: the method declined the cell's input (:meth:`methods.Method.skip_reason`): a row, not a failure; counted in
@@ -357,7 +359,7 @@ def _expected_cost(cell: Cell) -> float:
 
     try:
         rel = float(getattr(get_method(cell.method, **cell.params), "relative_cost", 1.0))
-    except Exception:  # a cell that cannot even build its method fails fast anyway
+    except Exception:  # noqa: BLE001 — a cell that cannot even build its method fails fast anyway
         rel = 1.0
     return rel * (cell.n / 96.0) ** 3 * (1.5 if cell.noise != "none" else 1.0)
 
@@ -388,12 +390,13 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
                     log=progress is None)
     if bar.show:
         bar.bar.write(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
+    tables = ResultTables(out, cells, records)
 
     def on_result(cell: Cell, result: CellResult) -> None:
         known[cell.cell_id] = save_cell(out, cell, result, save_meshes, code=code)
         # a record as stored (and as read back by --resume): plain dicts
         records[cell.cell_id] = {"row": result.row, "cell": cell.to_dict(), "code": code}
-        write_results_csv(out, cells, records)
+        tables.finished()
         summary.ran += 1
         bar.finish(cell, result.row)
 
@@ -418,7 +421,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
                 summary.statuses[st] = summary.statuses.get(st, 0) + 1
         summary.seconds = time.time() - log.started
         try:  # after a write error these may fail too: the first error is the one to report
-            write_results_csv(out, cells, records)
+            tables.write()
             write_json(out / "config.json", cfg.to_dict())     # again: a plug-in may have removed it
             log.write(records, end=True, cells_run=summary.ran)
         except WriteError:

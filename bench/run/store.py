@@ -6,7 +6,7 @@ A run folder ``DIR`` holds::
     run.json               provenance and sessions (bench.run.runner)
     cells/<cell_id>.json   one finished cell: its results.csv row, the cell, the traceback of a failure
     cells/<cell_id>.npz    its arrays: mesh, per-vertex H, energy history, snapshots (written first)
-    results.csv            one row per finished cell, in grid order (rewritten after every cell)
+    results.csv            one row per finished cell, in grid order (written at checkpoints: bench.run.checkpoints)
     results.parquet        the same table with typed columns (bool / int / float / string), written with it
     meshes/<cell_id>.ply   with --save-meshes
     cache/                 clean phantom volumes shared by the cells (removed when the run is complete)

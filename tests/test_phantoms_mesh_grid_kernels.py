@@ -1,7 +1,7 @@
 """Tests of ``phantoms.mesh.grid_kernels``, the compiled kernels of the grid signed distance, one by one:
 :func:`tri_eval` against :func:`phantoms.mesh.closest.closest_point_on_triangles`, :func:`build_cells`
-against a brute-force bounding-box binning, :func:`mark_band` against the distance to the vertices.  (The
-whole grid: test_phantoms_mesh_grid_sdf.py.)"""
+against a brute-force bounding-box binning, :func:`mark_band` against the distance to the vertices, the neighbour
+table against three nested loops.  (The whole grid: test_phantoms_mesh_grid_sdf.py.)"""
 
 from __future__ import annotations
 
@@ -59,3 +59,19 @@ def test_mark_band_marks_the_grid_points_within_the_radius_of_a_vertex():
     d = np.linalg.norm(g[:, None] - v[None], axis=2).min(1).reshape(16, 16, 16)
     np.testing.assert_array_equal(state == 7, d <= 0.3)
     assert set(np.unique(state)) == {0, 7}
+
+
+def test_the_neighbour_table_is_the_26_offsets_in_nested_loop_order():
+    """The propagation's visiting order (ties go to the first neighbour) is that of three nested loops."""
+    loops = [(di, dj, dk) for di in (-1, 0, 1) for dj in (-1, 0, 1) for dk in (-1, 0, 1) if (di, dj, dk) != (0, 0, 0)]
+    assert gk.NEIGHBOURS.tolist() == [list(t) for t in loops]
+    n = 5
+    np.testing.assert_array_equal(gk.neighbour_offsets(n), [(di * n + dj) * n + dk for di, dj, dk in loops])
+    grid = np.arange(n ** 3).reshape(n, n, n)
+    for i, j, k in [(0, 0, 0), (2, 2, 2), (4, 1, 0), (2, 4, 3)]:
+        r = int(grid[i, j, k])
+        want = [int(grid[i + di, j + dj, k + dk]) if 0 <= i + di < n and 0 <= j + dj < n and 0 <= k + dk < n else -1
+                for di, dj, dk in loops]
+        got = [gk._neighbour(r, m, n, gk.neighbour_offsets(n)) for m in range(26)]
+        assert got == want
+        assert gk._interior(r, n) == (-1 not in want)

@@ -26,6 +26,12 @@ import numpy as np
 # feature codes (phantoms.mesh.closest)
 _FACE, _VA, _VB, _VC, _EAB, _EBC, _ECA = range(7)
 
+#: the 26 neighbours of a grid point as index offsets (di, dj, dk), in the order of three nested loops over
+#: −1, 0, 1 with the centre left out: the propagation visits them in this order (the first of equally near faces
+#: wins)
+NEIGHBOURS = np.array([(di, dj, dk) for di in (-1, 0, 1) for dj in (-1, 0, 1) for dk in (-1, 0, 1)
+                       if (di, dj, dk) != (0, 0, 0)], np.int64)
+
 
 def _jit(fn):
     return numba.njit(cache=True, nogil=True)(fn)
@@ -249,150 +255,148 @@ def _descend(px, py, pz, d, f, feat, pack, faces, face_adj, vfaces, steps):
 
 
 @_jit
-def _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, done, seen):
-    """Best of the distinct closest faces of r's 26 neighbours whose state is ≥ ``done``, then descent.
-    Returns (distance, face, evaluations); face −1 when no neighbour is done.  ``seen``: int32 (26,) work space."""
+def neighbour_offsets(n):
+    """The flat-index offsets of :data:`NEIGHBOURS` in a C-ordered (n, n, n) grid (int64 (26,))."""
+    off = np.empty(26, np.int64)
+    for m in range(26):
+        off[m] = (NEIGHBOURS[m, 0] * n + NEIGHBOURS[m, 1]) * n + NEIGHBOURS[m, 2]
+    return off
+
+
+@_jit
+def _neighbour(r, m, n, off):
+    """Flat index of neighbour m of grid point r, or −1 when it lies off the grid."""
+    nn = n * n
+    i = r // nn + NEIGHBOURS[m, 0]
+    j = (r // n) % n + NEIGHBOURS[m, 1]
+    k = r % n + NEIGHBOURS[m, 2]
+    if 0 <= i < n and 0 <= j < n and 0 <= k < n:
+        return r + off[m]
+    return -1
+
+
+@_jit
+def _interior(r, n):
+    """Whether grid point r has all 26 neighbours on the grid."""
     nn = n * n
     i = r // nn
     j = (r // n) % n
     k = r % n
-    px, py, pz = axis[i], axis[j], axis[k]
+    return 0 < i < n - 1 and 0 < j < n - 1 and 0 < k < n - 1
+
+
+@_jit
+def _pull(r, n, off, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, done, seen):
+    """Best of the distinct closest faces of r's 26 neighbours whose state is ≥ ``done``, then descent.
+    Returns (distance, face, evaluations); face −1 when no neighbour is done.  ``dist``, ``face``, ``state``:
+    the grids flattened; ``off``: :func:`neighbour_offsets`; ``seen``: int32 (26,) work space."""
+    px, py, pz = axis[r // (n * n)], axis[(r // n) % n], axis[r % n]
+    inner = _interior(r, n)
     ns = 0
-    best = dist[i, j, k]
-    bf = face[i, j, k]
+    best = dist[r]
+    bf = face[r]
     bfeat = -1
     evals = 0
-    for di in range(-1, 2):
-        ii = i + di
-        if ii < 0 or ii >= n:
+    for m in range(26):
+        q = r + off[m] if inner else _neighbour(r, m, n, off)
+        if q < 0 or state[q] < done:
             continue
-        for dj in range(-1, 2):
-            jj = j + dj
-            if jj < 0 or jj >= n:
-                continue
-            for dk in range(-1, 2):
-                kk = k + dk
-                if kk < 0 or kk >= n or (di == 0 and dj == 0 and dk == 0):
-                    continue
-                if state[ii, jj, kk] < done:
-                    continue
-                g = face[ii, jj, kk]
-                if g < 0:
-                    continue
-                dup = False
-                for s in range(ns):
-                    if seen[s] == g:
-                        dup = True
-                        break
-                if dup:
-                    continue
-                seen[ns] = g
-                ns += 1
-                dd, ft = tri_eval(px, py, pz, pack, g)
-                evals += 1
-                if dd < best:
-                    best, bf, bfeat = dd, g, ft
-    if bf >= 0 and best < dist[i, j, k]:    # descend from a better face (from the current one it was done)
+        g = face[q]
+        if g < 0:
+            continue
+        dup = False
+        for s in range(ns):
+            if seen[s] == g:
+                dup = True
+                break
+        if dup:
+            continue
+        seen[ns] = g
+        ns += 1
+        dd, ft = tri_eval(px, py, pz, pack, g)
+        evals += 1
+        if dd < best:
+            best, bf, bfeat = dd, g, ft
+    if bf >= 0 and best < dist[r]:    # descend from a better face (from the current one it was done)
         best, bf, bfeat, e2 = _descend(px, py, pz, best, bf, bfeat, pack, faces, face_adj, vfaces, steps)
         evals += e2
     return best, bf, evals
 
 
 @_jit
-def _enqueue(i, j, k, n, state, sign, queue, tail):
-    """Queue the unreached (state 0) neighbours of (i, j, k) with its sign; returns the new queue length."""
-    for di in range(-1, 2):
-        ii = i + di
-        if ii < 0 or ii >= n:
+def _enqueue(r, n, off, state, sign, queue, tail):
+    """Queue the unreached (state 0) neighbours of grid point r with its sign (flat grids); returns the new
+    queue length."""
+    inner = _interior(r, n)
+    for m in range(26):
+        q = r + off[m] if inner else _neighbour(r, m, n, off)
+        if q < 0 or state[q] != 0:
             continue
-        for dj in range(-1, 2):
-            jj = j + dj
-            if jj < 0 or jj >= n:
-                continue
-            for dk in range(-1, 2):
-                kk = k + dk
-                if kk < 0 or kk >= n or state[ii, jj, kk] != 0:
-                    continue
-                state[ii, jj, kk] = 1
-                sign[ii, jj, kk] = sign[i, j, k]
-                queue[tail] = (ii * n + jj) * n + kk
-                tail += 1
+        state[q] = 1
+        sign[q] = sign[r]
+        queue[tail] = q
+        tail += 1
     return tail
 
 
 @_jit
-def _passes(nfar, n, axis, dist, face, state, queue, pack, faces, face_adj, vfaces, steps, passes, seen):
-    """The Gauss–Seidel passes of :func:`propagate`; returns (evaluations, passes done)."""
-    nn = n * n
+def _near_other_face(r, n, off, face):
+    """Whether a neighbour of grid point r holds a face (≥ 0) other than r's own (flat grid)."""
+    inner = _interior(r, n)
+    for m in range(26):
+        q = r + off[m] if inner else _neighbour(r, m, n, off)
+        if q >= 0 and face[q] != face[r] and face[q] >= 0:
+            return True
+    return False
+
+
+@_jit
+def _near_change(r, n, off, state):
+    """Whether a neighbour of grid point r changed in this Gauss–Seidel pass or the previous one (state ≥ 4)."""
+    inner = _interior(r, n)
+    for m in range(26):
+        q = r + off[m] if inner else _neighbour(r, m, n, off)
+        if q >= 0 and state[q] >= 4:
+            return True
+    return False
+
+
+@_jit
+def _passes(nfar, n, off, axis, dist, face, state, queue, pack, faces, face_adj, vfaces, steps, passes, seen):
+    """The Gauss–Seidel passes of :func:`propagate` (flat grids); returns (evaluations, passes done)."""
     evals = 0
-    # Gauss–Seidel passes; state 4 = changed in the current pass, 5 = changed in the previous pass; a point
-    # is visited when it or a neighbour changed in either
+    # state 4 = changed in the current pass, 5 = changed in the previous pass; a point is visited when it or a
+    # neighbour changed in either
     done = 0
     for p in range(passes):
         changed = 0
         for t in range(nfar):
             r = queue[t] if p % 2 == 0 else queue[nfar - 1 - t]
-            i = r // nn
-            j = (r // n) % n
-            k = r % n
             if p == 0:                      # first pass: only where a neighbour holds another face
-                fr = face[i, j, k]
-                near = False
-                for di in range(-1, 2):
-                    ii = i + di
-                    if ii < 0 or ii >= n:
-                        continue
-                    for dj in range(-1, 2):
-                        jj = j + dj
-                        if jj < 0 or jj >= n:
-                            continue
-                        for dk in range(-1, 2):
-                            kk = k + dk
-                            if 0 <= kk < n and face[ii, jj, kk] != fr and face[ii, jj, kk] >= 0:
-                                near = True
-                if not near:
-                    continue
-            else:
-                near = state[i, j, k] >= 4
-                if not near:
-                    for di in range(-1, 2):
-                        ii = i + di
-                        if ii < 0 or ii >= n:
-                            continue
-                        for dj in range(-1, 2):
-                            jj = j + dj
-                            if jj < 0 or jj >= n:
-                                continue
-                            for dk in range(-1, 2):
-                                kk = k + dk
-                                if 0 <= kk < n and state[ii, jj, kk] >= 4:
-                                    near = True
-                if not near:
-                    continue
-            d, f, e = _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2, seen)
+                visit = _near_other_face(r, n, off, face)
+            else:                           # later ones: only at or next to a change
+                visit = state[r] >= 4 or _near_change(r, n, off, state)
+            if not visit:
+                continue
+            d, f, e = _pull(r, n, off, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2, seen)
             evals += e
-            if d < dist[i, j, k]:
-                dist[i, j, k] = d
-                face[i, j, k] = f
-                state[i, j, k] = 4
+            if d < dist[r]:
+                dist[r] = d
+                face[r] = f
+                state[r] = 4
                 changed += 1
         # age the marks: previous pass's 5 -> 3, this pass's 4 -> 5
         for t in range(nfar):
             r = queue[t]
-            i = r // nn
-            j = (r // n) % n
-            k = r % n
-            s = state[i, j, k]
-            if s == 5:
-                state[i, j, k] = 3
-            elif s == 4:
-                state[i, j, k] = 5
+            if state[r] == 5:
+                state[r] = 3
+            elif state[r] == 4:
+                state[r] = 5
         done = p + 1
         if changed == 0:
             break
     for t in range(nfar):
-        r = queue[t]
-        state[r // nn, (r // n) % n, r % n] = 3
+        state[queue[t]] = 3
     return evals, done
 
 
@@ -400,39 +404,37 @@ def _passes(nfar, n, axis, dist, face, state, queue, pack, faces, face_adj, vfac
 def propagate(n, axis, dist, face, state, sign, queue, pack, faces, face_adj, vfaces, steps, passes):
     """Closest-triangle propagation from the band (state 2) into the far region (state 0).
 
-    1. Breadth first over the 26 neighbours, starting from the band points in index order: a far point
-       takes the best of the closest faces of its finished neighbours (band or far, state ≥ 2 / 3), then
-       descends on the mesh; it inherits the sign of the neighbour that reached it.
+    1. Breadth first over the 26 neighbours (:data:`NEIGHBOURS`), starting from the band points in index order:
+       a far point takes the best of the closest faces of its finished neighbours (band or far, state ≥ 2 / 3),
+       then descends on the mesh; it inherits the sign of the neighbour that reached it.
     2. Up to ``passes`` Gauss–Seidel passes over the far points (alternately in and against the breadth-first
        order): each pulls again from all 26 neighbours (and descends when that found a better face); the
        first pass visits only points with a neighbour of another face, later ones only points next to a
        change.  Returns (far points, evaluations, passes done).
 
     ``state``: 0 far, not reached; 1 queued; 2 band; 3 far, finished (uint8, (n, n, n)); ``queue`` int32 (n³,).
+    The grids are C-contiguous and read through flat indices.
     """
-    nn = n * n
+    size = n * n * n
+    dist_f, face_f, state_f, sign_f = dist.reshape(size), face.reshape(size), state.reshape(size), sign.reshape(size)
+    off = neighbour_offsets(n)
     tail = 0
     evals = 0
     seen = np.empty(26, np.int32)
-    # seed: the far neighbours of every band point
-    for i in range(n):
-        for j in range(n):
-            for k in range(n):
-                if state[i, j, k] == 2:
-                    tail = _enqueue(i, j, k, n, state, sign, queue, tail)
+    for r in range(size):                  # seed: the far neighbours of every band point
+        if state_f[r] == 2:
+            tail = _enqueue(r, n, off, state_f, sign_f, queue, tail)
     head = 0
     while head < tail:
         r = queue[head]
         head += 1
-        i = r // nn
-        j = (r // n) % n
-        k = r % n
-        d, f, e = _pull(r, n, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2, seen)
+        d, f, e = _pull(r, n, off, axis, dist_f, face_f, state_f, pack, faces, face_adj, vfaces, steps, 2, seen)
         evals += e
-        dist[i, j, k] = d
-        face[i, j, k] = f
-        state[i, j, k] = 3
-        tail = _enqueue(i, j, k, n, state, sign, queue, tail)
+        dist_f[r] = d
+        face_f[r] = f
+        state_f[r] = 3
+        tail = _enqueue(r, n, off, state_f, sign_f, queue, tail)
     nfar = tail
-    e, done = _passes(nfar, n, axis, dist, face, state, queue, pack, faces, face_adj, vfaces, steps, passes, seen)
+    e, done = _passes(nfar, n, off, axis, dist_f, face_f, state_f, queue, pack, faces, face_adj, vfaces, steps,
+                      passes, seen)
     return nfar, evals + e, done

@@ -222,3 +222,64 @@ def test_the_noisy_bunnys_ear_tip_is_in_the_start():
                            / vol.h)
         assert flow.init_facts["left_out_samples"] == (0 if close else 3)
     assert far[False] > 1.2 and far[True] < 1.0
+
+
+def _shell_with_openings(openings: int, noise_voxels: float, n: int = 64):
+    """A CT-skull-like solid: a spherical shell 4 voxels thick with ``openings`` round holes 5 voxels across
+    (a solid of genus openings − 1), plus i.i.d. Gaussian noise."""
+    from phantoms import Volume
+
+    x = np.linspace(-1.0, 1.0, n)
+    p = np.stack(np.meshgrid(x, x, x, indexing="ij"), axis=-1)
+    r = np.linalg.norm(p, axis=-1)
+    phi = np.maximum(r - 0.85, 0.72 - r)
+    rng = np.random.default_rng(1)
+    axes = rng.normal(size=(openings, 3))
+    for u in axes / np.linalg.norm(axes, axis=1, keepdims=True):
+        t = p @ u
+        phi = np.maximum(phi, np.where(t > 0, 0.08 - np.linalg.norm(p - t[..., None] * u, axis=-1), -1.0))
+    h = x[1] - x[0]
+    return Volume(phi + rng.normal(scale=noise_voxels * h, size=phi.shape), [-1.0] * 3, h)
+
+
+@pytest.mark.parametrize("openings, noise", [(12, 0.3), (30, 1.0)])
+def test_a_noisy_shell_with_many_openings_is_refused_before_any_iteration(openings, noise):
+    """A genus ≫ 0 solid (a CT skull's kind) is refused up front with the reading that decided it — the flow
+    would spend minutes evolving one genus-0 surface it cannot follow — unless max_topology_gap allows it."""
+    import time
+
+    from methods.shape_gradient.field import estimate_noise
+    from methods.shape_gradient.start import denoised_topology, topology_gap
+
+    vol = _shell_with_openings(openings, noise)
+    assert topology_gap(denoised_topology(vol, estimate_noise(vol))) > 5
+    t0 = time.process_time()
+    with pytest.raises(InputError, match=r"far from one genus-0 surface .*max_topology_gap = 5") as err:
+        ShapeGradient().reconstruct(vol)
+    assert "\n" not in str(err.value) and time.process_time() - t0 < 10.0     # up front: no iteration ran
+
+
+def test_few_openings_are_not_refused():
+    from methods.shape_gradient.field import estimate_noise
+    from methods.shape_gradient.start import denoised_topology, topology_gap
+
+    vol = _shell_with_openings(3, 0.3)
+    assert 0 < topology_gap(denoised_topology(vol, estimate_noise(vol))) <= 5
+
+
+@pytest.mark.parametrize("name, degradation", [("bunny", "gaussian@20"), ("cortex", "gaussian@30"),
+                                               ("ellipsoid", "mask+label_noise@0.1"), ("torus", "gaussian@30")])
+def test_genus_0_shapes_under_noise_and_label_noise_read_near_genus_0(name, degradation):
+    """What the refusal must never catch: additive noise (20–30 dB) and a mask's label noise make hundreds of
+    speckle components and tunnels in the raw reading; smoothed (σ ≥ 1 voxel) they read 0 (the torus 1)."""
+    from methods.shape_gradient.field import estimate_noise
+    from methods.shape_gradient.start import denoised_topology, target_topology, topology_gap
+    from phantoms.degrade import degrade
+
+    ph = get_phantom(name)
+    if degradation.startswith("gaussian"):
+        vol = add_noise(ph.volume(n=64), "gaussian", snr=float(degradation.split("@")[1]))[0]
+    else:
+        vol = degrade(ph, degradation, 64)
+    assert topology_gap(target_topology(vol)) > 5                      # the raw reading would refuse it
+    assert topology_gap(denoised_topology(vol, estimate_noise(vol))) == (1 if name == "torus" else 0)

@@ -15,7 +15,7 @@ from ..base import Method, Param, Reconstruction, check_volume
 from .field import estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
 from .flow import ShapeGradientFlow
 from .settings import FlowSettings
-from .start import initial_surface, parse_snapshots, target_topology
+from .start import denoised_topology, initial_surface, parse_snapshots, target_topology, topology_gap
 
 __all__ = ["ShapeGradient", "PRESETS"]
 
@@ -56,6 +56,19 @@ def _auto_or_number(key: str, value: Any, hi: float) -> "float | str":
         raise InputError(f"method 'shape_gradient', parameter '{key}': expected 'auto' or a number in [0, {hi:g}]; "
                          f"got {value!r}")
     return v
+
+
+def _refuse_far_topology(topology: dict, max_gap: int) -> None:
+    """Raise when the (denoised) region φ < 0 is farther than ``max_gap`` from one genus-0 solid."""
+    gap = topology_gap(topology)
+    if gap > max_gap:
+        best = min(topology["readings"], key=lambda r: r["components"] - 1 + abs(r["euler_solid"] - 1))
+        raise InputError(
+            f"method 'shape_gradient': the region φ < 0 is far from one genus-0 surface (at its most favourable "
+            f"reading, level {best['level_voxels']:+g} voxel, {best['components']} component(s) with Euler "
+            f"characteristic {best['euler_solid']}: a gap of {gap} > max_topology_gap = {max_gap}); the method "
+            "evolves one genus-0 surface — use a method that follows the level set (marching_cubes, flying_edges) "
+            "or raise max_topology_gap")
 
 
 class ShapeGradient(Method):
@@ -178,6 +191,12 @@ class ShapeGradient(Method):
         "strict_topology": Param(False, "refuse (error) when the region φ < 0 is not compatible with one genus-0 "
                                  "surface (several components, handles, cavities); otherwise info['topology'] "
                                  "and a warning say so", bool),
+        "max_topology_gap": Param(5, "refuse (error, before any iteration) a volume whose region φ < 0, read after "
+                                  "smoothing (σ ≥ 1 voxel; noise below 0.1 voxel), is farther than this from one genus-0 solid: "
+                                  "(components − 1) + |χ − 1| at its most favourable level and connectivity — about "
+                                  "the number of handles (a torus 1; a skull with openings many); one genus-0 "
+                                  "surface cannot follow such data (the development and held-out shapes read 0–2 "
+                                  "at 20–40 dB)", int, min=0),
         "init_radius": Param(PAPER_SPHERE_RADIUS, "radius of the initial Fibonacci sphere (world units)",
                              float, min=1e-9),
         "init_vertices": Param(PAPER_SPHERE_VERTICES, "vertices of the initial sphere (1,896 → 3,788 "
@@ -236,6 +255,9 @@ class ShapeGradient(Method):
             raise InputError(f"method 'shape_gradient' (strict_topology): {topology['message']}")
         noise = estimate_noise(volume)
         clean = noise < _AUTO_PRESMOOTH_NOISE * volume.h
+        # a clean volume's raw reading is reliable; under noise one reading can look compatible by chance
+        if (not topology["compatible"] or not clean) and cfg["init_mesh"] is None:
+            _refuse_far_topology(denoised_topology(volume, noise), cfg["max_topology_gap"])
         sigma = cfg["presmooth"]
         if sigma == "auto":
             sigma = 0.0 if clean else _AUTO_PRESMOOTH_SIGMA

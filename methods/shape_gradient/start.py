@@ -235,6 +235,27 @@ def target_topology(volume: Volume) -> dict:
     return out
 
 
+def topology_gap(topology: dict) -> int:
+    """How far the region φ < 0 is from one genus-0 solid at its most favourable reading
+    (:func:`target_topology`): min over readings of (components − 1) + |χ_solid − 1| — 0 when compatible, 1 for a
+    torus, about the number of handles for a shell with openings."""
+    return min(r["components"] - 1 + abs(r["euler_solid"] - 1) for r in topology["readings"])
+
+
+def denoised_topology(volume: Volume, noise: float, noise_voxels: float = 0.1, least_sigma: float = 1.0) -> dict:
+    """:func:`target_topology` of the volume Gaussian-smoothed by at least ``least_sigma`` voxels, more where its
+    i.i.d. noise (std ``noise``, world units) would stay above ``noise_voxels`` of a voxel: additive noise makes
+    speckle components and pinhole tunnels, and so does a mask's label noise (single flipped voxels, which a
+    noise estimate does not see); openings a few voxels wide survive the smoothing."""
+    from scipy.ndimage import gaussian_filter
+
+    from .field import start_smoothing
+
+    sigma = max(start_smoothing(noise / volume.h, noise_voxels), least_sigma)
+    smooth = gaussian_filter(np.asarray(volume.values, float), sigma, mode="nearest")
+    return target_topology(Volume(smooth, volume.origin, volume.spacing))
+
+
 def genus0_surface(volume: Volume, values: np.ndarray, join_below: float = JOIN_BELOW_VOXELS,
                    pinhole_below: float = 0.0):
     """(vertices, faces, facts) of a genus-0 surface of the region ``values < 0`` (world coordinates, outward),

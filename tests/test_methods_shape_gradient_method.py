@@ -95,3 +95,18 @@ def test_rejects_volumes_that_do_not_contain_the_initial_surface(sphere32):
         SG().reconstruct(Volume(np.ones((16, 16, 16))))         # no zero crossing
     with pytest.raises(InputError):
         SG().reconstruct(np.zeros((8, 8, 8)))                     # not a Volume
+
+
+def test_max_faces_ties_the_mesh_size_to_the_surface_area():
+    """With a face budget below what edge_length needs, the remeshing's edge length grows so the mesh has about
+    that many faces — and the result still lies on the surface; without it the count follows edge_length."""
+    ph = get_phantom("sphere")
+    vol = ph.volume(n=48)
+    free = ShapeGradient(max_iter=10).reconstruct(vol)
+    capped = ShapeGradient(max_iter=10, max_faces=3000).reconstruct(vol)
+    assert len(free.mesh.faces) > 2 * 3000
+    assert 0.5 * 3000 <= len(capped.mesh.faces) <= 1.5 * 3000
+    assert capped.info["init"]["edge_length_voxels_for_max_faces"] > 0.5
+    assert "edge_length_voxels_for_max_faces" not in free.info["init"]
+    d = np.abs(ph.sdf(capped.mesh.vertices))
+    assert d.max() < 0.2 * vol.h

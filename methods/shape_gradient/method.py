@@ -58,6 +58,25 @@ def _auto_or_number(key: str, value: Any, hi: float) -> "float | str":
     return v
 
 
+def _edge_length_voxels(cfg: dict, x: np.ndarray, faces: np.ndarray, h: float, facts: dict) -> float:
+    """The remeshing's edge length (voxels): ``edge_length``, or longer where the surface is so large that
+    triangles of that size would exceed ``max_faces`` — the mesh's size follows the surface's area, not the
+    grid's (a label map at its native resolution: millions of faces for a smooth organ).  The start's area
+    is read before it is remeshed (a staircase overestimates it a little: the cap errs on the coarse side)."""
+    edge = float(cfg["edge_length"])
+    cap = cfg["max_faces"]
+    if cap <= 0 or cfg["remesh_every"] <= 0:
+        return edge
+    tri = x[faces]
+    area = 0.5 * float(np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
+    # an equilateral triangle of edge e has area √3/4 e²
+    needed = float(np.sqrt(4.0 * area / (np.sqrt(3.0) * cap))) / h
+    if needed > edge:
+        facts["edge_length_voxels_for_max_faces"] = round(needed, 4)
+        return needed
+    return edge
+
+
 def _refuse_far_topology(topology: dict, max_gap: int) -> None:
     """Raise when the (denoised) region φ < 0 is farther than ``max_gap`` from one genus-0 solid."""
     gap = topology_gap(topology)
@@ -191,6 +210,9 @@ class ShapeGradient(Method):
         "strict_topology": Param(False, "refuse (error) when the region φ < 0 is not compatible with one genus-0 "
                                  "surface (several components, handles, cavities); otherwise info['topology'] "
                                  "and a warning say so", bool),
+        "max_faces": Param(1_000_000, "the remeshing keeps about this many faces at most: where the surface's area "
+                           "needs more triangles of edge_length, the edge length grows (info['init']); 0 = no cap",
+                           int, min=0),
         "max_topology_gap": Param(5, "refuse (error, before any iteration) a volume whose region φ < 0, read after "
                                   "smoothing (σ ≥ 1 voxel; noise below 0.1 voxel), is farther than this from one genus-0 solid: "
                                   "(components − 1) + |χ − 1| at its most favourable level and connectivity — about "
@@ -278,7 +300,8 @@ class ShapeGradient(Method):
             init_center=cfg["init_center"], values=values, pinhole_below=pinhole_below)
         if init_facts["kind"] == "genus0":
             init_facts["pinhole_below_voxels"] = round(pinhole_below, 4)
-        settings = FlowSettings.resolve(cfg, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,
+        edge = _edge_length_voxels(cfg, x, faces, volume.h, init_facts)
+        settings = FlowSettings.resolve({**cfg, "edge_length": edge}, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,
                                         join_below=join_below, remesh_start=init_facts["kind"] == "genus0")
         field = smoothed_field(volume, sigma, cfg["presmooth_phi"])
         if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):

@@ -6,8 +6,10 @@
 * :mod:`~bench.run.cell` — one cell from its parameters alone (volume, method, cost, metrics);
 * :mod:`~bench.run.executors` — where cells run (local processes, Dask);
 * :mod:`~bench.run.store` — the run folder's files, written atomically;
+* :mod:`~bench.run.checkpoints` — when a running grid writes its results tables;
 * :mod:`~bench.run.provenance` — versions, git commit, machine;
-* :mod:`~bench.run.runner` — :func:`run_grid`, which ties them together.
+* :mod:`~bench.run.runner` — :func:`run_grid`, which ties them together, run as its
+  :class:`~bench.run.options.RunOptions` say.
 
 >>> from bench.config import builtin_config
 >>> from bench.run import expand_grid, run_cell, run_grid
@@ -19,8 +21,9 @@ from .cell import failed_result, run_cell
 from .contracts import Cell, CellResult
 from .executors import LocalExecutor
 from .grid import cell_id, expand_grid
+from .options import RunOptions
 from .runner import RunSummary, run_grid
 from .store import load_cells, write_results_csv
 
-__all__ = ["Cell", "CellResult", "expand_grid", "cell_id", "run_cell", "failed_result", "run_grid", "RunSummary",
-           "LocalExecutor", "load_cells", "write_results_csv"]
+__all__ = ["Cell", "CellResult", "LocalExecutor", "RunOptions", "RunSummary", "cell_id", "expand_grid", "failed_result",
+           "load_cells", "run_cell", "run_grid", "write_results_csv"]

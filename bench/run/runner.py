@@ -16,7 +16,7 @@ import os
 import shutil
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,12 +33,13 @@ from .grid import expand_grid
 from .identity import MixedCodeError, changed_methods, code_identity, config_fingerprint, mixed_code
 from .inputs import ExecutorSpec, check_run_inputs
 from .integrity import UNSEALED
-from .limits import TimeLimits, default_memory_gb
+from .limits import TimeLimits
 from .lock import RunLock
+from .options import RunOptions, memory_limit, time_limits
 from .provenance import environment
 from .store import CACHE_DIR, IGNORED, clean_temp_files, read_json, save_cell, scan_cells, write_json
 
-__all__ = ["RunSummary", "memory_limit", "run_grid", "time_limits"]
+__all__ = ["RunOptions", "RunSummary", "memory_limit", "run_grid", "time_limits"]
 
 STATUSES = ("ok", "invalid", "failed", "timeout")
 #: the method declined the cell's input (:meth:`methods.Method.skip_reason`): a row, not a failure; counted in
@@ -192,31 +193,12 @@ class _Progress:
         self.bar.close()
 
 
-def time_limits(cfg, timeout: float | None = None, method_timeout: float | None = None,
-                score_timeout: float | None = None) -> TimeLimits:
-    """The run's :class:`TimeLimits`: each argument overrides the config's (None: the config's, 0: none)."""
-    def pick(arg, conf):
-        return conf if arg is None else (arg or None)
-
-    return TimeLimits(pick(timeout, cfg.timeout), pick(method_timeout, getattr(cfg, "method_timeout", None)),
-                      pick(score_timeout, getattr(cfg, "score_timeout", None)))
-
-
 def _changed_note(method: str, entry: dict) -> str:
     n = len(entry["cells"])
     where = f" (plug-in {', '.join(entry['files'])})" if entry["files"] else ""
     why = ("its cells were computed before the suite recorded a plug-in's code" if entry["unknown"]
            else "changed since its cells were computed")
     return f"note: method {method!r} {why}{where}; rerunning its {n} cell{'s' if n != 1 else ''}"
-
-
-def memory_limit(cfg, memory_gb: float | None, jobs: int) -> float | None:
-    """GB of address space per cell process: ``memory_gb`` (None: the config's ``run.memory_limit``; absent
-    there too: :func:`bench.run.limits.default_memory_gb` of ``jobs``), None for no limit (0)."""
-    value = getattr(cfg, "memory_limit", None) if memory_gb is None else memory_gb
-    if value is None:
-        return default_memory_gb(jobs)
-    return float(value) or None
 
 
 def _load_done(out: Path, cells: list[Cell], resume: bool, retry_failed: bool,
@@ -267,11 +249,7 @@ def _set_aside(out: Path, known: dict, records: dict) -> None:
                         f"as cells/*.json{REJECTED}: {shown}"), file=sys.stderr)
 
 
-def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = False, retry_failed: bool = False,
-             timeout: float | None = None, save_meshes: bool = False, progress: bool | None = None,
-             argv: list[str] | None = None, executor=None, method_timeout: float | None = None,
-             score_timeout: float | None = None, allow_mixed_code: bool = False,
-             memory_gb: float | None = None, force: bool = False) -> RunSummary:
+def run_grid(cfg, out: str | Path, options: RunOptions | None = None, **overrides) -> RunSummary:
     """Run every cell of the validated config ``cfg`` into the folder ``out``.
 
     Every input is checked first (:func:`~bench.run.inputs.check_run_inputs`: an :class:`~phantoms.InputError`
@@ -283,32 +261,11 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
         The validated grid configuration.
     out : str or Path
         The run folder (created; with ``resume``, an earlier run's folder).
-    jobs : int, optional
-        Cells at once with the local executor (default: the CPU count).
-    resume : bool
-        Skip the cells already finished in ``out``; its config must give the same grid and its cells must come
-        from the same code (unless ``allow_mixed_code``).
-    retry_failed : bool
-        With ``resume``: run the failed and timed-out cells again.
-    timeout, method_timeout, score_timeout : float, optional
-        Seconds per cell, per method run and per scoring (None: the config's, 0: none; :mod:`bench.run.limits`).
-    save_meshes : bool
-        Also write each cell's final mesh as a PLY file.
-    progress : bool, optional
-        Show a progress bar (default: when stderr is a terminal, else plain progress lines; False: neither).
-    argv : list of str, optional
-        The command line recorded in run.json.
-    executor : bench.run.inputs.ExecutorSpec or object, optional
-        An :class:`~bench.run.inputs.ExecutorSpec` (``dask``: the runner starts the cluster after the checks and
-        closes it), or any object with ``run(cells, on_start, on_result)``; default a :class:`LocalExecutor`.
-    allow_mixed_code : bool
-        With ``resume``: accept cells written by other code.
-    memory_gb : float, optional
-        Address space of each local cell process in GB (None: the config's ``run.memory_limit``, else 75 % of
-        the physical memory divided by ``jobs``; 0: none).
-    force : bool
-        Run the cells whose method's cost estimate exceeds their time limit (also the config's ``run.force``);
-        otherwise they are failed rows at once (:mod:`bench.run.estimate`).
+    options : RunOptions, optional
+        How to run it: jobs, resume, limits, executor ... (default: :class:`~bench.run.options.RunOptions`'s).
+    **overrides
+        Fields of :class:`~bench.run.options.RunOptions` replacing those of ``options``:
+        ``run_grid(cfg, out, jobs=2, resume=True)`` is ``run_grid(cfg, out, RunOptions(jobs=2, resume=True))``.
 
     Returns
     -------
@@ -321,17 +278,19 @@ def run_grid(cfg, out: str | Path, *, jobs: int | None = None, resume: bool = Fa
         A bad input (folder, config, limits, executor) — before anything runs.
     geometry.files.WriteError
         A write error (disk full, ...), after the finished cells are saved.
+    TypeError
+        An override that is no field of :class:`~bench.run.options.RunOptions`.
     """
+    opts = replace(options or RunOptions(), **overrides)
     out = Path(out)
-    executor = check_run_inputs(cfg, out, jobs=jobs, resume=resume, retry_failed=retry_failed,
-                                allow_mixed_code=allow_mixed_code, timeout=timeout, method_timeout=method_timeout,
-                                score_timeout=score_timeout, memory_gb=memory_gb, executor=executor)
-    with RunLock(out), _started(executor, cfg, out, time_limits(cfg, timeout, method_timeout, score_timeout)) as ex:
+    executor = check_run_inputs(cfg, out, jobs=opts.jobs, resume=opts.resume, retry_failed=opts.retry_failed,
+                                allow_mixed_code=opts.allow_mixed_code, timeout=opts.timeout,
+                                method_timeout=opts.method_timeout, score_timeout=opts.score_timeout,
+                                memory_gb=opts.memory_gb, executor=opts.executor)
+    limits = time_limits(cfg, opts.timeout, opts.method_timeout, opts.score_timeout)
+    with RunLock(out), _started(executor, cfg, out, limits) as ex:
         clean_temp_files(out)
-        return _run_locked(cfg, out, jobs=jobs, resume=resume, retry_failed=retry_failed, timeout=timeout,
-                           save_meshes=save_meshes, progress=progress, argv=argv, executor=ex,
-                           allow_mixed_code=allow_mixed_code, method_timeout=method_timeout,
-                           score_timeout=score_timeout, memory_gb=memory_gb, force=force)
+        return _run_locked(cfg, out, opts, ex)
 
 
 @contextlib.contextmanager
@@ -364,48 +323,82 @@ def _expected_cost(cell: Cell) -> float:
     return rel * (cell.n / 96.0) ** 3 * (1.5 if cell.noise != "none" else 1.0)
 
 
-def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_meshes, progress, argv, executor,
-                allow_mixed_code, method_timeout=None, score_timeout=None, memory_gb=None,
-                force=False) -> RunSummary:
+@dataclass
+class _Plan:
+    """A session decided before any cell runs: the grid, what is done and kept, what to run, the limits and
+    the session's entry of run.json."""
+
+    cells: list[Cell]
+    todo: list[Cell]                  # the dearest first
+    records: dict[str, dict]          # {cell_id: record} of the finished cells: filled as cells finish
+    known: dict[str, dict | None]     # {cell_id: checksum} of the sealed records found or written
+    mixed: dict                       # {code: cells} when versions of the code are mixed
+    limits: TimeLimits
+    jobs: int
+    memory: float | None              # GB per local cell process
+    force: bool
+    code: dict
+    session: dict
+
+
+def _plan(cfg, out: Path, opts: RunOptions, executor) -> _Plan:
+    """The session's plan from the config, the options and the folder's finished cells; records the config
+    (``config.json``) before anything runs."""
     cells = expand_grid(cfg)
-    limits = time_limits(cfg, timeout, method_timeout, score_timeout)
-    force = bool(force or getattr(cfg, "force", False))
-    jobs = jobs or os.cpu_count() or 1
-    memory = memory_limit(cfg, memory_gb, jobs) if executor is None else None   # local cells only
-    records, mixed, changed, known = _load_done(out, cells, resume, retry_failed, allow_mixed_code)
+    limits = time_limits(cfg, opts.timeout, opts.method_timeout, opts.score_timeout)
+    force = bool(opts.force or cfg.force)
+    jobs = opts.jobs or os.cpu_count() or 1
+    memory = memory_limit(cfg, opts.memory_gb, jobs) if executor is None else None   # local cells only
+    records, mixed, changed, known = _load_done(out, cells, opts.resume, opts.retry_failed, opts.allow_mixed_code)
     write_json(out / "config.json", cfg.to_dict())
     code = code_identity()
     todo = sorted((c for c in cells if c.cell_id not in records), key=_expected_cost, reverse=True)
-    summary = RunSummary(out=out, total=len(cells), skipped=len(cells) - len(todo))
-    session = {"start": _now(), "argv": argv if argv is not None else sys.argv[1:], "jobs": jobs,
+    session = {"start": _now(), "argv": opts.argv if opts.argv is not None else sys.argv[1:], "jobs": jobs,
                **limits.to_dict(), "memory_limit_gb": memory, "cells_to_run": len(todo),
                "resumed_from": len(cells) - len(todo),
-               "code": code, "allow_mixed_code": bool(allow_mixed_code), "force": force,
+               "code": code, "allow_mixed_code": bool(opts.allow_mixed_code), "force": force,
                **({"methods_changed": changed} if changed else {}),
                "executor": (executor.describe() if hasattr(executor, "describe") else {"executor": "local"})}
-    log = RunLog(out, cfg, len(cells), session, resume)
-    log.mixed_code = mixed
+    return _Plan(cells, todo, records, known, mixed, limits, jobs, memory, force, code, session)
+
+
+def _count(summary: RunSummary, records: dict[str, dict]) -> None:
+    """Add the finished cells to the summary's counts by status."""
+    for r in records.values():
+        st = r["row"].get("status")
+        if st in STATUSES:
+            setattr(summary, st, getattr(summary, st) + 1)
+        elif st == SKIPPED:
+            summary.statuses[st] = summary.statuses.get(st, 0) + 1
+
+
+def _run_locked(cfg, out: Path, opts: RunOptions, executor) -> RunSummary:
+    plan = _plan(cfg, out, opts, executor)
+    cells, records, known = plan.cells, plan.records, plan.known
+    summary = RunSummary(out=out, total=len(cells), skipped=len(cells) - len(plan.todo))
+    log = RunLog(out, cfg, len(cells), plan.session, opts.resume)
+    log.mixed_code = plan.mixed
     log.write(records, end=False)
-    bar = _Progress(len(cells), summary.skipped, sys.stderr.isatty() if progress is None else progress,
-                    log=progress is None)
+    bar = _Progress(len(cells), summary.skipped, sys.stderr.isatty() if opts.progress is None else opts.progress,
+                    log=opts.progress is None)
     if bar.show:
         bar.bar.write(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
     tables = ResultTables(out, cells, records)
 
     def on_result(cell: Cell, result: CellResult) -> None:
-        known[cell.cell_id] = save_cell(out, cell, result, save_meshes, code=code)
+        known[cell.cell_id] = save_cell(out, cell, result, opts.save_meshes, code=plan.code)
         # a record as stored (and as read back by --resume): plain dicts
-        records[cell.cell_id] = {"row": result.row, "cell": cell.to_dict(), "code": code}
+        records[cell.cell_id] = {"row": result.row, "cell": cell.to_dict(), "code": plan.code}
         tables.finished()
         summary.ran += 1
         bar.finish(cell, result.row)
 
     if executor is None:
-        executor = LocalExecutor(jobs, limits, cache_dir=str(out / CACHE_DIR), preload=list(cfg.imports),
-                                 memory_gb=memory)
+        executor = LocalExecutor(plan.jobs, plan.limits, cache_dir=str(out / CACHE_DIR), preload=list(cfg.imports),
+                                 memory_gb=plan.memory)
     error = None
     try:
-        todo = screen_cells(todo, limits, force, bar.start, on_result)   # over their cost estimate: failed rows
+        todo = screen_cells(plan.todo, plan.limits, plan.force, bar.start, on_result)   # over their estimate: failed
         executor.run(todo, bar.start, on_result)
     except BaseException as exc:
         error = exc
@@ -413,12 +406,7 @@ def _run_locked(cfg, out: Path, *, jobs, resume, retry_failed, timeout, save_mes
     finally:
         bar.close()
         _set_aside(out, known, records)
-        for r in records.values():
-            st = r["row"].get("status")
-            if st in STATUSES:
-                setattr(summary, st, getattr(summary, st) + 1)
-            elif st == SKIPPED:
-                summary.statuses[st] = summary.statuses.get(st, 0) + 1
+        _count(summary, records)
         summary.seconds = time.time() - log.started
         try:  # after a write error these may fail too: the first error is the one to report
             tables.write()

@@ -1,0 +1,56 @@
+"""bench.run.options.RunOptions: run_grid's options as one frozen value; keywords override its fields, an unknown
+one is a TypeError before anything is written."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+from bench.config import builtin_config
+from bench.run import RunOptions, run_grid
+from bench.run.contracts import CellResult
+
+
+class _InstantExecutor:
+    """A made-up ``ok`` row per cell, at once (the options are under test, not the cells)."""
+
+    def run(self, cells, on_start, on_result) -> None:
+        for i, cell in enumerate(sorted(cells, key=lambda c: c.cell_id)):
+            on_start(cell)
+            on_result(cell, CellResult(row={"cell_id": cell.cell_id, "phantom": cell.phantom, "method": cell.method,
+                                            "label": cell.label, "hausdorff_h": 0.5 + i / 8, "status": "ok",
+                                            "error": ""}))
+
+
+def _cfg():
+    cfg = builtin_config("quick")
+    cfg.n = [16]
+    return cfg
+
+
+def _session(out) -> dict:
+    return json.loads((out / "run.json").read_text())["sessions"][-1]
+
+
+def test_options_and_keywords_run_the_same_grid(tmp_path):
+    opts = RunOptions(jobs=3, progress=False, argv=["run", "--quick"], executor=_InstantExecutor())
+    a = run_grid(_cfg(), tmp_path / "a", opts)
+    b = run_grid(_cfg(), tmp_path / "b", jobs=3, progress=False, argv=["run", "--quick"], executor=_InstantExecutor())
+    assert (a.ok, a.ran, b.ok, b.ran) == (12, 12, 12, 12)
+    assert (tmp_path / "a" / "results.csv").read_bytes() == (tmp_path / "b" / "results.csv").read_bytes()
+    for out in (tmp_path / "a", tmp_path / "b"):
+        assert (_session(out)["argv"], _session(out)["jobs"]) == (["run", "--quick"], 3)
+
+
+def test_keywords_override_the_options_and_an_unknown_one_is_refused_before_anything_is_written(tmp_path):
+    opts = RunOptions(jobs=3, progress=False, argv=["first"], executor=_InstantExecutor())
+    run_grid(_cfg(), tmp_path / "run", opts, jobs=1, argv=["second"])
+    assert (_session(tmp_path / "run")["argv"], _session(tmp_path / "run")["jobs"]) == (["second"], 1)
+    assert opts.jobs == 3                                      # the options themselves are unchanged
+    with pytest.raises(TypeError, match="jbos"):
+        run_grid(_cfg(), tmp_path / "typo", opts, jbos=2)
+    assert not (tmp_path / "typo").exists()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        opts.jobs = 2

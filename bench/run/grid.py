@@ -23,7 +23,7 @@ from phantoms.user import parse_spec
 
 from .contracts import Cell
 
-__all__ = ["cell_id", "as_cell", "expand_grid", "canonical_json", "slug"]
+__all__ = ["as_cell", "canonical_json", "cell_id", "expand_grid", "slug"]
 
 
 def slug(text: str) -> str:
@@ -133,8 +133,8 @@ def method_codes(names) -> dict[str, dict | None]:
 def _inputs(cfg):
     """(index, noise setting, degradation) of the grid's inputs: each noise setting undegraded, then each
     degradation without noise (a degradation is the input's own error model; noise is not added to it)."""
-    degrades = [d for d in getattr(cfg, "degrade", ["none"]) if d != "none"]
-    plain_too = "none" in getattr(cfg, "degrade", ["none"])
+    degrades = [d for d in cfg.degrade if d != "none"]
+    plain_too = "none" in cfg.degrade
     out = [(k, noise, "none") for k, noise in enumerate(cfg.noise)] if plain_too else []
     none = next((s for s in cfg.noise if s.kind == "none"), None)
     none = none or replace(cfg.noise[0], kind="none", snr=None)
@@ -174,7 +174,7 @@ def expand_grid(cfg) -> list[Cell]:
         duplicate cells.
     """
     cells = []
-    one = getattr(cfg, "vary", "all") == "one_at_a_time"
+    one = cfg.vary == "one_at_a_time"
     codes = method_codes(dict.fromkeys(spec.name for spec in cfg.methods))
     for phantom, source in expand_phantoms(cfg.phantoms):
         fingerprint = input_fingerprint(source)

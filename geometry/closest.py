@@ -1,14 +1,23 @@
-"""Exact unsigned distance from points to a triangle mesh: a uniform grid of triangle boxes, searched in shells.
+"""The closest point on a triangle, and the exact unsigned distance from points to a triangle mesh.
 
-The metrics' truth → mesh and band → mesh distances query ~10⁵ points that all lie within a few grid steps of
-the mesh.  The triangles are bucketed into a uniform grid whose cell is about twice the mean triangle size
-(each triangle in every cell its bounding box overlaps); a point's search visits the cells at Chebyshev
-distance 0, 1, 2, … from its own cell and stops as soon as the closest triangle found is no farther than the
-boundary of the visited block — every triangle outside the block is at least that far, so the answer is exact
-(the closest point on a triangle by Ericson's region test, in double precision).  Inside the block a cell
-farther from the point than the best distance so far is not opened: a closer triangle would have its closest
-point in a cell it is bucketed in, and that cell would be closer.  A point far outside the
-mesh's box is searched the same way from the nearest cell.
+The point–triangle kernel
+    :func:`point_triangle` is Ericson's region test (*Real-Time Collision Detection*, 5.1.5) in double precision,
+    compiled: the squared distance, the feature the closest point lies on (:data:`FACE`, a vertex :data:`VA` …,
+    an edge :data:`EAB` …), its barycentric coordinates and the point.  A degenerate triangle — zero area, or one
+    whose region test divides by zero — is its three edges.  It is the suite's one point–triangle test: the
+    metrics' distance below, the mesh phantoms' search index (:func:`closest_on_faces`) and their grid signed
+    distance (``phantoms.mesh.grid_kernels``) all call it.  :func:`closest_point_on_triangles` is its numpy
+    reference, equal bit for bit (the tests hold them to it).
+
+The distance to a mesh
+    The metrics' truth → mesh and band → mesh distances query ~10⁵ points that all lie within a few grid steps
+    of the mesh.  The triangles are bucketed into a uniform grid whose cell is about twice the mean triangle size
+    (each triangle in every cell its bounding box overlaps); a point's search visits the cells at Chebyshev
+    distance 0, 1, 2, … from its own cell and stops as soon as the closest triangle found is no farther than the
+    boundary of the visited block — every triangle outside the block is at least that far, so the answer is
+    exact.  Inside the block a cell farther from the point than the best distance so far is not opened: a closer
+    triangle would have its closest point in a cell it is bucketed in, and that cell would be closer.  A point
+    far outside the mesh's box is searched the same way from the nearest cell.
 
 Why not pymeshlab's ``compute_scalar_by_distance_from_another_mesh_per_vertex``: it returns float32 and is
 slower on these queries; this search also releases the GIL, so the metrics run it beside numpy's work (timings
@@ -18,14 +27,19 @@ search with a brute-force numpy distance and with pymeshlab.
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
 import numba
+import numpy as np
 
-__all__ = ["point_mesh_distance", "MAX_CELLS"]
+__all__ = ["point_mesh_distance", "point_triangle", "triangle_point", "closest_on_faces", "closest_point_on_triangles",
+           "MAX_CELLS", "FACE", "VA", "VB", "VC", "EAB", "EBC", "ECA"]
 
-#: error_model="numpy": a division by zero gives inf/nan instead of raising (none happens: degenerate triangles
-#: are handled first), and the compiler need not check every division
+#: the feature of a triangle (a, b, c) its closest point lies on: the interior, a vertex, an edge
+FACE, VA, VB, VC, EAB, EBC, ECA = range(7)
+
+#: error_model="numpy": a division by zero gives inf/nan instead of raising (the point–triangle test then takes the
+#: triangle's edges), and the compiler need not check every division
 _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 #: at most this many grid cells (memory: one int64 per cell plus one int32 per triangle-cell pair)
@@ -65,73 +79,128 @@ def _bucket(lo, cell, dims, tmin, tmax):
 
 
 @_jit
-def _seg_dist2(px, py, pz, a0, a1, a2, b0, b1, b2):
+def _segment(px, py, pz, a0, a1, a2, b0, b1, b2):
+    """(squared distance, s) from p to the segment a + s (b − a), s ∈ [0, 1] (s = 0 when a = b)."""
     ex, ey, ez = b0 - a0, b1 - a1, b2 - a2
     ee = ex * ex + ey * ey + ez * ez
     s = 0.0
     if ee > 0.0:
         s = min(max(((px - a0) * ex + (py - a1) * ey + (pz - a2) * ez) / ee, 0.0), 1.0)
-    return (px - a0 - s * ex) ** 2 + (py - a1 - s * ey) ** 2 + (pz - a2 - s * ez) ** 2
+    return (px - a0 - s * ex) ** 2 + (py - a1 - s * ey) ** 2 + (pz - a2 - s * ez) ** 2, s
 
 
 @_jit
-def _tri_dist2(px, py, pz, tri, t):
-    """Squared distance from p to triangle ``tri[t]`` = (a, b, c): Ericson, Real-Time Collision Detection,
-    5.1.5.  (Scalars only: an array view per call costs more than the test itself.)"""
-    a = (tri[t, 0, 0], tri[t, 0, 1], tri[t, 0, 2])
-    b = (tri[t, 1, 0], tri[t, 1, 1], tri[t, 1, 2])
-    c = (tri[t, 2, 0], tri[t, 2, 1], tri[t, 2, 2])
-    ux, uy, uz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-    wx, wy, wz = c[0] - a[0], c[1] - a[1], c[2] - a[2]
-    nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-    if nx * nx + ny * ny + nz * nz == 0.0:     # a degenerate (zero-area) triangle: its edges decide
-        return min(_seg_dist2(px, py, pz, a[0], a[1], a[2], b[0], b[1], b[2]),
-                   min(_seg_dist2(px, py, pz, b[0], b[1], b[2], c[0], c[1], c[2]),
-                       _seg_dist2(px, py, pz, c[0], c[1], c[2], a[0], a[1], a[2])))
-    abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-    acx, acy, acz = c[0] - a[0], c[1] - a[1], c[2] - a[2]
-    apx, apy, apz = px - a[0], py - a[1], pz - a[2]
+def _on_edges(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """:func:`point_triangle` for a degenerate triangle: the closest point of its three edges (ab, bc, ca; the
+    first of equally near ones)."""
+    d, s = _segment(px, py, pz, ax, ay, az, bx, by, bz)
+    e = 0
+    d1, s1 = _segment(px, py, pz, bx, by, bz, cx, cy, cz)
+    if d1 < d:
+        d, s, e = d1, s1, 1
+    d2, s2 = _segment(px, py, pz, cx, cy, cz, ax, ay, az)
+    if d2 < d:
+        d, s, e = d2, s2, 2
+    if e == 0:
+        feature = VA if s == 0.0 else (VB if s == 1.0 else EAB)
+        return d, feature, 1.0 - s, s, 0.0, ax + s * (bx - ax), ay + s * (by - ay), az + s * (bz - az)
+    if e == 1:
+        feature = VB if s == 0.0 else (VC if s == 1.0 else EBC)
+        return d, feature, 0.0, 1.0 - s, s, bx + s * (cx - bx), by + s * (cy - by), bz + s * (cz - bz)
+    feature = VC if s == 0.0 else (VA if s == 1.0 else ECA)
+    return d, feature, s, 0.0, 1.0 - s, cx + s * (ax - cx), cy + s * (ay - cy), cz + s * (az - cz)
+
+
+@_jit
+def point_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """The closest point of triangle (a, b, c) to p: Ericson, *Real-Time Collision Detection*, 5.1.5.
+
+    Returns ``(d2, feature, ba, bb, bc, qx, qy, qz)``: the squared distance |p − q|², the feature q lies on
+    (:data:`FACE`, :data:`VA` … :data:`ECA`), its barycentric coordinates (q = ba a + bb b + bc c) and q.
+    A degenerate triangle — zero area (|ab × ac|² = 0), or one whose region test divides by zero — is its
+    three edges (:func:`_on_edges`): the one rule for every caller.  Scalars in and out: an array view per
+    call costs more than the test itself.  :func:`closest_point_on_triangles` is the numpy reference, equal
+    bit for bit.
+    """
+    abx, aby, abz = bx - ax, by - ay, bz - az
+    acx, acy, acz = cx - ax, cy - ay, cz - az
+    nx, ny, nz = aby * acz - abz * acy, abz * acx - abx * acz, abx * acy - aby * acx
+    if nx * nx + ny * ny + nz * nz == 0.0:
+        return _on_edges(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
+    apx, apy, apz = px - ax, py - ay, pz - az
     d1 = abx * apx + aby * apy + abz * apz
     d2 = acx * apx + acy * apy + acz * apz
+    bpx, bpy, bpz = px - bx, py - by, pz - bz
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    cpx, cpy, cpz = px - cx, py - cy, pz - cz
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    vc = d1 * d4 - d3 * d2
+    vb = d5 * d2 - d1 * d6
+    va = d3 * d6 - d5 * d4
     if d1 <= 0.0 and d2 <= 0.0:
-        qx, qy, qz = a[0], a[1], a[2]
+        feature, ba, bb, bc, qx, qy, qz = VA, 1.0, 0.0, 0.0, ax, ay, az
+    elif d3 >= 0.0 and d4 <= d3:
+        feature, ba, bb, bc, qx, qy, qz = VB, 0.0, 1.0, 0.0, bx, by, bz
+    elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        feature, ba, bb, bc, qx, qy, qz = EAB, 1.0 - v, v, 0.0, ax + v * abx, ay + v * aby, az + v * abz
+    elif d6 >= 0.0 and d5 <= d6:
+        feature, ba, bb, bc, qx, qy, qz = VC, 0.0, 0.0, 1.0, cx, cy, cz
+    elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        feature, ba, bb, bc, qx, qy, qz = ECA, 1.0 - w, 0.0, w, ax + w * acx, ay + w * acy, az + w * acz
+    elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        feature, ba, bb, bc = EBC, 0.0, 1.0 - w, w
+        qx, qy, qz = bx + w * (cx - bx), by + w * (cy - by), bz + w * (cz - bz)
     else:
-        bpx, bpy, bpz = px - b[0], py - b[1], pz - b[2]
-        d3 = abx * bpx + aby * bpy + abz * bpz
-        d4 = acx * bpx + acy * bpy + acz * bpz
-        if d3 >= 0.0 and d4 <= d3:
-            qx, qy, qz = b[0], b[1], b[2]
-        else:
-            vc = d1 * d4 - d3 * d2
-            if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-                v = d1 / (d1 - d3)
-                qx, qy, qz = a[0] + v * abx, a[1] + v * aby, a[2] + v * abz
-            else:
-                cpx, cpy, cpz = px - c[0], py - c[1], pz - c[2]
-                d5 = abx * cpx + aby * cpy + abz * cpz
-                d6 = acx * cpx + acy * cpy + acz * cpz
-                if d6 >= 0.0 and d5 <= d6:
-                    qx, qy, qz = c[0], c[1], c[2]
-                else:
-                    vb = d5 * d2 - d1 * d6
-                    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-                        w = d2 / (d2 - d6)
-                        qx, qy, qz = a[0] + w * acx, a[1] + w * acy, a[2] + w * acz
-                    else:
-                        va = d3 * d6 - d5 * d4
-                        if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-                            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-                            qx = b[0] + w * (c[0] - b[0])
-                            qy = b[1] + w * (c[1] - b[1])
-                            qz = b[2] + w * (c[2] - b[2])
-                        else:
-                            den = va + vb + vc             # = |ab × ac|² > 0
-                            v = vb / den
-                            w = vc / den
-                            qx = a[0] + abx * v + acx * w
-                            qy = a[1] + aby * v + acy * w
-                            qz = a[2] + abz * v + acz * w
-    return (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
+        den = va + vb + vc                          # = |ab × ac|² > 0 but for rounding
+        v = vb / den
+        w = vc / den
+        feature, ba, bb, bc = FACE, 1.0 - v - w, v, w
+        qx, qy, qz = ax + abx * v + acx * w, ay + aby * v + acy * w, az + abz * v + acz * w
+    if not (math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz)):
+        return _on_edges(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
+    return (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2, feature, ba, bb, bc, qx, qy, qz
+
+
+@_jit
+def triangle_point(px, py, pz, tri, t):
+    """:func:`point_triangle` for triangle ``tri[t]`` of a (F, 3, 3) array."""
+    return point_triangle(px, py, pz, tri[t, 0, 0], tri[t, 0, 1], tri[t, 0, 2], tri[t, 1, 0], tri[t, 1, 1],
+                          tri[t, 1, 2], tri[t, 2, 0], tri[t, 2, 1], tri[t, 2, 2])
+
+
+@_jit
+def _closest_pairs(points, tri, face, d, x, bary, feature):
+    for m in range(points.shape[0]):
+        d2, f, ba, bb, bc, qx, qy, qz = triangle_point(points[m, 0], points[m, 1], points[m, 2], tri, face[m])
+        d[m] = math.sqrt(d2)
+        feature[m] = f
+        bary[m, 0], bary[m, 1], bary[m, 2] = ba, bb, bc
+        x[m, 0], x[m, 1], x[m, 2] = qx, qy, qz
+
+
+def closest_on_faces(points, tri, face):
+    """The closest point of triangle ``tri[face[m]]`` to ``points[m]``, for every m (compiled).
+
+    Parameters
+    ----------
+    points : (M, 3) float array.
+    tri : (F, 3, 3) float array, C-contiguous: the corners of each triangle.
+    face : (M,) int array of indices into ``tri``.
+
+    Returns
+    -------
+    distance (M,), closest point (M, 3), barycentric coordinates (M, 3), feature (M,) int8 (:data:`FACE` …).
+    """
+    p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
+    m = len(p)
+    d, x, bary, feature = np.empty(m), np.empty((m, 3)), np.empty((m, 3)), np.empty(m, np.int8)
+    _closest_pairs(p, np.ascontiguousarray(tri, np.float64), np.asarray(face, np.int64), d, x, bary, feature)
+    return d, x, bary, feature
 
 
 @_jit
@@ -171,7 +240,7 @@ def _query(points, tri, lo, cell, dims, start, items):
                             if stamp[t] == q:
                                 continue
                             stamp[t] = q
-                            d = _tri_dist2(px, py, pz, tri, t)
+                            d = triangle_point(px, py, pz, tri, t)[0]
                             if d < best:
                                 best = d
             # every triangle not yet seen lies outside the block [i0, i1 + 1) × … of cells: at least as far
@@ -238,3 +307,91 @@ def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = No
     out = np.empty(len(p))
     out[order] = _query(np.ascontiguousarray(p[order]), tri, lo, cell, dims, start, items)
     return out
+
+
+# ------------------------------------------------------------------------------------------ the numpy reference
+def _segments_np(p, a, b):
+    """:func:`_segment` row by row: (squared distance, s)."""
+    ex, ey, ez = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1], b[:, 2] - a[:, 2]
+    ee = ex * ex + ey * ey + ez * ez
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = ((p[:, 0] - a[:, 0]) * ex + (p[:, 1] - a[:, 1]) * ey + (p[:, 2] - a[:, 2]) * ez) / ee
+    s = np.where(ee > 0.0, np.minimum(np.maximum(t, 0.0), 1.0), 0.0)
+    d = (p[:, 0] - a[:, 0] - s * ex) ** 2 + (p[:, 1] - a[:, 1] - s * ey) ** 2 + (p[:, 2] - a[:, 2] - s * ez) ** 2
+    return d, s
+
+
+def _on_edges_np(p, a, b, c):
+    """:func:`_on_edges` row by row: (d2, feature, bary, q)."""
+    corners = (a, b, c)
+    best, s = _segments_np(p, a, b)
+    edge = np.zeros(len(p), np.int64)
+    for e in (1, 2):
+        d, se = _segments_np(p, corners[e], corners[(e + 1) % 3])
+        closer = d < best
+        best, s, edge = np.where(closer, d, best), np.where(closer, se, s), np.where(closer, e, edge)
+    bary = np.zeros((len(p), 3))
+    q = np.empty((len(p), 3))
+    feature = np.empty(len(p), np.int8)
+    for e, (on_edge, at_start, at_end) in enumerate(((EAB, VA, VB), (EBC, VB, VC), (ECA, VC, VA))):
+        k = edge == e
+        start, end, se = corners[e][k], corners[(e + 1) % 3][k], s[k]
+        q[k] = start + se[:, None] * (end - start)
+        bary[k, e], bary[k, (e + 1) % 3] = 1.0 - se, se
+        feature[k] = np.where(se == 0.0, at_start, np.where(se == 1.0, at_end, on_edge))
+    return best, feature, bary, q
+
+
+def closest_point_on_triangles(p, a, b, c):
+    """:func:`point_triangle` row by row in numpy: the reference the compiled kernel equals bit for bit.
+
+    Parameters
+    ----------
+    p, a, b, c : (M, 3) float arrays: the points and the corners of their triangles.
+
+    Returns
+    -------
+    d2 (M,) squared distances, feature (M,) int8, bary (M, 3) barycentric coordinates, q (M, 3) closest points.
+    """
+    p, a, b, c = (np.asarray(x, np.float64).reshape(-1, 3) for x in (p, a, b, c))
+    ab, ac = b - a, c - a
+    n = np.stack([ab[:, 1] * ac[:, 2] - ab[:, 2] * ac[:, 1], ab[:, 2] * ac[:, 0] - ab[:, 0] * ac[:, 2],
+                  ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0]], axis=1)
+
+    def dot(u, w):
+        return u[:, 0] * w[:, 0] + u[:, 1] * w[:, 1] + u[:, 2] * w[:, 2]
+
+    degenerate = dot(n, n) == 0.0
+    ap, bp, cp = p - a, p - b, p - c
+    d1, d2, d3, d4, d5, d6 = dot(ab, ap), dot(ac, ap), dot(ab, bp), dot(ac, bp), dot(ab, cp), dot(ac, cp)
+    vc, vb, va = d1 * d4 - d3 * d2, d5 * d2 - d1 * d6, d3 * d6 - d5 * d4
+    feature = np.select([(d1 <= 0.0) & (d2 <= 0.0), (d3 >= 0.0) & (d4 <= d3), (vc <= 0.0) & (d1 >= 0.0) & (d3 <= 0.0),
+                         (d6 >= 0.0) & (d5 <= d6), (vb <= 0.0) & (d2 >= 0.0) & (d6 <= 0.0),
+                         (va <= 0.0) & ((d4 - d3) >= 0.0) & ((d5 - d6) >= 0.0)],
+                        [VA, VB, EAB, VC, ECA, EBC], default=FACE).astype(np.int8)
+    bary = np.zeros((len(p), 3))
+    q = np.empty((len(p), 3))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        for code, corner in ((VA, a), (VB, b), (VC, c)):
+            k = feature == code
+            bary[k, code - VA] = 1.0
+            q[k] = corner[k]
+        k = feature == EAB
+        v = d1[k] / (d1[k] - d3[k])
+        bary[k, 0], bary[k, 1], q[k] = 1.0 - v, v, a[k] + v[:, None] * ab[k]
+        k = feature == ECA
+        w = d2[k] / (d2[k] - d6[k])
+        bary[k, 0], bary[k, 2], q[k] = 1.0 - w, w, a[k] + w[:, None] * ac[k]
+        k = feature == EBC
+        w = (d4[k] - d3[k]) / ((d4[k] - d3[k]) + (d5[k] - d6[k]))
+        bary[k, 1], bary[k, 2], q[k] = 1.0 - w, w, b[k] + w[:, None] * (c[k] - b[k])
+        k = feature == FACE
+        den = va[k] + vb[k] + vc[k]
+        v, w = vb[k] / den, vc[k] / den
+        bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - v - w, v, w
+        q[k] = a[k] + ab[k] * v[:, None] + ac[k] * w[:, None]
+    d = (p[:, 0] - q[:, 0]) ** 2 + (p[:, 1] - q[:, 1]) ** 2 + (p[:, 2] - q[:, 2]) ** 2
+    bad = degenerate | ~np.isfinite(q).all(axis=1)
+    if bad.any():
+        d[bad], feature[bad], bary[bad], q[bad] = _on_edges_np(p[bad], a[bad], b[bad], c[bad])
+    return d, feature, bary, q

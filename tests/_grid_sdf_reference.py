@@ -32,7 +32,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from phantoms.mesh.closest import VA, VC, segments_min, winding_number
+from geometry.closest import VA, VC
+from phantoms.mesh.closest import segments_min, winding_number
 from phantoms.mesh.index import TriangleIndex
 
 __all__ = ["signed_distance_grid"]

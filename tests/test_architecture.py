@@ -242,6 +242,18 @@ def test_trilinear_sampling_has_one_reference():
     assert primitive_copies(sources, "geometry.trilinear", _TRILINEAR) == []
 
 
+#: Ericson's point–triangle region test: one of its three Voronoi products (``va = d3 * d6 - d5 * d4``, ...)
+_D = r"\bd[1-6](?:\[[^\]]*\])?"
+_POINT_TRIANGLE = re.compile(rf"{_D}\s*\*\s*{_D}\s*-\s*{_D}\s*\*\s*{_D}")
+
+
+def test_the_closest_point_on_a_triangle_has_one_home():
+    """geometry.closest.point_triangle (compiled) and its numpy reference closest_point_on_triangles, equal bit for
+    bit (tests/test_geometry_closest.py), are the one point–triangle test: the metrics' distance, the mesh phantoms'
+    search index and their grid signed distance call it, with one rule for degenerate triangles."""
+    assert primitive_copies(_sources(), "geometry.closest", _POINT_TRIANGLE) == []
+
+
 def test_the_primitive_check_finds_a_copy(tmp_path):
     p = tmp_path / "copy.py"
     p.write_text("vol = float(np.einsum('ij,ij->i', a, np.cross(b, c)).sum()) / 6.0\n")
@@ -256,6 +268,8 @@ def test_the_primitive_check_finds_a_copy(tmp_path):
         assert len(primitive_copies({"copy": p}, "geometry.topology", _EULER)) == 2
         p.write_text("w = (a * uz, a * tz)\nv = (a * uz, b * tz)\n")
         assert len(primitive_copies({"copy": p}, "geometry.trilinear", _TRILINEAR)) == 1
+        p.write_text("va = d3 * d6 - d5 * d4\nvb = d5[sel] * d2[sel] - d1[sel] * d6[sel]\nx = d1 * d4\n")
+        assert len(primitive_copies({"copy": p}, "geometry.closest", _POINT_TRIANGLE)) == 2
     finally:
         REPO = saved
 

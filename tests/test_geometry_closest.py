@@ -1,4 +1,6 @@
-"""geometry/closest.py: exact point-to-mesh distance, against brute force (numpy) and pymeshlab."""
+"""geometry/closest.py: the point–triangle kernel (compiled) equal to its numpy reference bit for bit, against dense
+sampling, its features and barycentrics, the one rule for degenerate triangles; the exact point-to-mesh distance,
+against brute force (numpy) and pymeshlab."""
 
 from __future__ import annotations
 
@@ -7,9 +9,19 @@ import pymeshlab
 import pytest
 import trimesh
 
-from geometry.closest import point_mesh_distance
+from geometry.closest import (
+    EAB,
+    EBC,
+    ECA,
+    FACE,
+    VA,
+    VB,
+    VC,
+    closest_on_faces,
+    closest_point_on_triangles,
+    point_mesh_distance,
+)
 from phantoms import get_phantom
-from phantoms.mesh.closest import closest_point_on_triangles
 
 
 def _brute(points, v, f):
@@ -17,10 +29,71 @@ def _brute(points, v, f):
     a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
     out = np.empty(len(points))
     for i, p in enumerate(points):
-        bary, _ = closest_point_on_triangles(np.broadcast_to(p, a.shape), a, b, c)
-        q = bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
-        out[i] = np.sqrt(((q - p) ** 2).sum(1).min())
+        d2, _, _, _ = closest_point_on_triangles(np.broadcast_to(p, a.shape), a, b, c)
+        out[i] = np.sqrt(d2.min())
     return out
+
+
+def _triangles(m, seed=0):
+    """Random triangles with every tenth one collinear, a segment (a = b), a point, or of 1e-200 area."""
+    rng = np.random.default_rng(seed)
+    a, b, c = (rng.normal(size=(m, 3)) for _ in range(3))
+    c[0::10] = a[0::10] + 0.25 * (b[0::10] - a[0::10])
+    b[1::10] = a[1::10]
+    b[2::10] = c[2::10] = a[2::10]
+    c[3::10] = a[3::10] + 1e-200 * (b[3::10] - a[3::10])
+    return rng.normal(size=(m, 3)) * 2, a, b, c
+
+
+def test_the_kernel_equals_its_numpy_reference_bit_for_bit():
+    p, a, b, c = _triangles(5000)
+    d, x, bary, feat = closest_on_faces(p, np.stack([a, b, c], 1), np.arange(len(p)))
+    d2, feat_ref, bary_ref, x_ref = closest_point_on_triangles(p, a, b, c)
+    np.testing.assert_array_equal(d, np.sqrt(d2))
+    np.testing.assert_array_equal(feat, feat_ref)
+    np.testing.assert_array_equal(bary, bary_ref)
+    np.testing.assert_array_equal(x, x_ref)
+    assert set(np.unique(feat)) == set(range(7))
+
+
+def test_closest_point_on_triangles_matches_dense_sampling():
+    rng = np.random.default_rng(0)
+    a, b, c = (rng.normal(size=(300, 3)) for _ in range(3))
+    p = rng.normal(size=(300, 3)) * 2
+    d2, feat, bary, x = closest_point_on_triangles(p, a, b, c)
+    assert np.all(bary >= -1e-12) and np.allclose(bary.sum(1), 1.0)
+    np.testing.assert_allclose(bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c, x, atol=1e-12)
+    d = np.sqrt(d2)
+    np.testing.assert_allclose(d, np.linalg.norm(p - x, axis=1), rtol=1e-12)
+    # dense barycentric sampling never beats the exact closest point
+    s = np.linspace(0, 1, 81)
+    uu, vv = np.meshgrid(s, s)
+    keep = uu + vv <= 1
+    uu, vv = uu[keep], vv[keep]
+    pts = (1 - uu - vv)[None, :, None] * a[:, None] + uu[None, :, None] * b[:, None] + vv[None, :, None] * c[:, None]
+    dense = np.linalg.norm(pts - p[:, None], axis=2).min(1)
+    assert np.all(d <= dense + 1e-12)
+    assert np.all(dense - d < 0.05 * np.linalg.norm(b - a, axis=1).max())
+    # the feature agrees with the barycentrics: zero where the closest point is off that corner
+    on = bary > 0
+    expect = {FACE: (1, 1, 1), VA: (1, 0, 0), VB: (0, 1, 0), VC: (0, 0, 1), EAB: (1, 1, 0), EBC: (0, 1, 1),
+              ECA: (1, 0, 1)}
+    for code, corners in expect.items():
+        assert np.all(on[feat == code] == np.array(corners, bool)), code
+
+
+def test_a_degenerate_triangle_is_its_three_edges():
+    """Zero area: a collinear triangle, a segment (a = b) and a point give the distance to their edges, with the
+    edge or corner as the feature — one rule, whichever the caller."""
+    a, b, c = np.array([[0.0, 0, 0]]), np.array([[2.0, 0, 0]]), np.array([[1.0, 0, 0]])
+    p = np.array([[1.5, 3.0, 0.0], [-3.0, 4.0, 0.0], [5.0, 0.0, 4.0]])
+    d2, feat, bary, x = closest_point_on_triangles(p, *(np.repeat(t, 3, 0) for t in (a, b, c)))
+    np.testing.assert_array_equal(d2, [9.0, 25.0, 25.0])
+    np.testing.assert_array_equal(x, [[1.5, 0, 0], [0, 0, 0], [2.0, 0, 0]])
+    assert feat.tolist() == [EAB, VA, VB]                       # on ab and bc: the first edge, ab
+    np.testing.assert_array_equal(bary, [[0.25, 0.75, 0], [1, 0, 0], [0, 1, 0]])
+    d2, feat, _, x = closest_point_on_triangles(p[:1], a, a, a)
+    assert d2[0] == 1.5 ** 2 + 9.0 and feat[0] == VA and np.array_equal(x, a)
 
 
 def _pymeshlab(points, v, f):

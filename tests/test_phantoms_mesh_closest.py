@@ -1,33 +1,13 @@
-"""Tests of ``phantoms.mesh.closest``: the exact closest point on triangles (against dense sampling) and the
-generalised winding number of a closed mesh, the point-segment distance and the per-key argmin."""
+"""Tests of ``phantoms.mesh.closest``: the generalised winding number of a closed mesh, the point-segment distance
+and the per-key argmin (the closest point on a triangle: test_geometry_closest.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import trimesh
 
-from phantoms.mesh import closest_point_on_triangles, winding_number
+from phantoms.mesh import winding_number
 from phantoms.mesh.closest import point_segment_distance, segments_min
-
-
-def test_closest_point_on_triangles_matches_dense_sampling():
-    rng = np.random.default_rng(0)
-    a, b, c = (rng.normal(size=(300, 3)) for _ in range(3))
-    p = rng.normal(size=(300, 3)) * 2
-    bary, feat = closest_point_on_triangles(p, a, b, c)
-    assert np.all(bary >= -1e-12) and np.allclose(bary.sum(1), 1.0)
-    x = bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
-    d = np.linalg.norm(p - x, axis=1)
-    # dense barycentric sampling never beats the exact closest point
-    s = np.linspace(0, 1, 81)
-    uu, vv = np.meshgrid(s, s)
-    keep = uu + vv <= 1
-    uu, vv = uu[keep], vv[keep]
-    pts = (1 - uu - vv)[None, :, None] * a[:, None] + uu[None, :, None] * b[:, None] + vv[None, :, None] * c[:, None]
-    dense = np.linalg.norm(pts - p[:, None], axis=2).min(1)
-    assert np.all(d <= dense + 1e-12)
-    assert np.all(dense - d < 0.05 * np.linalg.norm(b - a, axis=1).max())
-    assert set(np.unique(feat)) <= set(range(7))
 
 
 def test_winding_number_of_a_closed_mesh():

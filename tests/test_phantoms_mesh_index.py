@@ -8,16 +8,15 @@ import numpy as np
 import pytest
 import trimesh
 
-from phantoms.mesh import closest_point_on_triangles
+from geometry.closest import closest_point_on_triangles
 from phantoms.mesh.index import TriangleIndex
 
 
 def _brute(v, f, p):
     a, b, c = (np.repeat(v[f[:, k]][None], len(p), 0).reshape(-1, 3) for k in range(3))
     q = np.repeat(p, len(f), 0)
-    bary, _ = closest_point_on_triangles(q, a, b, c)
-    x = bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
-    return np.linalg.norm(q - x, axis=1).reshape(len(p), len(f)).min(1)
+    d2, _, _, _ = closest_point_on_triangles(q, a, b, c)
+    return np.sqrt(d2).reshape(len(p), len(f)).min(1)
 
 
 @pytest.fixture(scope="module")

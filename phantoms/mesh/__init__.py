@@ -5,13 +5,14 @@
 * :mod:`.index` – the search index: certified exact closest-point queries and the pseudonormal sign;
 * :mod:`.grid_sdf` – the signed distance on a grid (exact narrow band + closest-triangle propagation), with
   its compiled kernels in :mod:`.grid_kernels`;
-* :mod:`.closest` – the point–triangle kernels and the generalised winding number.
+* :mod:`.closest` – the point–segment distance and the generalised winding number (the closest point on a
+  triangle: :mod:`geometry.closest`).
 """
 
-from .closest import closest_point_on_triangles, winding_number
+from .closest import winding_number
 from .grid_sdf import signed_distance_grid
 from .index import TriangleIndex
 from .phantom import TARGET_RADIUS, MeshPhantom, load_mesh
 
 __all__ = ["MeshPhantom", "load_mesh", "TARGET_RADIUS", "TriangleIndex", "signed_distance_grid",
-           "closest_point_on_triangles", "winding_number"]
+           "winding_number"]

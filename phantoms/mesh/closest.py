@@ -1,11 +1,5 @@
-"""Point–triangle kernels of the mesh phantoms: closest points, point–segment distance, winding number.
-
-Closest point
-    :func:`closest_point_on_triangles` is Ericson's region test (*Real-Time Collision Detection*,
-    §5.1.5), vectorised over (point, triangle) pairs; :func:`closest_bary` is the same test with the
-    per-triangle dot products precomputed (the search index packs them once per mesh).  It returns the
-    barycentric coordinates of the closest point and the *feature* it lies on (face interior, one of the
-    vertices, one of the edges): the sign test of :mod:`phantoms.mesh.index` needs the feature.
+"""Kernels of the mesh phantoms beside the closest point on a triangle (whose one home is
+:mod:`geometry.closest`): the point–segment distance, the per-key argmin of the candidate search, the winding number.
 
 Winding number
     The generalised winding number (exact solid-angle sum, :func:`winding_number`) signs the far field of the
@@ -18,82 +12,7 @@ import numpy as np
 
 from ..base import as_points
 
-__all__ = ["closest_point_on_triangles", "closest_bary", "point_segment_distance", "winding_number",
-           "segments_min", "FACE", "VA", "VB", "VC", "EAB", "EBC", "ECA"]
-
-# feature codes returned by closest_point_on_triangles
-FACE, VA, VB, VC, EAB, EBC, ECA = range(7)
-
-
-def closest_point_on_triangles(p, a, b, c):
-    """Closest points on triangles (a, b, c) to points p, all arrays (m, 3), row by row.
-
-    Returns ``(bary, feature)``: barycentric coordinates (m, 3) of the closest point
-    ``x = bary[:, 0] a + bary[:, 1] b + bary[:, 2] c`` and the feature it lies on (0 face interior,
-    1/2/3 vertex a/b/c, 4/5/6 edge ab/bc/ca).  Ericson, Real-Time Collision Detection §5.1.5, vectorised.
-    """
-    ab, ac = b - a, c - a
-    return closest_bary(p - a, ab, ac, np.einsum("ij,ij->i", ab, ab), np.einsum("ij,ij->i", ab, ac),
-                        np.einsum("ij,ij->i", ac, ac))
-
-
-def closest_bary(ap, ab, ac, abab, abac, acac):
-    """Ericson's region tests with the per-triangle dot products precomputed (ap = p − a).
-
-    With d1 = ab·ap and d2 = ac·ap the other four products follow: ab·bp = d1 − ab·ab,
-    ac·bp = d2 − ab·ac, ab·cp = d1 − ab·ac, ac·cp = d2 − ac·ac.
-    """
-    d1 = np.einsum("ij,ij->i", ab, ap)
-    d2 = np.einsum("ij,ij->i", ac, ap)
-    d3 = d1 - abab
-    d4 = d2 - abac
-    d5 = d1 - abac
-    d6 = d2 - acac
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    conds = [
-        (d1 <= 0) & (d2 <= 0),                                  # vertex a
-        (d3 >= 0) & (d4 <= d3),                                 # vertex b
-        (vc <= 0) & (d1 >= 0) & (d3 <= 0),                      # edge ab
-        (d6 >= 0) & (d5 <= d6),                                 # vertex c
-        (vb <= 0) & (d2 >= 0) & (d6 <= 0),                      # edge ca
-        (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),            # edge bc
-    ]
-    feature = np.select(conds, [VA, VB, EAB, VC, ECA, EBC], default=FACE).astype(np.int8)
-    m = len(ap)
-    bary = np.zeros((m, 3))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        sel = feature == VA
-        bary[sel, 0] = 1.0
-        sel = feature == VB
-        bary[sel, 1] = 1.0
-        sel = feature == VC
-        bary[sel, 2] = 1.0
-        sel = feature == EAB
-        t = d1[sel] / (d1[sel] - d3[sel])
-        bary[sel, 0], bary[sel, 1] = 1.0 - t, t
-        sel = feature == ECA
-        t = d2[sel] / (d2[sel] - d6[sel])
-        bary[sel, 0], bary[sel, 2] = 1.0 - t, t
-        sel = feature == EBC
-        t = (d4[sel] - d3[sel]) / ((d4[sel] - d3[sel]) + (d5[sel] - d6[sel]))
-        bary[sel, 1], bary[sel, 2] = 1.0 - t, t
-        sel = feature == FACE
-        den = va[sel] + vb[sel] + vc[sel]
-        v = vb[sel] / den
-        w = vc[sel] / den
-        bary[sel, 0], bary[sel, 1], bary[sel, 2] = 1.0 - v - w, v, w
-    bad = ~np.isfinite(bary).all(axis=1)
-    if bad.any():  # degenerate (zero-area) triangle reached the face branch: take its nearest vertex
-        q = ap[bad]
-        cand = np.stack([np.zeros_like(q), ab[bad], ac[bad]], axis=1)
-        k = np.argmin(((cand - q[:, None]) ** 2).sum(-1), axis=1)
-        bary[bad] = 0.0
-        bary[np.flatnonzero(bad), k] = 1.0
-        feature[bad] = (VA + k).astype(np.int8)
-    return bary, feature
-
+__all__ = ["point_segment_distance", "winding_number", "segments_min"]
 
 def point_segment_distance(p, a, b):
     """Distance from points p to segments ab, all arrays (m, 3), row by row."""

@@ -1,7 +1,9 @@
 """Compiled (numba) kernels of the grid signed distance (:mod:`phantoms.mesh.grid_sdf`).
 
-* :func:`tri_eval` — the point–triangle distance and closest feature of :func:`phantoms.mesh.closest.closest_bary`
-  (Ericson's region tests in the same order, the same degenerate-triangle fallback), one pair at a time;
+* :func:`tri_eval` — the point–triangle distance and closest feature, one pair at a time: the suite's one kernel,
+  :func:`geometry.closest.triangle_point` (numba's cache does not notice a change to a jitted function in another
+  file: after editing that kernel, delete this module's cache, ``phantoms/mesh/__pycache__/grid_kernels.*.nb[ic]``;
+  tests/test_phantoms_mesh_grid_kernels.py compares the two bit for bit);
 * :func:`build_cells` — triangles binned by bounding box into a uniform grid of cubic cells (CSR layout);
 * :func:`closest_faces` — the certified exact closest triangle of each point: cells are visited in Chebyshev
   rings around the point's cell, skipping cells farther than the best distance so far; after ring ``k``
@@ -23,8 +25,7 @@ import math
 import numba
 import numpy as np
 
-# feature codes (phantoms.mesh.closest)
-_FACE, _VA, _VB, _VC, _EAB, _EBC, _ECA = range(7)
+from geometry.closest import VA, VC, triangle_point
 
 #: the 26 neighbours of a grid point as index offsets (di, dj, dk), in the order of three nested loops over
 #: −1, 0, 1 with the centre left out: the propagation visits them in this order (the first of equally near faces
@@ -38,65 +39,10 @@ def _jit(fn):
 
 
 @_jit
-def tri_eval(px, py, pz, pack, f):
-    """(distance, feature) from point p to triangle ``f`` (``pack`` rows: a, ab, ac, ab·ab, ab·ac, ac·ac)."""
-    apx, apy, apz = px - pack[f, 0], py - pack[f, 1], pz - pack[f, 2]
-    abx, aby, abz = pack[f, 3], pack[f, 4], pack[f, 5]
-    acx, acy, acz = pack[f, 6], pack[f, 7], pack[f, 8]
-    abab, abac, acac = pack[f, 9], pack[f, 10], pack[f, 11]
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    d3 = d1 - abab
-    d4 = d2 - abac
-    d5 = d1 - abac
-    d6 = d2 - acac
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    v = 0.0
-    w = 0.0
-    if d1 <= 0 and d2 <= 0:
-        feat = _VA
-    elif d3 >= 0 and d4 <= d3:
-        feat = _VB
-        v = 1.0
-    elif vc <= 0 and d1 >= 0 and d3 <= 0:
-        feat = _EAB
-        v = d1 / (d1 - d3)
-    elif d6 >= 0 and d5 <= d6:
-        feat = _VC
-        w = 1.0
-    elif vb <= 0 and d2 >= 0 and d6 <= 0:
-        feat = _ECA
-        w = d2 / (d2 - d6)
-    elif va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
-        feat = _EBC
-        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        v = 1.0 - t
-        w = t
-    else:
-        feat = _FACE
-        den = va + vb + vc
-        v = vb / den
-        w = vc / den
-    if not (math.isfinite(v) and math.isfinite(w) and math.isfinite(1.0 - v - w)):
-        # degenerate triangle: its nearest vertex
-        da = apx * apx + apy * apy + apz * apz
-        db = (abx - apx) ** 2 + (aby - apy) ** 2 + (abz - apz) ** 2
-        dc = (acx - apx) ** 2 + (acy - apy) ** 2 + (acz - apz) ** 2
-        v = 0.0
-        w = 0.0
-        feat = _VA
-        if db < da and db <= dc:
-            v = 1.0
-            feat = _VB
-        elif dc < da and dc < db:
-            w = 1.0
-            feat = _VC
-    rx = apx - v * abx - w * acx
-    ry = apy - v * aby - w * acy
-    rz = apz - v * abz - w * acz
-    return math.sqrt(rx * rx + ry * ry + rz * rz), feat
+def tri_eval(px, py, pz, tri, f):
+    """(distance, feature) from point p to triangle ``tri[f]``: :func:`geometry.closest.triangle_point`."""
+    d2, feat, _, _, _, _, _, _ = triangle_point(px, py, pz, tri, f)
+    return math.sqrt(d2), feat
 
 
 @_jit
@@ -149,7 +95,7 @@ def _box_d2(fx, fy, fz, i, j, k):
 
 
 @_jit
-def _closest_one(px, py, pz, pack, start, cfaces, lo, c, dims):
+def _closest_one(px, py, pz, tri, start, cfaces, lo, c, dims):
     nx, ny, nz = dims[0], dims[1], dims[2]
     # the point's cell (may lie outside the cell grid: clamp, and account for the gap in the stop test)
     fx, fy, fz = (px - lo[0]) / c, (py - lo[1]) / c, (pz - lo[2]) / c
@@ -179,7 +125,7 @@ def _closest_one(px, py, pz, pack, start, cfaces, lo, c, dims):
                         q = (i * ny + j) * nz + k
                         for s in range(start[q], start[q + 1]):
                             f = cfaces[s]
-                            d, _ = tri_eval(px, py, pz, pack, f)
+                            d, _ = tri_eval(px, py, pz, tri, f)
                             if d < best or (d == best and f < bestf):
                                 best = d
                                 bestf = f
@@ -194,10 +140,10 @@ def _closest_one(px, py, pz, pack, start, cfaces, lo, c, dims):
 
 
 @_jit
-def closest_faces(P, pack, start, cfaces, lo, c, dims, out):
+def closest_faces(P, tri, start, cfaces, lo, c, dims, out):
     """Certified exact closest triangle of each point of P (M, 3), written into ``out`` (M,)."""
     for m in range(P.shape[0]):
-        out[m] = _closest_one(P[m, 0], P[m, 1], P[m, 2], pack, start, cfaces, lo, c, dims)
+        out[m] = _closest_one(P[m, 0], P[m, 1], P[m, 2], tri, start, cfaces, lo, c, dims)
 
 
 @_jit
@@ -223,7 +169,7 @@ def mark_band(V, axis, radius, state, band_value):
 
 
 @_jit
-def _descend(px, py, pz, d, f, feat, pack, faces, face_adj, vfaces, steps):
+def _descend(px, py, pz, d, f, feat, tri, faces, face_adj, vfaces, steps):
     """Local descent from face f: the faces across its edges and the fan of its closest vertex."""
     evals = 0
     for _ in range(steps):
@@ -234,17 +180,17 @@ def _descend(px, py, pz, d, f, feat, pack, faces, face_adj, vfaces, steps):
             g = face_adj[f, e]
             if g < 0:
                 continue
-            dd, ft = tri_eval(px, py, pz, pack, g)
+            dd, ft = tri_eval(px, py, pz, tri, g)
             evals += 1
             if dd < bd:
                 bd, bf, bfeat = dd, g, ft
-        if _VA <= feat <= _VC:
-            vert = faces[f, feat - _VA]
+        if VA <= feat <= VC:
+            vert = faces[f, feat - VA]
             for s in range(vfaces.shape[1]):
                 g = vfaces[vert, s]
                 if g < 0:
                     break
-                dd, ft = tri_eval(px, py, pz, pack, g)
+                dd, ft = tri_eval(px, py, pz, tri, g)
                 evals += 1
                 if dd < bd:
                     bd, bf, bfeat = dd, g, ft
@@ -286,7 +232,7 @@ def _interior(r, n):
 
 
 @_jit
-def _pull(r, n, off, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, done, seen):
+def _pull(r, n, off, axis, dist, face, state, tri, faces, face_adj, vfaces, steps, done, seen):
     """Best of the distinct closest faces of r's 26 neighbours whose state is ≥ ``done``, then descent.
     Returns (distance, face, evaluations); face −1 when no neighbour is done.  ``dist``, ``face``, ``state``:
     the grids flattened; ``off``: :func:`neighbour_offsets`; ``seen``: int32 (26,) work space."""
@@ -313,12 +259,12 @@ def _pull(r, n, off, axis, dist, face, state, pack, faces, face_adj, vfaces, ste
             continue
         seen[ns] = g
         ns += 1
-        dd, ft = tri_eval(px, py, pz, pack, g)
+        dd, ft = tri_eval(px, py, pz, tri, g)
         evals += 1
         if dd < best:
             best, bf, bfeat = dd, g, ft
     if bf >= 0 and best < dist[r]:    # descend from a better face (from the current one it was done)
-        best, bf, bfeat, e2 = _descend(px, py, pz, best, bf, bfeat, pack, faces, face_adj, vfaces, steps)
+        best, bf, bfeat, e2 = _descend(px, py, pz, best, bf, bfeat, tri, faces, face_adj, vfaces, steps)
         evals += e2
     return best, bf, evals
 
@@ -362,7 +308,7 @@ def _near_change(r, n, off, state):
 
 
 @_jit
-def _passes(nfar, n, off, axis, dist, face, state, queue, pack, faces, face_adj, vfaces, steps, passes, seen):
+def _passes(nfar, n, off, axis, dist, face, state, queue, tri, faces, face_adj, vfaces, steps, passes, seen):
     """The Gauss–Seidel passes of :func:`propagate` (flat grids); returns (evaluations, passes done)."""
     evals = 0
     # state 4 = changed in the current pass, 5 = changed in the previous pass; a point is visited when it or a
@@ -378,7 +324,7 @@ def _passes(nfar, n, off, axis, dist, face, state, queue, pack, faces, face_adj,
                 visit = state[r] >= 4 or _near_change(r, n, off, state)
             if not visit:
                 continue
-            d, f, e = _pull(r, n, off, axis, dist, face, state, pack, faces, face_adj, vfaces, steps, 2, seen)
+            d, f, e = _pull(r, n, off, axis, dist, face, state, tri, faces, face_adj, vfaces, steps, 2, seen)
             evals += e
             if d < dist[r]:
                 dist[r] = d
@@ -401,7 +347,7 @@ def _passes(nfar, n, off, axis, dist, face, state, queue, pack, faces, face_adj,
 
 
 @_jit
-def propagate(n, axis, dist, face, state, sign, queue, pack, faces, face_adj, vfaces, steps, passes):
+def propagate(n, axis, dist, face, state, sign, queue, tri, faces, face_adj, vfaces, steps, passes):
     """Closest-triangle propagation from the band (state 2) into the far region (state 0).
 
     1. Breadth first over the 26 neighbours (:data:`NEIGHBOURS`), starting from the band points in index order:
@@ -428,13 +374,13 @@ def propagate(n, axis, dist, face, state, sign, queue, pack, faces, face_adj, vf
     while head < tail:
         r = queue[head]
         head += 1
-        d, f, e = _pull(r, n, off, axis, dist_f, face_f, state_f, pack, faces, face_adj, vfaces, steps, 2, seen)
+        d, f, e = _pull(r, n, off, axis, dist_f, face_f, state_f, tri, faces, face_adj, vfaces, steps, 2, seen)
         evals += e
         dist_f[r] = d
         face_f[r] = f
         state_f[r] = 3
         tail = _enqueue(r, n, off, state_f, sign_f, queue, tail)
     nfar = tail
-    e, done = _passes(nfar, n, off, axis, dist_f, face_f, state_f, queue, pack, faces, face_adj, vfaces, steps,
+    e, done = _passes(nfar, n, off, axis, dist_f, face_f, state_f, queue, tri, faces, face_adj, vfaces, steps,
                       passes, seen)
     return nfar, evals + e, done

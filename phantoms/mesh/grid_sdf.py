@@ -63,7 +63,7 @@ def closest_faces(index: TriangleIndex, points: np.ndarray, cells=None) -> np.nd
         cells = _cells(index, 2.0 * float(np.median(index.edge_lengths)))
     start, faces, lo, c, dims = cells
     out = np.empty(len(points), np.int32)
-    gk.closest_faces(np.ascontiguousarray(points, float), index.pack, start, faces, lo, c, dims, out)
+    gk.closest_faces(np.ascontiguousarray(points, float), index.tri, start, faces, lo, c, dims, out)
     return out
 
 
@@ -99,7 +99,7 @@ def signed_distance_grid(index: TriangleIndex, n: int, extent: float, *, band_ce
         sign.flat[b] = index.sign(p, x, f, feat)
     del bidx, cells
     queue = np.empty(n ** 3, np.int32)
-    nfar, evals, npass = gk.propagate(n, axis, dist, face, state, sign, queue, index.pack, index.faces,
+    nfar, evals, npass = gk.propagate(n, axis, dist, face, state, sign, queue, index.tri, index.faces,
                                       index.face_adj, index.vfaces, descent_steps, passes)
     del queue, face, state
     np.negative(dist, out=dist, where=sign < 0)

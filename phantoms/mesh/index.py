@@ -6,8 +6,8 @@ Distance
     nearest vertex (a KD-tree query); every triangle that can be closer lies in the ball
     ``|p − centroid| ≤ u + r_t`` (``r_t`` the triangle's centroid-to-vertex radius), which a KD-tree over
     the centroids enumerates (triangles are bucketed by size so one large triangle does not widen
-    every query); all candidates are evaluated with a vectorised point–triangle closest-point routine
-    (:func:`phantoms.mesh.closest.closest_bary`).  The result is exact (to rounding) for every
+    every query); all candidates are evaluated with the suite's point–triangle kernel
+    (:func:`geometry.closest.closest_on_faces`).  The result is exact (to rounding) for every
     point; the cost grows with the distance, since far points have more candidates.
 
 Sign
@@ -22,11 +22,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from geometry.closest import EAB, EBC, ECA, VA, VB, VC, closest_on_faces
 from geometry.mesh import padded_from_pairs
 from geometry.topology import face_edges
 
 from ..base import as_points
-from .closest import EAB, EBC, ECA, VA, VB, VC, closest_bary, segments_min
+from .closest import segments_min
 
 __all__ = ["TriangleIndex"]
 
@@ -43,11 +44,8 @@ class TriangleIndex:
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
         v, f = vertices, faces
         self.vertices, self.faces = v, f
-        tri = v[f]                                            # (F, 3, 3)
+        tri = np.ascontiguousarray(v[f], np.float64)          # (F, 3, 3)
         self.tri = tri
-        ab, ac = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-        self.pack = np.column_stack([tri[:, 0], ab, ac, np.einsum("ij,ij->i", ab, ab),
-                                     np.einsum("ij,ij->i", ab, ac), np.einsum("ij,ij->i", ac, ac)])
         cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         dbl = np.linalg.norm(cross, axis=1)
         self.face_areas = 0.5 * dbl
@@ -103,13 +101,7 @@ class TriangleIndex:
     # ------------------------------------------------------------------ exact queries
     def eval_pairs(self, pts: np.ndarray, face: np.ndarray):
         """Exact (distance, closest point, barycentrics, feature) of each point to its paired face."""
-        g = self.pack[face]                                     # one gather: a, ab, ac, ab·ab, ab·ac, ac·ac
-        ap = pts - g[:, 0:3]
-        ab, ac = g[:, 3:6], g[:, 6:9]
-        bary, feat = closest_bary(ap, ab, ac, g[:, 9], g[:, 10], g[:, 11])
-        r = ap - bary[:, 1:2] * ab - bary[:, 2:3] * ac           # p − x
-        d = np.sqrt(np.einsum("ij,ij->i", r, r))
-        return d, pts - r, bary, feat
+        return closest_on_faces(pts, self.tri, face)
 
     def upper_bound(self, p: np.ndarray):
         """Exact distance to the faces around the nearest vertex: an upper bound on the distance."""

@@ -36,14 +36,23 @@ from pathlib import Path
 
 import numpy as np
 
+from geometry.closest import FACE
 from geometry.errors import InputError
 from geometry.mesh import sample_surface, signed_volume
-from geometry.topology import (connected_components, directed_edge_repeats, edge_face_counts, euler_characteristic,
-                               genus)
+from geometry.topology import connected_components, directed_edge_repeats, edge_face_counts, euler_characteristic, genus
 
-from ..base import DEFAULT_EXTENT, DEFAULT_N, Phantom, Truth, arc_positions, as_points, check_extent, check_n, check_sample_count
+from ..base import (
+    DEFAULT_EXTENT,
+    DEFAULT_N,
+    Phantom,
+    Truth,
+    arc_positions,
+    as_points,
+    check_extent,
+    check_n,
+    check_sample_count,
+)
 from ..volume import Volume, check_memory
-from .closest import FACE
 from .grid_sdf import signed_distance_grid
 from .index import TriangleIndex
 from .segments import SegmentIndex

@@ -33,7 +33,7 @@ import numba
 import numpy as np
 
 __all__ = ["point_mesh_distance", "point_triangle", "triangle_point", "closest_on_faces", "closest_point_on_triangles",
-           "MAX_CELLS", "FACE", "VA", "VB", "VC", "EAB", "EBC", "ECA"]
+           "bucket_triangles", "MAX_CELLS", "FACE", "VA", "VB", "VC", "EAB", "EBC", "ECA"]
 
 #: the feature of a triangle (a, b, c) its closest point lies on: the interior, a vertex, an edge
 FACE, VA, VB, VC, EAB, EBC, ECA = range(7)
@@ -47,8 +47,21 @@ MAX_CELLS = 1 << 21
 
 
 @_jit
-def _bucket(lo, cell, dims, tmin, tmax):
-    """CSR (start, items) of the triangles whose box overlaps each cell."""
+def bucket_triangles(lo, cell, dims, tmin, tmax):
+    """The triangles whose bounding box overlaps each cell of a uniform grid, in CSR form (compiled).
+
+    Parameters
+    ----------
+    lo : (3,) float array, the grid's lower corner.
+    cell : float, the cells' side.
+    dims : (3,) int array, the cells along each axis (cell (i, j, k) is number (i · ny + j) · nz + k).
+    tmin, tmax : (T, 3) float arrays, the triangles' bounding boxes; a box reaching past the grid is clamped to it.
+
+    Returns
+    -------
+    start (C + 1,) int64 and items int32: the triangles of cell c, in increasing order, are
+    ``items[start[c]:start[c + 1]]``.
+    """
     nx, ny, nz = dims[0], dims[1], dims[2]
     nt = tmin.shape[0]
     count = np.zeros(nx * ny * nz + 1, np.int64)
@@ -300,7 +313,7 @@ def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = No
     while np.prod(np.floor(extent / cell) + 1) > MAX_CELLS:
         cell *= 1.25
     dims = (np.floor(extent / cell) + 1).astype(np.int64)
-    start, items = _bucket(lo, cell, dims, np.ascontiguousarray(tmin), np.ascontiguousarray(tmax))
+    start, items = bucket_triangles(lo, cell, dims, np.ascontiguousarray(tmin), np.ascontiguousarray(tmax))
     # queries in cell order: neighbouring queries read the same cells and triangles (from cache, not memory)
     ijk = np.clip(np.floor((p - lo) / cell).astype(np.int64), 0, dims - 1)
     order = np.argsort((ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2], kind="stable")

@@ -17,6 +17,7 @@ from geometry.closest import (
     VA,
     VB,
     VC,
+    bucket_triangles,
     closest_on_faces,
     closest_point_on_triangles,
     point_mesh_distance,
@@ -157,3 +158,21 @@ def test_no_points_and_no_faces():
     assert point_mesh_distance(np.zeros((0, 3)), m.vertices, m.faces).shape == (0,)
     with pytest.raises(ValueError, match="no faces"):
         point_mesh_distance(np.zeros((2, 3)), m.vertices, m.faces[:0])
+
+
+def test_bucket_triangles_bins_every_triangle_into_the_cells_its_box_overlaps():
+    m = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    tri = v[f]
+    lo_t, hi_t = tri.min(axis=1), tri.max(axis=1)
+    lo, c = v.min(axis=0), 0.4
+    dims = np.maximum(np.ceil((v.max(axis=0) - lo) / c).astype(np.int64), 1)
+    start, faces = bucket_triangles(lo, c, dims, lo_t, hi_t)
+    assert len(start) == int(np.prod(dims)) + 1 and start[-1] == len(faces)
+    i0 = np.maximum(((lo_t - lo) / c).astype(int), 0)
+    i1 = np.minimum(((hi_t - lo) / c).astype(int), dims - 1)
+    for q in range(int(np.prod(dims))):
+        i, j, k = q // (dims[1] * dims[2]), (q // dims[2]) % dims[1], q % dims[2]
+        want = np.flatnonzero((i0[:, 0] <= i) & (i <= i1[:, 0]) & (i0[:, 1] <= j) & (j <= i1[:, 1])
+                              & (i0[:, 2] <= k) & (k <= i1[:, 2]))
+        np.testing.assert_array_equal(np.sort(faces[start[q]:start[q + 1]]), want)

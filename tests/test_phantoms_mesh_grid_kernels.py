@@ -1,7 +1,6 @@
 """Tests of ``phantoms.mesh.grid_kernels``, the compiled kernels of the grid signed distance, one by one:
-:func:`tri_eval` against :func:`geometry.closest.closest_point_on_triangles`, :func:`build_cells`
-against a brute-force bounding-box binning, :func:`mark_band` against the distance to the vertices, the neighbour
-table against three nested loops.  (The whole grid: test_phantoms_mesh_grid_sdf.py.)"""
+:func:`tri_eval` against :func:`geometry.closest.closest_point_on_triangles`, :func:`mark_band` against the
+distance to the vertices, the neighbour table against three nested loops.  (The whole grid: test_phantoms_mesh_grid_sdf.py.)"""
 
 from __future__ import annotations
 
@@ -32,23 +31,6 @@ def test_tri_eval_is_the_suites_point_triangle_kernel_bit_for_bit():
     got = [gk.tri_eval(q[0], q[1], q[2], idx.tri, int(t)) for q, t in zip(p, faces)]
     np.testing.assert_array_equal([g[0] for g in got], np.sqrt(d2))
     np.testing.assert_array_equal([g[1] for g in got], feat)
-
-
-def test_build_cells_bins_every_triangle_into_the_cells_its_box_overlaps():
-    v, f = _mesh()
-    tri = v[f]
-    lo_t, hi_t = tri.min(axis=1), tri.max(axis=1)
-    lo, c = v.min(axis=0), 0.4
-    dims = np.maximum(np.ceil((v.max(axis=0) - lo) / c).astype(np.int64), 1)
-    start, faces = gk.build_cells(lo_t, hi_t, lo, c, dims)
-    assert len(start) == int(np.prod(dims)) + 1 and start[-1] == len(faces)
-    i0 = np.maximum(((lo_t - lo) / c).astype(int), 0)
-    i1 = np.minimum(((hi_t - lo) / c).astype(int), dims - 1)
-    for q in range(int(np.prod(dims))):
-        i, j, k = q // (dims[1] * dims[2]), (q // dims[2]) % dims[1], q % dims[2]
-        want = np.flatnonzero((i0[:, 0] <= i) & (i <= i1[:, 0]) & (i0[:, 1] <= j) & (j <= i1[:, 1])
-                              & (i0[:, 2] <= k) & (k <= i1[:, 2]))
-        np.testing.assert_array_equal(np.sort(faces[start[q]:start[q + 1]]), want)
 
 
 def test_mark_band_marks_the_grid_points_within_the_radius_of_a_vertex():

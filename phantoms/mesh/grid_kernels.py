@@ -4,8 +4,8 @@
   :func:`geometry.closest.triangle_point` (numba's cache does not notice a change to a jitted function in another
   file: after editing that kernel, delete this module's cache, ``phantoms/mesh/__pycache__/grid_kernels.*.nb[ic]``;
   tests/test_phantoms_mesh_grid_kernels.py compares the two bit for bit);
-* :func:`build_cells` — triangles binned by bounding box into a uniform grid of cubic cells (CSR layout);
-* :func:`closest_faces` — the certified exact closest triangle of each point: cells are visited in Chebyshev
+* :func:`closest_faces` — the certified exact closest triangle of each point, from the triangles binned into a
+  uniform grid of cubic cells (:func:`geometry.closest.bucket_triangles`): cells are visited in Chebyshev
   rings around the point's cell, skipping cells farther than the best distance so far; after ring ``k``
   every triangle with a point within ``k · c − (offset of the point in its cell)`` has been evaluated, so
   the search stops once the best distance is below that (``c`` the cell size).  Exact (to rounding) for
@@ -43,43 +43,6 @@ def tri_eval(px, py, pz, tri, f):
     """(distance, feature) from point p to triangle ``tri[f]``: :func:`geometry.closest.triangle_point`."""
     d2, feat, _, _, _, _, _, _ = triangle_point(px, py, pz, tri, f)
     return math.sqrt(d2), feat
-
-
-@_jit
-def build_cells(tri_lo, tri_hi, lo, c, dims):
-    """CSR (start (C + 1,), faces) of the triangles whose bounding box overlaps each cell."""
-    nf = tri_lo.shape[0]
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    count = np.zeros(nx * ny * nz + 1, np.int64)
-    for f in range(nf):
-        i0 = max(int((tri_lo[f, 0] - lo[0]) / c), 0)
-        j0 = max(int((tri_lo[f, 1] - lo[1]) / c), 0)
-        k0 = max(int((tri_lo[f, 2] - lo[2]) / c), 0)
-        i1 = min(int((tri_hi[f, 0] - lo[0]) / c), nx - 1)
-        j1 = min(int((tri_hi[f, 1] - lo[1]) / c), ny - 1)
-        k1 = min(int((tri_hi[f, 2] - lo[2]) / c), nz - 1)
-        for i in range(i0, i1 + 1):
-            for j in range(j0, j1 + 1):
-                for k in range(k0, k1 + 1):
-                    count[(i * ny + j) * nz + k + 1] += 1
-    for q in range(1, count.shape[0]):
-        count[q] += count[q - 1]
-    faces = np.empty(count[-1], np.int32)
-    fill = count[:-1].copy()
-    for f in range(nf):
-        i0 = max(int((tri_lo[f, 0] - lo[0]) / c), 0)
-        j0 = max(int((tri_lo[f, 1] - lo[1]) / c), 0)
-        k0 = max(int((tri_lo[f, 2] - lo[2]) / c), 0)
-        i1 = min(int((tri_hi[f, 0] - lo[0]) / c), nx - 1)
-        j1 = min(int((tri_hi[f, 1] - lo[1]) / c), ny - 1)
-        k1 = min(int((tri_hi[f, 2] - lo[2]) / c), nz - 1)
-        for i in range(i0, i1 + 1):
-            for j in range(j0, j1 + 1):
-                for k in range(k0, k1 + 1):
-                    q = (i * ny + j) * nz + k
-                    faces[fill[q]] = f
-                    fill[q] += 1
-    return count, faces
 
 
 @_jit

@@ -33,6 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from geometry.closest import bucket_triangles
+
 from . import grid_kernels as gk
 from .index import TriangleIndex
 
@@ -53,7 +55,7 @@ def _cells(index: TriangleIndex, size: float):
     c = max(float(size), float((np.prod(span) / _MAX_CELLS) ** (1 / 3)), 1e-12)
     dims = np.maximum(np.ceil(span / c).astype(np.int64), 1)
     pad = 1e-9 * c                                   # bounding boxes a hair larger: no rounding at cell faces
-    start, faces = gk.build_cells(tri.min(axis=1) - pad, tri.max(axis=1) + pad, lo, c, dims)
+    start, faces = bucket_triangles(lo, c, dims, tri.min(axis=1) - pad, tri.max(axis=1) + pad)
     return start, faces, lo, c, dims
 
 

@@ -128,3 +128,20 @@ def _write_dicom_series(img, folder: Path, series_uid: str) -> Path:
         writer.SetFileName(str(folder / f"slice{k:03d}.dcm"))
         writer.Execute(sl)
     return folder
+
+
+#: a liver label map at a CT's native resolution: voxels and spacing (mm)
+LIVER_SHAPE = (438, 353, 165)
+LIVER_SPACING = np.array([0.8, 0.8, 1.5])
+
+
+def liver_like_mask() -> np.ndarray:
+    """One smooth genus-0 organ of a liver's size (about 19 × 15 × 11 cm: a right lobe, a left lobe and a
+    caudate bump, a notch between them; 1.9 M voxels) in a :data:`LIVER_SHAPE` grid."""
+    ax = [(np.arange(n) - n / 2) * s for n, s in zip(LIVER_SHAPE, LIVER_SPACING)]
+    x, y, z = np.meshgrid(*ax, indexing="ij", sparse=True)
+    right = ((x + 25) / 95) ** 2 + (y / 75) ** 2 + (z / 55) ** 2 < 1
+    left = ((x - 70) / 70) ** 2 + ((y + 10) / 45) ** 2 + ((z - 15) / 30) ** 2 < 1
+    bump = ((x + 60) / 30) ** 2 + ((y - 55) / 25) ** 2 + ((z + 20) / 30) ** 2 < 1
+    notch = ((x - 10) / 25) ** 2 + ((y - 60) / 30) ** 2 < 1
+    return (right | left | bump) & ~notch

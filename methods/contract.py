@@ -148,10 +148,14 @@ def check_info(info: dict, name: str) -> None:
 
 
 def run_reconstruct(method, volume: Volume) -> Any:
-    """Call ``method.reconstruct(volume)``, turning a ``sys.exit()`` inside the method into an error.
+    """Call ``method.reconstruct(volume)``, turning a ``sys.exit()`` inside the method, or a write to its
+    input, into an error.
 
     A plug-in must not end the suite's process (``reconstruct`` exiting 0 with no output, a grid worker gone
-    without a row).
+    without a row).  Nor may it change the volume it was given: ``values`` is a read-only view, but a method
+    can still turn the flag back on, write through the array's base, or rebind ``values``, ``origin`` or
+    ``spacing`` — and its mesh would then be checked against the φ it made up.  A fingerprint of the volume
+    (the arrays' CRC-32, the geometry, the kind and level) taken before the call is compared after it.
 
     Parameters
     ----------
@@ -168,13 +172,42 @@ def run_reconstruct(method, volume: Volume) -> Any:
     Raises
     ------
     WrongReturnType
-        The method called ``sys.exit()``; any other exception of the method propagates unchanged.
+        The method called ``sys.exit()`` or changed its input volume; any other exception of the method
+        propagates unchanged.
     """
+    before = _fingerprint(volume)
     try:
-        return method.reconstruct(volume)
+        out = method.reconstruct(volume)
     except SystemExit as exc:
         raise WrongReturnType(f"method {method.name!r} called sys.exit({exc.code!r}) instead of returning "
                                    "a Reconstruction or raising an exception") from None
+    changed = [name for name, value in _fingerprint(volume).items() if value != before[name]]
+    if changed:
+        raise WrongReturnType(f"method {method.name!r} changed its input volume ({', '.join(changed)}): the "
+                              "volume is read-only — copy what you need to change")
+    return out
+
+
+_VOLUME_PARTS = ("values", "raw", "origin", "spacing", "kind", "level")
+
+
+def _fingerprint(volume) -> dict[str, object]:
+    """What a method must leave as it found it: per attribute of :data:`_VOLUME_PARTS`, the object's identity
+    and the CRC-32 of its bytes (an array) or its value."""
+    import zlib
+
+    out: dict[str, object] = {}
+    for name in _VOLUME_PARTS:
+        value = getattr(volume, name, None)
+        if isinstance(value, np.ndarray):
+            try:
+                data = value if value.flags.c_contiguous else np.ascontiguousarray(value)
+                out[name] = (id(value), value.shape, value.dtype.str, zlib.crc32(data.view(np.uint8)))
+            except (TypeError, ValueError):
+                out[name] = (id(value), repr(value))
+        else:
+            out[name] = (id(value), repr(value))
+    return out
 
 
 class MethodSkipped(InputError):

@@ -9,7 +9,7 @@ import pickle
 import pytest
 
 import hook_plugins
-from methods import Method, MethodSkipped, WrongReturnType, check_skip, get_method, run_warm_up
+from methods import Method, MethodSkipped, WrongReturnType, check_skip, get_method, run_reconstruct, run_warm_up
 from phantoms import InputError, get_phantom
 
 
@@ -53,3 +53,45 @@ def test_run_warm_up_calls_the_hook_and_names_a_sys_exit(sphere, monkeypatch):
     monkeypatch.setattr(hook_plugins.WarmMC, "warm_up", lambda self: exit(3))
     with pytest.raises(WrongReturnType, match=r"'warm_mc' called sys.exit\(3\) in warm_up"):
         run_warm_up(get_method("warm_mc"))
+
+
+class _Writes(Method):
+    """Marching cubes after changing its input in the way ``how`` names (a 2 h shift of the level set)."""
+
+    name = "writes_input"
+    description = "writes to its input volume"
+    params: dict = {}
+
+    def __init__(self, how: str) -> None:
+        super().__init__()
+        self.how = how
+
+    def reconstruct(self, volume):
+        h = volume.h
+        if self.how == "flag":                       # turns the read-only flag back on, then writes
+            volume.values.flags.writeable = True
+            volume.values += 2 * h
+        elif self.how == "base":                     # writes through the view's base array
+            volume.values.base[...] += 2 * h
+        elif self.how == "rebind":
+            volume.values = volume.values + 2 * h
+        elif self.how == "origin":
+            volume.origin += 2 * h
+        elif self.how == "spacing":
+            volume.spacing *= 1.25
+        return get_method("marching_cubes").reconstruct(volume)
+
+
+@pytest.mark.parametrize("how, part", [("flag", "values"), ("base", "values"), ("rebind", "values"),
+                                       ("origin", "origin"), ("spacing", "spacing")])
+def test_a_method_that_changes_its_input_volume_is_a_wrong_return_naming_what(how, part):
+    """The read-only flag stops a careless write; a method that gets round it is still caught, so its mesh is
+    never checked against a φ it made up."""
+    volume = get_phantom("sphere").volume(n=16)
+    with pytest.raises(WrongReturnType, match=rf"method 'writes_input' changed its input volume \({part}\): "
+                                              "the volume is read-only"):
+        run_reconstruct(_Writes(how), volume)
+
+
+def test_a_method_that_only_reads_its_input_passes_the_fingerprint(sphere):
+    assert run_reconstruct(get_method("marching_cubes"), sphere).mesh.is_watertight

@@ -267,3 +267,33 @@ def test_reconstruct_times_the_method_after_its_warm_up(sphere_file, tmp_path, c
     assert main(["reconstruct", str(sphere_file), "-m", "warm_mc", "-o", str(tmp_path / "m.ply"),
                  "--info-json", str(info)]) == 0
     assert json.loads(info.read_text())["wall_s"] < hook_plugins.WARM_SECONDS
+
+
+def test_reconstruct_with_a_plugin_raising_keyboard_interrupt_is_its_failure_not_a_ctrl_c(sphere_file, tmp_path,
+                                                                                          capsys, monkeypatch):
+    """The method's KeyboardInterrupt comes from its child process: it is the method's failure (exit 1), not the
+    user's interruption (130, 'interrupted')."""
+    from methods.marching_cubes import MarchingCubes
+
+    def interrupts(self, volume):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(MarchingCubes, "reconstruct", interrupts)
+    rc = main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(tmp_path / "x.ply")])
+    err = capsys.readouterr().err
+    assert rc == 1 and err.startswith("error: method 'marching_cubes' raised KeyboardInterrupt") and \
+        err.count("\n") == 1, err
+
+
+def test_reconstruct_with_a_200000_character_message_shows_2000_and_the_length(sphere_file, tmp_path, capsys,
+                                                                                monkeypatch):
+    from methods.marching_cubes import MarchingCubes
+
+    def floods(self, volume):
+        raise RuntimeError("x" * 200_000)
+
+    monkeypatch.setattr(MarchingCubes, "reconstruct", floods)
+    rc = main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(tmp_path / "x.ply")])
+    err = capsys.readouterr().err
+    assert rc == 1 and err.count("\n") == 1 and len(err) < 2200 and err.rstrip().endswith("… (200,046 characters)"), \
+        err[-100:]

@@ -59,10 +59,10 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         return quiet_broken_pipe()
     except InputError as exc:
-        print(f"error: {printable(exc)}", file=sys.stderr)
+        print(f"error: {_capped(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except ReconstructionFailed as exc:
-        print(f"error: {printable(exc)}", file=sys.stderr)
+        print(f"error: {_capped(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -72,6 +72,16 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(printable(f"error: {exc.filename}: {exc.strerror or exc}"), file=sys.stderr)
         return EXIT_USAGE
+
+
+#: characters of an error message shown (a plug-in's message can be megabytes)
+MAX_ERROR = 2000
+
+
+def _capped(exc: BaseException) -> str:
+    """The error's text on one line, escaped, cut to :data:`MAX_ERROR` characters with its full length said."""
+    text = printable(exc).replace("\n", " ")
+    return text if len(text) <= MAX_ERROR else f"{text[:MAX_ERROR]}… ({len(text):,} characters)"
 
 
 def quiet_broken_pipe() -> int:

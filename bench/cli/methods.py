@@ -165,6 +165,9 @@ def _isolated(fn, method, volume):
             proc.join()
             show_captured(*captured_head(out.fileno(), OUTPUT_SHOWN), OUTPUT_SHOWN, f"method {method.name!r}")
     if kind == "raised":
+        if isinstance(value, KeyboardInterrupt):     # the child's own: the user's Ctrl-C interrupts this process
+            raise ReconstructionFailed(f"method {method.name!r} raised KeyboardInterrupt instead of returning or "
+                                       "raising an error (a method must not: it reads as the user's Ctrl-C)")
         raise value
     return value
 

@@ -269,3 +269,30 @@ def itk_error_text(exc: BaseException, captured: str = "") -> str:
     if said and said not in text:
         text += f" (ITK: {said[:200]})"
     return text[:400]
+
+
+# ------------------------------------------------------------------------------------------ nibabel's notes
+@contextlib.contextmanager
+def nibabel_notes(path: Path):
+    """nibabel's own log lines while the block reads ``path`` (it prints header repairs such as "sizeof_hdr
+    should be 348; set sizeof_hdr to 348" raw on stderr, without the file's name) become one ``warning:`` line
+    each, naming the file, control characters escaped."""
+    import logging
+
+    logger = logging.getLogger("nibabel.global")
+    said: list[str] = []
+
+    class _Collect(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            said.append(record.getMessage())
+
+    handlers, propagate = logger.handlers[:], logger.propagate
+    logger.handlers, logger.propagate = [_Collect()], False
+    try:
+        yield
+    finally:
+        logger.handlers, logger.propagate = handlers, propagate
+        for text in said:
+            text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in one_line(text))
+            print(f"warning: {path}: nibabel: {text[:400]}", file=sys.stderr)
+

@@ -33,7 +33,7 @@ import numpy as np
 from geometry.errors import InputError
 
 from .image_checks import (check_claimed_size, check_dicom_size, check_file_kind, check_nifti, itk_error_text,
-                           one_line, quiet_itk)
+                           nibabel_notes, one_line, quiet_itk)
 
 __all__ = ["Image", "read_image", "image_suffix", "IMAGE_SUFFIXES", "ITK_SUFFIXES", "AXIS_TOLERANCE_DEG"]
 
@@ -108,9 +108,10 @@ def _read_numpy(path: Path, suffix: str):
 def _read_nifti(path: Path):
     import nibabel as nib
 
-    img = nib.load(str(path))
-    check_nifti(path, img)                      # header only: nothing of the data is read before this
-    values = np.asarray(img.dataobj)
+    with nibabel_notes(path):                   # its header repairs: one warning line naming the file
+        img = nib.load(str(path))
+        check_nifti(path, img)                  # header only: nothing of the data is read before this
+        values = np.asarray(img.dataobj)
     values = _drop_singleton_4d(values, path)
     if values.ndim != 3:
         raise InputError(f"{path}: a volume must be a 3-D image; got a {values.ndim}-D image of shape {values.shape}")

@@ -189,3 +189,15 @@ def test_itks_warnings_during_a_series_read_do_not_reach_the_terminal(tmp_path, 
     monkeypatch.setattr(pi, "_check_slice_spacing", lambda path, files: None)
     read_image(folder)
     assert capfd.readouterr().err == ""
+
+
+def test_nibabels_header_repair_is_one_warning_line_naming_the_file(tmp_path, capfd):
+    """nibabel repairs a wrong sizeof_hdr and logs it raw on stderr, without the file's name: it becomes one
+    ``warning:`` line naming the file, and the image is read."""
+    nib.save(nib.Nifti1Image(sphere_mask().astype(np.uint8), np.eye(4)), str(tmp_path / "ok.nii"))
+    data = bytearray((tmp_path / "ok.nii").read_bytes())
+    data[0:4] = (999).to_bytes(4, "little")
+    (tmp_path / "bad.nii").write_bytes(bytes(data))
+    assert read_image(tmp_path / "bad.nii").values.sum() == sphere_mask().sum()
+    err = capfd.readouterr().err
+    assert err == f"warning: {tmp_path / 'bad.nii'}: nibabel: sizeof_hdr should be 348; set sizeof_hdr to 348\n"

@@ -124,6 +124,8 @@ def parse_spec(spec: str) -> tuple[str, dict]:
         key, eq, value = item.partition("=")
         if not eq:
             raise InputError(f"{spec!r}: option {item!r} is not key=value")
+        if key.strip() in opts:                 # the second value used to win silently
+            raise InputError(f"{spec!r}: option {key.strip()!r} is given twice")
         opts[key.strip()] = value.strip()
     return path, _check_options(opts, spec)
 
@@ -368,8 +370,9 @@ def _check_truth_inside(truth, vol: Volume, where: str) -> None:
     else:
         what = (f"is not on the volume's surface: 10 % of its vertices lie {d:.1f} voxels or more from the zero "
                 f"level set (tolerance {TRUTH_TOLERANCE_VOXELS:g})")
-    raise InputError(f"{where}: the truth surface {what}{hint}; it must be in the volume's world coordinates (RAS+, "
-                     "docs/PHANTOMS.md)")
+    name = Path(getattr(truth, "source", "") or "").name
+    raise InputError(f"{where}: the truth surface{' ' + name if name else ''} {what}{hint}; it must be in the "
+                     "volume's world coordinates (RAS+, docs/PHANTOMS.md)")
 
 
 class VolumePhantom(Phantom):

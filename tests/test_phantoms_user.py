@@ -102,8 +102,8 @@ def test_truth_that_is_open_or_elsewhere_is_refused(tmp_path):
     with pytest.raises(InputError, match="truth mesh: .*not watertight"):
         get_phantom(f"volume:{nii}?truth={tmp_path / 'open.obj'}")
     box.export(str(tmp_path / "far.obj"))                    # centred on 0: the boxes are at x = 14 ... 25
-    with pytest.raises(InputError, match="the truth surface lies outside the volume"):
-        get_phantom(f"volume:{nii}?truth={tmp_path / 'far.obj'}")
+    with pytest.raises(InputError, match="the truth surface far.obj lies outside the volume"):   # named: a dataset
+        get_phantom(f"volume:{nii}?truth={tmp_path / 'far.obj'}")                           # has many truths
 
 
 def test_resample_gives_the_grid_n_along_the_longest_axis(tmp_path):
@@ -126,6 +126,8 @@ def test_spec_parsing_and_tables():
     assert spec_from_table({"mesh": "a.obj"}, "t") == "mesh:a.obj"
     with pytest.raises(InputError, match="needs volume"):
         spec_from_table({"threshold": 3}, "grid.phantoms[0]")
+    with pytest.raises(InputError, match="option 'pad' is given twice"):        # the second used to win silently
+        parse_spec("volume:m.nii?pad=2&pad=3")
 
 
 def test_globs_expand_to_one_phantom_per_file_named_by_stem(tmp_path):

@@ -87,13 +87,18 @@ class Ctx:
         """``python -m bench ARGS`` as a user runs it; killed with its process group after ``timeout`` s."""
         return self.python("-m", "bench", *args, timeout=timeout, cwd=cwd, env=env, stdin=stdin, limit_gb=limit_gb)
 
+    def environ(self, extra: dict | None = None) -> dict:
+        """The commands' environment: this one with the checkout and the plug-in folder on ``PYTHONPATH``."""
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join([str(REPO), str(self.plugins)])
+        env["PYTHONIOENCODING"] = "utf-8"
+        env.update(extra or {})
+        return env
+
     def python(self, *args: str, timeout: float = 90, cwd: Path | None = None, env: dict | None = None,
                stdin: bytes | None = None, limit_gb: float | None = None) -> Result:
         """``python ARGS`` with the checkout and the plug-ins on the path (see :meth:`bench`)."""
-        full_env = dict(os.environ)
-        full_env["PYTHONPATH"] = os.pathsep.join([str(REPO), str(self.plugins)])
-        full_env["PYTHONIOENCODING"] = "utf-8"
-        full_env.update(env or {})
+        full_env = self.environ(env)
 
         def limit() -> None:
             if limit_gb:

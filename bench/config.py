@@ -244,7 +244,10 @@ class RunConfig:
         """Import the ``run.imports`` modules (which may register methods); InputError if one fails."""
         from methods import import_plugins
 
+        from .imports import probe_imports
+
         try:
+            probe_imports(self.imports)         # one that ends its process at import: named, not a silent exit
             import_plugins(self.imports)
         except InputError as exc:
             raise InputError(f"run.imports: {exc}") from None

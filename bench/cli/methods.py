@@ -54,6 +54,9 @@ def import_modules(args) -> None:
     """Import the ``--import`` modules (InputError naming a module that fails to import)."""
     from methods import import_plugins
 
+    from ..imports import probe_imports
+
+    probe_imports(args.imports or ())       # one that ends its process at import: named, not a silent exit
     import_plugins(args.imports or ())
 
 

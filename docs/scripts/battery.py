@@ -27,8 +27,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from battery import files, images, inputs, plugins, runs, tables, truth  # noqa: E402
-from battery.core import Case, Ctx  # noqa: E402
+from battery import files, images, inputs, plugins, runs, tables, truth
+from battery.core import Case, Ctx
 
 CAUSES = {
     "1": "results.csv / results.parquet edited: report, table, compare",
@@ -65,7 +65,7 @@ def run_case(ctx: Ctx, case: Case) -> str | None:
     """The case's reason for failing (an exception of the battery itself is one too), or None."""
     try:
         return case.check(ctx)
-    except Exception as exc:   # a broken fixture is a failed case, reported, not the end of the battery
+    except Exception as exc:  # noqa: BLE001 — a broken fixture is a failed case, reported, not the end of the battery
         return f"battery error: {type(exc).__name__}: {exc} ({traceback.format_exc(limit=-1).splitlines()[-3]})"
 
 

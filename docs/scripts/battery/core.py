@@ -24,6 +24,9 @@ REPO = Path(__file__).resolve().parents[3]
 
 #: terminal controls a plug-in or a file name must never put on the terminal raw: C0 (but tab and newline),
 #: DEL, C1 and the bidirectional overrides
+#: ``python -c LIMITED BYTES ARGS...``: ``python ARGS...`` with its address space limited to BYTES
+LIMITED = ("import os, resource, sys; n = int(sys.argv[1]); resource.setrlimit(resource.RLIMIT_AS, (n, n)); "
+           "os.execv(sys.executable, [sys.executable, *sys.argv[2:]])")
 CONTROLS = re.compile("[\x00-\x08\x0b-\x1f\x7f\x80-\x9f\u202a-\u202e\u2066-\u2069]")
 
 
@@ -74,11 +77,11 @@ class Ctx:
         with lock:
             if key not in self._once:
                 try:
-                    self._once[key] = make()
-                except Exception as exc:          # a fixture that failed fails every case that needs it
-                    self._once[key] = exc
-            value = self._once[key]
-        if isinstance(value, Exception):
+                    self._once[key] = (True, make())
+                except Exception as exc:  # noqa: BLE001 — a fixture that failed fails every case that needs it
+                    self._once[key] = (False, exc)
+            made, value = self._once[key]
+        if not made:
             raise RuntimeError(f"fixture {key!r} failed: {value}") from value
         return value
 
@@ -100,19 +103,13 @@ class Ctx:
         """``python ARGS`` with the checkout and the plug-ins on the path (see :meth:`bench`)."""
         full_env = self.environ(env)
 
-        def limit() -> None:
-            if limit_gb:
-                import resource
-
-                n = int(limit_gb * 2 ** 30)
-                resource.setrlimit(resource.RLIMIT_AS, (n, n))
-
         cmd = [sys.executable, *args]
+        if limit_gb:            # the address-space limit set in a small wrapper that then becomes the command
+            cmd = [sys.executable, "-c", LIMITED, str(int(limit_gb * 2 ** 30)), *args]
         start = time.monotonic()
         proc = subprocess.Popen(cmd, cwd=cwd or self.root, env=full_env, start_new_session=True,
                                 stdin=subprocess.PIPE if stdin is not None else subprocess.DEVNULL,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                preexec_fn=limit if limit_gb else None)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         try:
             out, err = proc.communicate(stdin, timeout=timeout)
             rc: int | None = proc.returncode

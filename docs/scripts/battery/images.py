@@ -4,9 +4,7 @@ nibabel cannot read (15).  Each is written here, small, with the library a user'
 
 from __future__ import annotations
 
-import gzip
 import locale
-import os
 from pathlib import Path
 
 import nibabel as nib

@@ -52,7 +52,8 @@ FAILING = {
     "f_tuple": "m = mc(volume)\n    return (m.vertices, m.faces)",
     "f_nan": "m = mc(volume)\n    v = m.vertices.copy()\n    v[3] = np.nan\n"
              "    return Reconstruction(trimesh.Trimesh(v, m.faces, process=False), {})",
-    "f_huge": "m = mc(volume)\n    return Reconstruction(trimesh.Trimesh(m.vertices * 1e39, m.faces, process=False), {})",
+    "f_huge": "m = mc(volume)\n"
+              "    return Reconstruction(trimesh.Trimesh(m.vertices * 1e39, m.faces, process=False), {})",
     "f_empty": "return Reconstruction(trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int)), {})",
     "f_recursion": "def r(k):\n        return r(k + 1) + 1\n    return r(0)",
     "f_long_message": "raise RuntimeError('x' * 200000)",

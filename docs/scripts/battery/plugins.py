@@ -199,7 +199,7 @@ def terminal_cases() -> list[Case]:
 
 
 def _no_script(ctx: Ctx) -> str | None:
-    folder, res = grid_run(ctx, "bat_noisy", list(src.NOISY), "noisy")
+    folder, _ = grid_run(ctx, "bat_noisy", list(src.NOISY), "noisy")
     page = (folder / "index.html").read_text(errors="replace") if (folder / "index.html").exists() else ""
     if not page:
         return "no index.html"

@@ -90,8 +90,8 @@ def cases() -> list[Case]:
     for name, file, word in (("voxel-index coordinates", "index.obj", "voxel-index"),
                              ("LPS coordinates", "lps.obj", "LPS"), ("an intensity image", "ct.nii.gz", "intensity"),
                              ("a missing file", "nowhere.obj", "nowhere.obj")):
-        def check(ctx, file=file, word=word, tag=file.split(".")[0]):
-            res, folder = _run(ctx, file, tag)
+        def check(ctx, file=file, word=word):
+            res, folder = _run(ctx, file, file.split(".")[0])
             if res.rc == 2:                            # refused before any cell
                 return one_line(res, word)
             return first(exits_ok(res), failed_row(folder, "marching_cubes", word, "truth"))

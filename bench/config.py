@@ -54,7 +54,7 @@ from typing import Any
 from phantoms import (NOISE_KINDS, VARIANTS, InputError, expand_phantoms, get_phantom, is_file_phantom,
                       is_phantom_name, phantom_names)
 from phantoms.registry import check_phantom_files
-from phantoms.user import spec_from_table
+from phantoms.user import check_truth_frame, spec_from_table
 
 from .run.estimate import check_force
 from .run.limits import check_gb, check_seconds
@@ -270,6 +270,7 @@ class RunConfig:
         expanded = expand_phantoms(self.phantoms)       # globs: an empty one is an error naming the pattern
         for _, source in expanded:
             check_phantom_files(source)       # missing files; one that cannot be read is a failed row instead
+            check_truth_frame(source)         # a truth in another frame: refused before any cell, not per cell
         known = known + [name for name, _ in expanded]
         for v in self.variants:
             if v not in VARIANTS:

@@ -375,6 +375,36 @@ def _check_truth_inside(truth, vol: Volume, where: str) -> None:
                      "volume's world coordinates (RAS+, docs/PHANTOMS.md)")
 
 
+def read_truth(options: dict, level_set: Volume, where: str):
+    """The ``truth=`` file of a volume's ``options`` as a mesh phantom, checked against the volume's ``level_set``
+    (:func:`_check_truth_inside`); InputError naming ``where`` for a missing, unreadable or misplaced truth."""
+    truth = options["truth"]
+    tp = Path(truth).expanduser()
+    if not tp.exists():
+        raise InputError(f"{where}: no such truth file: {truth}")
+    check_file_kind(tp)            # a FIFO or a device as truth would block the mesh reader
+    is_image = tp.is_dir() or image_suffix(tp) in IMAGE_SUFFIXES
+    phantom = _truth_from_labels(str(tp), options, where) if is_image else _truth_from_mesh(str(tp), where)
+    _check_truth_inside(phantom, level_set, where)
+    return phantom
+
+
+def check_truth_frame(source: str) -> None:
+    """Refuse, before any cell, a ``volume:`` phantom whose ``truth=`` does not fit its volume (voxel-index or LPS
+    coordinates, an offset, an intensity image, an open mesh): the volume and its truth are read here once.  A
+    volume that cannot be read itself is left to its cells (a failed row each, as without truth)."""
+    if not source.startswith(VOLUME_PREFIX):
+        return
+    path, options = parse_spec(source)
+    if options.get("truth") is None:
+        return
+    try:
+        level_set = level_set_from_image(read_image(path, series=options.get("series")), options, path)
+    except InputError:
+        return
+    read_truth(options, level_set, path)
+
+
 class VolumePhantom(Phantom):
     """A user's volume file as a phantom (see the module docstring); ``truth_phantom`` is None without truth.
 
@@ -398,20 +428,11 @@ class VolumePhantom(Phantom):
         self.spec = spec
         self.name = name or spec
         self.path, self.options = parse_spec(spec)
-        where = self.path
         image = read_image(self.path, series=self.options.get("series"))
-        self.level_set = level_set_from_image(image, self.options, where)
-        truth = self.options.get("truth")
+        self.level_set = level_set_from_image(image, self.options, self.path)
         self.truth_phantom = None
-        if truth is not None:
-            tp = Path(truth).expanduser()
-            if not tp.exists():
-                raise InputError(f"{where}: no such truth file: {truth}")
-            check_file_kind(tp)            # a FIFO or a device as truth would block the mesh reader
-            is_image = tp.is_dir() or image_suffix(tp) in IMAGE_SUFFIXES
-            self.truth_phantom = (_truth_from_labels(str(tp), self.options, where) if is_image
-                                  else _truth_from_mesh(str(tp), where))
-            _check_truth_inside(self.truth_phantom, self.level_set, where)
+        if self.options.get("truth") is not None:
+            self.truth_phantom = read_truth(self.options, self.level_set, self.path)
             self.genus = self.truth_phantom.genus
             self.n_components = self.truth_phantom.n_components
             self.has_creases = self.truth_phantom.has_creases

@@ -169,3 +169,27 @@ def test_a_missing_truth_file_is_refused_before_any_cell(tmp_path):
                             "methods": [{"name": "marching_cubes"}]})
     with pytest.raises(InputError, match="no such truth file"):
         cfg.validate()
+
+
+def test_a_truth_in_another_frame_is_refused_at_validation_before_any_cell(tmp_path):
+    """A truth in voxel-index coordinates used to pass validation and fail every cell one by one; it is one
+    InputError naming the frame before anything runs.  A volume that cannot be read is still left to its cells."""
+    import numpy as np
+    import trimesh
+
+    from _volumes import BOX_ORIGIN, BOX_SPACING, write_boxes
+
+    nii, obj = write_boxes(tmp_path)
+    mesh = trimesh.load(str(obj), process=False)
+    trimesh.Trimesh((mesh.vertices - np.asarray(BOX_ORIGIN)) / np.asarray(BOX_SPACING), mesh.faces,
+                    process=False).export(str(tmp_path / "index.obj"))
+    (tmp_path / "broken.nii.gz").write_bytes(b"not an image")
+
+    def grid(volume, truth):
+        return config_from_dict({"grid": {"phantoms": [{"volume": str(volume), "truth": str(truth)}], "n": [16],
+                                          "noise": [{"kind": "none"}]}, "methods": [{"name": "marching_cubes"}]})
+
+    grid(nii, obj).validate()
+    with pytest.raises(InputError, match="the truth surface index.obj .*fits the volume in voxel-index coordinates"):
+        grid(nii, tmp_path / "index.obj").validate()
+    grid(tmp_path / "broken.nii.gz", obj).validate()          # unreadable volume: a failed row of its cells

@@ -249,23 +249,15 @@ def _enqueue(r, n, off, state, sign, queue, tail):
 
 
 @_jit
-def _near_other_face(r, n, off, face):
-    """Whether a neighbour of grid point r holds a face (≥ 0) other than r's own (flat grid)."""
+def _worth_a_pull(r, p, n, off, face, state):
+    """Whether Gauss–Seidel pass p visits grid point r (flat grids): the first pass where a neighbour holds a face
+    (≥ 0) other than r's own, later ones at or next to a change of this pass or the previous one (state ≥ 4)."""
+    if p > 0 and state[r] >= 4:
+        return True
     inner = _interior(r, n)
     for m in range(26):
         q = r + off[m] if inner else _neighbour(r, m, n, off)
-        if q >= 0 and face[q] != face[r] and face[q] >= 0:
-            return True
-    return False
-
-
-@_jit
-def _near_change(r, n, off, state):
-    """Whether a neighbour of grid point r changed in this Gauss–Seidel pass or the previous one (state ≥ 4)."""
-    inner = _interior(r, n)
-    for m in range(26):
-        q = r + off[m] if inner else _neighbour(r, m, n, off)
-        if q >= 0 and state[q] >= 4:
+        if q >= 0 and ((face[q] != face[r] and face[q] >= 0) if p == 0 else state[q] >= 4):
             return True
     return False
 
@@ -281,11 +273,7 @@ def _passes(nfar, n, off, axis, dist, face, state, queue, tri, faces, face_adj, 
         changed = 0
         for t in range(nfar):
             r = queue[t] if p % 2 == 0 else queue[nfar - 1 - t]
-            if p == 0:                      # first pass: only where a neighbour holds another face
-                visit = _near_other_face(r, n, off, face)
-            else:                           # later ones: only at or next to a change
-                visit = state[r] >= 4 or _near_change(r, n, off, state)
-            if not visit:
+            if not _worth_a_pull(r, p, n, off, face, state):
                 continue
             d, f, e = _pull(r, n, off, axis, dist, face, state, tri, faces, face_adj, vfaces, steps, 2, seen)
             evals += e

@@ -10,7 +10,7 @@ import pytest
 
 from methods.shape_gradient import ShapeGradient, ShapeGradientFlow
 from methods.shape_gradient.settings import FlowSettings, Stage
-from phantoms import add_noise, get_phantom
+from phantoms import InputError, add_noise, get_phantom
 
 #: the keys info['parameters'] carries beyond the Params: the values decided from the volume
 DERIVED = ["stages", "s_world", "join_below_used", "remesh_start", "presmooth_used", "noise_variance",
@@ -18,9 +18,9 @@ DERIVED = ["stages", "s_world", "join_below_used", "remesh_start", "presmooth_us
 
 
 def resolve(method: ShapeGradient, *, clean: bool = True, noise: float = 0.0, h: float = 0.1,
-            remesh_start: bool = True) -> FlowSettings:
+            remesh_start: bool = True, kind: str = "sdf") -> FlowSettings:
     return FlowSettings.resolve(method.config, h=h, clean=clean, noise=noise, presmooth=0.0, start_smooth=0.0,
-                                join_below=0.5 if clean else 0.0, remesh_start=remesh_start)
+                                join_below=0.5 if clean else 0.0, remesh_start=remesh_start, kind=kind)
 
 
 def test_the_defaults_are_the_params_defaults():
@@ -93,3 +93,16 @@ def test_prepare_hands_the_flow_its_settings():
     st = ShapeGradient(max_iter=1).prepare(noisy).settings
     assert st.beta == 0.01 and st.polish is False and st.noise_variance > 0
     assert np.isclose(st.s_world, 18.0 * vol.h ** 2)
+
+
+def test_auto_edge_length_is_a_voxel_on_a_mask_and_half_a_voxel_on_a_level_set():
+    from phantoms.degrade import degrade
+
+    ph = get_phantom("sphere")
+    for vol, edge in ((degrade(ph, "mask", 32), 1.0), (degrade(ph, "partial_volume", 32), 0.5),
+                      (ph.volume(n=32), 0.5)):
+        rec = ShapeGradient(max_iter=2).reconstruct(vol)
+        assert rec.info["parameters"]["stages"][0]["edge_length"] == edge
+    assert resolve(ShapeGradient(edge_length=0.8), kind="mask").stages[0].edge_length == 0.8   # a number wins
+    with pytest.raises(InputError, match="edge_length"):
+        ShapeGradient(edge_length=0.05)

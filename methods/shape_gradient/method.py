@@ -14,7 +14,7 @@ from phantoms import InputError, Volume
 from ..base import Method, Param, Reconstruction, check_volume
 from .field import estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
 from .flow import ShapeGradientFlow
-from .settings import FlowSettings
+from .settings import FlowSettings, edge_length_voxels
 from .start import denoised_topology, initial_surface, parse_snapshots, target_topology, topology_gap
 
 __all__ = ["ShapeGradient", "PRESETS"]
@@ -179,9 +179,10 @@ class ShapeGradient(Method):
                             "on a coarse grid; docs/NOTES.md), so the mesh goes back to the accepted checkpoint with "
                             "the fewest samples on the wrong side (the latest of equals) and the run stops "
                             "(stop_reason 'sign_guard'); info['sign_guard'] lists (iteration, count)", bool),
-        "edge_length": Param(0.5, "target edge length of the initial sphere (init='auto') and of the remeshing, "
-                             "in voxels; 0.5 keeps parts a voxel thin (the bunny's ear tips are lost at 1)",
-                             float, min=0.1, max=20.0),
+        "edge_length": Param("auto", "target edge length of the initial sphere (init='auto') and of the "
+                             "remeshing, in voxels (0.1–20); 'auto' = 1 on a binary mask (it resolves nothing finer: "
+                             "as close and half the time on the held-out shapes, docs/NOTES.md), else 0.5, which "
+                             "keeps parts a voxel thin (the bunny's ear tips are lost at 1)", object),
         "coarse_to_fine": Param(False, "two stages: first the data term alone (β = 0) draws the surface into "
                                 "concavities and sulci (the alignment term resists the intermediate shapes), then "
                                 "the configured β smooths and aligns it; a stage ends when the flow settles. False "
@@ -244,8 +245,11 @@ class ShapeGradient(Method):
             if key not in params:
                 self.config[key] = value
         self.config["snapshots"] = parse_snapshots(self.config["snapshots"])
-        for key, hi in (("presmooth", 10.0), ("start_smooth", 10.0), ("beta", 1e6)):
+        for key, hi in (("presmooth", 10.0), ("start_smooth", 10.0), ("beta", 1e6), ("edge_length", 20.0)):
             self.config[key] = _auto_or_number(key, self.config[key], hi)
+        if self.config["edge_length"] != "auto" and self.config["edge_length"] < 0.1:
+            raise InputError("method 'shape_gradient', parameter 'edge_length': expected 'auto' or a number in "
+                             f"[0.1, 20]; got {self.config['edge_length']!r}")
         c = self.config["init_center"]
         if c is not None:
             try:
@@ -270,7 +274,7 @@ class ShapeGradient(Method):
         ``ops`` reuses a :class:`MeshOperators` built for the same initial connectivity (benchmarks).
         """
         check_volume(volume, self.name)
-        cfg = self.config
+        cfg = {**self.config, "edge_length": edge_length_voxels(self.config["edge_length"], volume.kind)}
         t_start = time.perf_counter()
         topology = target_topology(volume)
         if not topology["compatible"] and cfg["strict_topology"]:
@@ -301,7 +305,8 @@ class ShapeGradient(Method):
         if init_facts["kind"] == "genus0":
             init_facts["pinhole_below_voxels"] = round(pinhole_below, 4)
         edge = _edge_length_voxels(cfg, x, faces, volume.h, init_facts)
-        settings = FlowSettings.resolve({**cfg, "edge_length": edge}, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,
+        cfg["edge_length"] = edge
+        settings = FlowSettings.resolve(cfg, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,
                                         join_below=join_below, remesh_start=init_facts["kind"] == "genus0")
         field = smoothed_field(volume, sigma, cfg["presmooth_phi"])
         if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):

@@ -16,6 +16,18 @@ _AUTO_BETA = (1.0, 0.01)      # beta='auto': on clean / noisy volumes
 _INTERP_NOISE_GAIN = (2.0 / 3.0) ** 3   # mean of Σwᵢ² of trilinear weights over a cell
 
 
+#: edge_length='auto': the remeshing's edge length (voxels) on a binary mask, which resolves nothing finer (as close
+#: and half the time on the held-out shapes, docs/NOTES.md), and on every other volume (keeps parts a voxel thin)
+AUTO_EDGE_VOXELS = {"mask": 1.0, "other": 0.5}
+
+
+def edge_length_voxels(value: Any, kind: str) -> float:
+    """``edge_length`` in voxels: the number given, or for ``'auto'`` :data:`AUTO_EDGE_VOXELS` of the volume's kind."""
+    if value == "auto":
+        return AUTO_EDGE_VOXELS["mask" if kind == "mask" else "other"]
+    return float(value)
+
+
 @dataclass(frozen=True)
 class Stage:
     """One stage of the flow (coarse to fine: the data term alone first, then the configured β).
@@ -137,7 +149,7 @@ class FlowSettings:
 
     @classmethod
     def resolve(cls, config: Mapping[str, Any], *, h: float, clean: bool, noise: float, presmooth: float,
-                start_smooth: float, join_below: float, remesh_start: bool) -> "FlowSettings":
+                start_smooth: float, join_below: float, remesh_start: bool, kind: str = "sdf") -> "FlowSettings":
         """The settings of one run.
 
         Parameters
@@ -157,6 +169,8 @@ class FlowSettings:
             The saddle depth (voxels) below which the genus-0 start joined pieces.
         remesh_start : bool
             The start is the genus-0 (marching-cubes) surface.
+        kind : str
+            The volume's kind (``sdf``, ``mask``, ``intensity``): decides ``edge_length`` where it is ``'auto'``.
 
         Returns
         -------
@@ -165,9 +179,10 @@ class FlowSettings:
         beta = config["beta"]
         if beta == "auto":
             beta = _AUTO_BETA[0] if clean else _AUTO_BETA[1]
-        stages = [{"beta": beta, "edge_length": config["edge_length"]}]
+        edge = edge_length_voxels(config["edge_length"], kind)
+        stages = [{"beta": beta, "edge_length": edge}]
         if config["coarse_to_fine"] and config["remesh_every"] > 0 and beta > 0:
-            stages.insert(0, {"beta": 0.0, "edge_length": config["edge_length"]})
+            stages.insert(0, {"beta": 0.0, "edge_length": edge})
         # the noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise has variance
         # σ²Σwᵢ², on average (∫₀¹ t² + (1 − t)² dt)³ = (2/3)³ of σ² over positions in a cell
         derived = {

@@ -104,7 +104,9 @@ import numpy as np
 from phantoms import Volume
 from methods.shape_gradient import ShapeGradient
 z = np.load(sys.argv[1])
-vol = Volume(z["values"], z["origin"], z["spacing"])
+kind = str(z["kind"]) if "kind" in z else "sdf"
+vol = Volume(z["values"], z["origin"], z["spacing"], kind=kind, raw=z["raw"] if kind != "sdf" else None,
+             level=0.5 if kind != "sdf" else None)
 t, c = time.perf_counter(), time.process_time()
 rec = ShapeGradient().reconstruct(vol)
 print(json.dumps({"wall_s": time.perf_counter() - t, "cpu_s": time.process_time() - c,
@@ -146,13 +148,14 @@ def test_full_run_brain_mri_n256(benchmark, brain_256):
 
 @pytest.fixture(scope="module")
 def liver_native(tmp_path_factory):
-    """A liver-sized label map at its native resolution, as the signed distance of the mask, written once."""
+    """A liver-sized label map at its native resolution (a mask: its signed distance and the voxels), written once."""
     from _volumes import LIVER_SPACING, liver_like_mask
     from phantoms.masks import mask_to_sdf
 
-    vol = mask_to_sdf(liver_like_mask(), (0.0, 0.0, 0.0), LIVER_SPACING)
+    mask = liver_like_mask()
+    vol = mask_to_sdf(mask, (0.0, 0.0, 0.0), LIVER_SPACING)
     path = tmp_path_factory.mktemp("liver") / "liver.npz"
-    np.savez(path, values=vol.values, origin=vol.origin, spacing=vol.spacing)
+    np.savez(path, values=vol.values, origin=vol.origin, spacing=vol.spacing, kind="mask", raw=mask.astype(np.uint8))
     return path
 
 

@@ -71,7 +71,8 @@ from .topology import (
 )
 
 __all__ = [
-    "evaluate", "METRICS", "Metric", "METRIC_NAMES", "TRUTH_FREE_NAMES", "FIDELITY_NAMES", "DISTANCE_NAMES", "RUNNER_NAMES", "PARALLEL_DISTANCE",
+    "evaluate", "METRICS", "Metric", "METRIC_NAMES", "TRUTH_FREE_NAMES", "FIDELITY_NAMES", "DISTANCE_NAMES",
+    "RUNNER_NAMES", "PARALLEL_DISTANCE",
     "sample_mesh_surface", "point_mesh_distance", "self_intersection_pairs", "triangle_angles",
     "vertex_curvature", "constant_curvature_value", "CONSTANT_CURVATURE", "DISTANCE_LIBRARY",
 ]

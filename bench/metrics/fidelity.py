@@ -15,9 +15,10 @@ Computed for every cell — phantoms with a truth and user scans without — so 
 
 A φ that is not a distance (an intensity read at ``level=``: its |∇φ| at the zero set is the intensity's slope)
 is read as φ / |∇φ| (:func:`as_distance`), a first-order distance in world units; the row's ``phi_gradient``
-gives the median |∇φ| found.  They read the volume the method was given: on a noisy volume that is the noisy φ (all a user has), so even a
-perfect surface scores about the noise's std in ``sdf_*`` and ``phi_*`` and a few per cent of ``sign_err_pct``
-near the surface; compare methods on the same volume, not across noise levels.  h is the smallest spacing.
+gives the median |∇φ| found.  They read the volume the method was given: on a noisy volume that is the noisy φ
+(all a user has), so even a perfect surface scores about the noise's std in ``sdf_*`` and ``phi_*`` and a few
+per cent of ``sign_err_pct`` near the surface; compare methods on the same volume, not across noise levels.
+h is the smallest spacing.
 """
 
 from __future__ import annotations
@@ -27,7 +28,10 @@ import numpy as np
 from geometry.mesh import scored_mesh
 from geometry.raster import grid_winding
 
-__all__ = ["fidelity_metrics", "band_query", "zero_set_gradient", "as_distance", "DISTANCE_LIKE", "BAND_SAMPLES", "MESH_SAMPLES", "FIDELITY_NAMES"]
+__all__ = [
+    "fidelity_metrics", "band_query", "zero_set_gradient", "as_distance", "DISTANCE_LIKE", "BAND_SAMPLES",
+    "MESH_SAMPLES", "FIDELITY_NAMES",
+]
 
 #: at most this many grid samples of the band |φ| < 3h enter the SDF agreement.  Each costs an exact
 #: point-to-mesh distance at up to 3h from the surface (~3 µs, four times an on-surface point's); with 10,000

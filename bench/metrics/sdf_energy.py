@@ -13,8 +13,9 @@ query costs far more than near it, so the suite takes every point of a grid of a
 points (N ≤ 20) and a seeded uniform subset of that many points otherwise: an unbiased estimate of the full-grid
 mean whose standard error, √(var((|S| − d)²) / m), is about 2 % of the value (marching cubes on the bunny at
 N = 64: 1.8 / √m, the energy coming 98 % from points farther than 3h from the surface, so a band-weighted
-subset would not help; tests/test_bench_metrics_sdf_energy.py checks it against the full grid).  d is the exact distance of
-:func:`geometry.closest.point_mesh_distance`, on a coarse cell grid (:data:`FAR_CELLS`) suited to far points.
+subset would not help; tests/test_bench_metrics_sdf_energy.py checks it against the full grid).  d is the exact
+distance of :func:`geometry.closest.point_mesh_distance`, on a coarse cell grid (:data:`FAR_CELLS`) suited to far
+points.
 """
 
 from __future__ import annotations

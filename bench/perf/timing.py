@@ -8,7 +8,10 @@ from __future__ import annotations
 import os
 import time
 
-__all__ = ["ENV_MODE", "ENV_ROUNDS", "ENV_SLOWDOWN", "slowdown_for", "perf_mode", "rounds", "process_tree_cpu", "CpuRecordingTimer"]
+__all__ = [
+    "ENV_MODE", "ENV_ROUNDS", "ENV_SLOWDOWN", "slowdown_for", "perf_mode", "rounds", "process_tree_cpu",
+    "CpuRecordingTimer",
+]
 
 ENV_MODE = "LSB_PERF_MODE"
 ENV_ROUNDS = "LSB_PERF_ROUNDS"

@@ -23,5 +23,5 @@ from .paper import gallery_tables, paper_layout, paper_tables
 from .render import render_energy, render_mesh
 from .tables import BEST_DIRECTION, summary_tables
 
-__all__ = ["write_report", "preload", "render_mesh", "render_energy", "summary_tables", "cost_section", "BEST_DIRECTION",
-           "paper_tables", "gallery_tables", "paper_layout"]
+__all__ = ["write_report", "preload", "render_mesh", "render_energy", "summary_tables", "cost_section",
+           "BEST_DIRECTION", "paper_tables", "gallery_tables", "paper_layout"]

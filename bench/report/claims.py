@@ -12,8 +12,8 @@ the suite's default (any other settings).  Where the verdicts differ, :data:`WHY
 variants makes the difference.  Within a variant, its ``shape_gradient`` cells with β > 0 are "SG", its β = 0
 cells the ablation.  A result counts only when it is valid and unflagged (status ``ok``, no flags; for the paper's
 two variants a ``not_converged`` flag from their fixed iteration count or the line search's end does not count) —
-a method's own "converged" is not evidence.  Definitions (the thresholds are part of the claim's test and are printed with
-it):
+a method's own "converged" is not evidence.  Definitions (the thresholds are part of the claim's test and are
+printed with it):
 
 * ``smoother`` — the β-term makes the surface smoother: in every (phantom, N, noise, seed) with both an SG cell
   and a β = 0 cell, SG's ``roughness_deg`` is lower.
@@ -147,7 +147,8 @@ def _clean(r: dict) -> bool:
     flags = r.get("flags")
     text = "" if flags is None or (isinstance(flags, float) and math.isnan(flags)) else str(flags)
     left = {f for f in text.split(";") if f.strip()}
-    if variant_of(r) in ("printed", "corrected") and r.get("stop_reason") in ("fixed_iterations", "max_iter", "line_search_floor"):
+    if variant_of(r) in ("printed", "corrected") and r.get("stop_reason") in ("fixed_iterations", "max_iter",
+                                                                               "line_search_floor"):
         left.discard("not_converged")
     return r.get("status") == "ok" and not left
 

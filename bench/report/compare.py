@@ -373,6 +373,11 @@ def _table(rows: list[dict], cols: list[str]) -> str:
     return frame.to_html(index=False, escape=True, border=0, na_rep="–")
 
 
+def _verdict_class(verdict: str) -> str:
+    """The CSS class of a change's list item: ``worse`` or ``better`` when its verdict says so, else none."""
+    return "worse" if "worse" in verdict else "better" if "better" in verdict else ""
+
+
 def comparison_html(cmp: Comparison) -> str:
     """A self-contained page with the content of :func:`format_comparison` (every text escaped)."""
     e = html.escape
@@ -383,8 +388,8 @@ def comparison_html(cmp: Comparison) -> str:
              "<h2>Changed methods</h2>", _table(cmp.parameters, ["label", "method", "change", "cells"]),
              f"<h2>Verdicts per method and key metric</h2><p>Paired over the inputs both runs share; Wilcoxon "
              f"signed-rank, Holm-corrected, α = {ALPHA}.</p><ul>"
-             + "".join(f"<li class='{'worse' if 'worse' in c['verdict'] else 'better' if 'better' in c['verdict'] else ''}'>"
-                       f"{e(change_line(c))}</li>" for c in cmp.changes) + "</ul>",
+             + "".join(f"<li class='{_verdict_class(c['verdict'])}'>{e(change_line(c))}</li>" for c in cmp.changes)
+             + "</ul>",
              "<h2>Per cell</h2>"]
     for verdict in ("worse", "better"):
         vals = [v for v in cmp.values if v["verdict"] == verdict]

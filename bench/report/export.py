@@ -253,7 +253,8 @@ def to_latex(tables: list[GroupTable]) -> str:
             bold.loc[t.best[m], h] = "textbf:--rwrap;"
         sty = shown.style.hide(axis="index").apply(lambda _: bold, axis=None)
         out.append(sty.to_latex(hrules=True, column_format="lr" + "r" * len(metrics), environment="table",
-                                position="htbp", position_float="centering", caption=latex_text(t.title + (f". {t.note}" if t.note else "")),
+                                position="htbp", position_float="centering",
+                                caption=latex_text(t.title + (f". {t.note}" if t.note else "")),
                                 label=f"tab:levelset-bench-{k + 1}"))
     return "\n".join(out)
 

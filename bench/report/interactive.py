@@ -2,8 +2,9 @@
 
 * **Viewers** — each finished cell's mesh, decimated for viewing by a library decimator (trimesh's quadric
   decimation, ``fast_simplification``; the metrics always come from the full mesh) to at most
-  :data:`VIEW_FACES` faces — in the worker, :mod:`bench.run.view` — with two colourings: the mean curvature H the cell stored (the paper's colouring)
-  and the signed distance to the true surface in grid steps h (positive outside).  One colour scale per summary
+  :data:`VIEW_FACES` faces — in the worker, :mod:`bench.run.view` — with two colourings: the mean curvature H the
+  cell stored (the paper's colouring) and the signed distance to the true surface in grid steps h (positive
+  outside).  One colour scale per summary
   table (phantom × noise): the 2nd–98th percentile of H over its cells, and ±the 98th percentile of |distance|.
   The page stores the data once as JSON and draws a viewer when a table row is clicked.
 * **Robustness curves** — a key metric against SNR and against N, a line per method, when the run varies them;
@@ -19,7 +20,6 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any
 
 import numpy as np
 
@@ -215,15 +215,15 @@ def robustness_figures(rows: list[dict], metric: str = "hausdorff_h") -> list[di
             series: dict[str, list] = {}
             for r in noisy:
                 series.setdefault(str(r["label"]), []).append((_snr(r), _num(r, metric), _good(r)))
-            figs.append(_curve_fig(f"{phantom_label(phantom)}: {metric} against SNR (N = {n0}; ◇ breakdown point, ✕ not "
-                                   f"valid / flagged / > 1 h)", "SNR (dB)", series, metric))
+            figs.append(_curve_fig(f"{phantom_label(phantom)}: {metric} against SNR (N = {n0}; ◇ breakdown point, "
+                                   f"✕ not valid / flagged / > 1 h)", "SNR (dB)", series, metric))
         clean = [r for r in pr if r.get("noise") == "none"]
         if len({int(_num(r, "N")) for r in clean}) >= 3:
             series = {}
             for r in clean:
                 series.setdefault(str(r["label"]), []).append((_num(r, "N"), _num(r, metric), _good(r)))
-            figs.append(_curve_fig(f"{phantom_label(phantom)}: {metric} against N (clean; ◇ breakdown point)", "N (grid points "
-                                   "per axis)", series, metric, log_x=True))
+            figs.append(_curve_fig(f"{phantom_label(phantom)}: {metric} against N (clean; ◇ breakdown point)",
+                                   "N (grid points per axis)", series, metric, log_x=True))
     return figs
 
 
@@ -258,7 +258,8 @@ def pareto_figure(rows: list[dict], metric: str = "hausdorff_h") -> dict | None:
                                          "line": {"width": 2, "color": method_colour(label)}},
                                  hovertemplate="%{text}<br>%{y:.3g} at %{x:.3g} s<extra></extra>"))
     fig.update_layout(title=f"Accuracy against cost: {metric} vs wall time (a point per method, phantom and noise "
-                            "setting, mean over its valid cells; ○ clean, ◇ noisy, hollow: flagged)", xaxis_title="wall time of the method (s)",
+                            "setting, mean over its valid cells; ○ clean, ◇ noisy, hollow: flagged)",
+                      xaxis_title="wall time of the method (s)",
                       yaxis_title=metric, xaxis_type="log", yaxis_type="log", height=420,
                       margin={"l": 60, "r": 20, "t": 50, "b": 50})
     return json.loads(fig.to_json())

@@ -144,7 +144,8 @@ def _interactive(df, arts: Artifacts, config: dict, shown: list[str] | None = No
     colours = {str(lab): method_colour(lab) for lab in {r.get("label") for r in rows}}
     # a board too small for its own test shows the test over all inputs of the methods run on every one
     verdict_charts = [cd_figure(b, colours) or (cd_figure({"title": f"{b['title']}, methods run on every input",
-                                                           "metric": b["metric"], "significance": b["core"]["significance"]},
+                                                           "metric": b["metric"],
+                                                           "significance": b["core"]["significance"]},
                                                           colours) if b.get("core") else None) for b in boards]
     for b, fig in zip(boards, verdict_charts):
         b["html"] = board_html(b, colours)

@@ -13,7 +13,9 @@ import numpy as np
 
 from bench.metrics.registry import METRICS
 
-__all__ = ["ci_half_width", "NO_TRUTH_NOTE", "BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables", "complete_inputs", "phantom_label", "fmt_value", "noise_title", "input_title", "is_nan", "best_mask", "best_rule"]
+__all__ = ["ci_half_width", "NO_TRUTH_NOTE", "BEST_DIRECTION", "FLAG_TITLES", "status_badges", "summary_tables",
+           "complete_inputs", "phantom_label", "fmt_value", "noise_title", "input_title", "is_nan", "best_mask",
+           "best_rule"]
 
 #: how a metric's best value is chosen ("min", "max", ("target", value)); unranked metrics are absent
 BEST_DIRECTION: dict[str, Any] = {k: m.best for k, m in METRICS.items() if m.best is not None}
@@ -83,7 +85,8 @@ def complete_inputs(df):
         key = tuple(d.at[i, k] for k in keys)
         if key in known.index:
             for c in cols:
-                d.at[i, c] = known.loc[key, c] if not isinstance(known.loc[key, c], pd.Series) else known.loc[key, c].iloc[0]
+                v = known.loc[key, c]
+                d.at[i, c] = v if not isinstance(v, pd.Series) else v.iloc[0]
     return d
 
 
@@ -195,16 +198,20 @@ def best_mask(series, rule, metric: str | None = None) -> np.ndarray:
 FLAG_TITLES = {
     "topology_mismatch": "Euler characteristic or number of components differs from the truth's",
     "dropped_components": "fewer components than the truth (a part was dropped)",
-    "missing_parts": "more than 0.5 % of the true surface is farther than 2 h from the mesh (coverage_pct < 99.5): never marked best",
+    "missing_parts": ("more than 0.5 % of the true surface is farther than 2 h from the mesh (coverage_pct < 99.5): "
+                      "never marked best"),
     "self_intersecting": "some non-adjacent faces intersect",
-    "not_converged": "the method stopped on max_iter, line_search_floor, diverged or sign_guard (rolled back to an earlier iterate)",
-    "inside_disagrees": "no ground truth: more than 2 % of the grid samples with |φ| > h/2 lie on the other side of the mesh (sign_err_pct)",
+    "not_converged": ("the method stopped on max_iter, line_search_floor, diverged or sign_guard (rolled back to an "
+                      "earlier iterate)"),
+    "inside_disagrees": ("no ground truth: more than 2 % of the grid samples with |φ| > h/2 lie on the other side of "
+                         "the mesh (sign_err_pct)"),
 }
 
 
 def status_badges(status: str, flags, valid: bool) -> str:
     """The status cell: the status text (a red ``invalid`` / grey ``failed`` badge when no seed gave a valid
-    result, a neutral ``skipped`` one when the method declined the input) followed by one amber badge per flag, named in text (the report's CSS colours ``.badge``)."""
+    result, a neutral ``skipped`` one when the method declined the input) followed by one amber badge per flag,
+    named in text (the report's CSS colours ``.badge``)."""
     text = html.escape(str(status))
     if not valid and str(status).strip() == "skipped":     # the method declined this input: not a failure
         text = f'<span class="badge badge-skipped" title="the method does not take this input">{text}</span>'

@@ -10,10 +10,10 @@ Ranking (:func:`block_ranks`)
 Boards (:func:`leaderboards`)
     One board per degradation of the input (a mask, a partial-volume image ...: Hausdorff and mean distance,
     |volume error|, roughness), then one for the undegraded cells with ground truth (key metrics: Hausdorff
-    and mean distance, SDF agreement, roughness) and one for truth-free cells (SDF agreement, |φ| on the mesh, roughness).  A method's row: its
-    mean rank per key metric, wins / ties / losses against the best on the board's first metric (win: alone at
-    the best value; tie: the best value shared), the share of its cells that are valid and unflagged, its median
-    time.  Only blocks every listed method has enter.
+    and mean distance, SDF agreement, roughness) and one for truth-free cells (SDF agreement, |φ| on the mesh,
+    roughness).  A method's row: its mean rank per key metric, wins / ties / losses against the best on the
+    board's first metric (win: alone at the best value; tie: the best value shared), the share of its cells that
+    are valid and unflagged, its median time.  Only blocks every listed method has enter.
 
 Significance (:func:`significance`)
     On the board's first metric: with three or more methods the Friedman test over methods × blocks and the
@@ -41,8 +41,8 @@ from bench.metrics.tolerances import same_within_tolerance
 
 from .pairwise import pairwise, recommendation, signed_rank_test
 
-__all__ = ["BLOCK_KEYS", "TRUTH_KEYS", "DEGRADED_KEYS", "FREE_KEYS", "MIN_BLOCKS", "ALPHA", "block_ranks", "leaderboards",
-           "significance", "cd_figure", "board_html"]
+__all__ = ["BLOCK_KEYS", "TRUTH_KEYS", "DEGRADED_KEYS", "FREE_KEYS", "MIN_BLOCKS", "ALPHA", "block_ranks",
+           "leaderboards", "significance", "cd_figure", "board_html"]
 
 BLOCK_KEYS = ("phantom", "variant", "N", "degrade", "noise", "snr_requested", "seed")
 #: key metrics of the board with ground truth: (column, what it measures)
@@ -288,8 +288,8 @@ def leaderboards(rows: list[dict]) -> list[dict]:
     plain = [r for r in rows if _degrade(r) == "none"]
     truth = [r for r in plain if not _no_truth(r)]
     free = [r for r in rows if _no_truth(r)]
-    for sub, keys, title in ((truth, TRUTH_KEYS, "Cells with ground truth" + (" (undegraded inputs)" if len(degrades) > 1
-                                                                            else "")),
+    truth_title = "Cells with ground truth" + (" (undegraded inputs)" if len(degrades) > 1 else "")
+    for sub, keys, title in ((truth, TRUTH_KEYS, truth_title),
                              (free, FREE_KEYS, "Cells without ground truth (data fidelity only)")):
         if sub:
             b = _with_usable(sub, keys, title)
@@ -331,8 +331,9 @@ def cd_figure(board: dict, colours: dict[str, str]) -> dict | None:
                "bgcolor": "rgba(255,255,255,0.85)"} for i, lab in enumerate(order)]
     for j, clique in enumerate(sig["cliques"]):
         xs = [mean[lab] for lab in clique]
-        data.append({"type": "scatter", "mode": "lines", "x": [min(xs) - 0.03, max(xs) + 0.03], "y": [-0.3 - 0.25 * j] * 2,
-                     "line": {"width": 6, "color": "#333"}, "hoverinfo": "text", "showlegend": False,
+        data.append({"type": "scatter", "mode": "lines", "x": [min(xs) - 0.03, max(xs) + 0.03],
+                     "y": [-0.3 - 0.25 * j] * 2, "line": {"width": 6, "color": "#333"}, "hoverinfo": "text",
+                     "showlegend": False,
                      "text": "not distinguishable: " + ", ".join(clique)})
     shapes = []
     if sig["cd"]:

@@ -37,7 +37,8 @@ def canonical_json(obj: Any) -> str:
 
 
 def cell_id(cell: Cell | dict) -> str:
-    """A readable, stable identifier: ``<phantom>_<variant>_n<N>[_<degradation>]_<noise>[<snr>dB]_s<seed>_<label>_<hash>``.
+    """A readable, stable identifier:
+    ``<phantom>_<variant>_n<N>[_<degradation>]_<noise>[<snr>dB]_s<seed>_<label>_<hash>``.
 
     The hash covers every parameter of the cell, so sweeps and changed settings never collide.
 

@@ -3,10 +3,10 @@ against building the phantom's signed distance volume, timed in the same test (`
 
 The target is a degraded volume at most 2× the signed-distance volume.  Each round starts from a fresh phantom
 cache: a degraded volume builds the exact volume it is made from, so the ratio is (exact volume + degradation) /
-exact volume — on the bunny about 1.0 (mask) and 1.5 (partial volume).  The sphere's exact volume is a norm
-(≈ 0.03 s), so one distance transform of the mask alone is about its cost: the target cannot hold there (mask ≈
-2.3×, partial volume ≈ 3×); the cortex's partial volume needs the winding number of the sub-samples (≈ 3×).  The
-assertions guard against regressions with room for a busy machine (docs/NOTES.md has the figures).
+exact volume — on the bunny and the cortex about 1.0–1.1 (mask) and 1.5–1.9 (partial volume: the winding number
+of the sub-samples no distance ball decides).  The sphere's exact volume is one norm per point, about the cost of
+the mask's two distance transforms alone, so the target cannot hold there (mask ≈ 2×, partial volume ≈ 2.5×).
+The assertions guard against regressions with room for a busy machine (docs/NOTES.md has the figures).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def _degraded(ph, spec):
 
 
 #: the assertion's limit per phantom (the target is 2; see the module docstring)
-LIMITS = {"bunny": 3.0, "sphere": 5.0, "cortex": 5.0}
+LIMITS = {"bunny": 3.0, "sphere": 5.0, "cortex": 3.5}
 
 
 @pytest.mark.benchmark(group="degrade")
@@ -42,7 +42,7 @@ LIMITS = {"bunny": 3.0, "sphere": 5.0, "cortex": 5.0}
 @pytest.mark.parametrize("spec", ["mask", "partial_volume"])
 def test_degraded_volume_n96_against_its_sdf(benchmark, spec, name):
     ph = get_phantom(name)
-    n_rounds = rounds(5, 2)
+    n_rounds = rounds(15, 9) if name == "sphere" else rounds(5, 2)     # the sphere's ~0.05 s rounds are noisy
     _sdf(ph)                                                   # warm-up: compiled kernels, imports
     sdf_cpu = []
     for _ in range(n_rounds):

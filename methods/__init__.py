@@ -26,7 +26,7 @@ from .cost import PowerLaw, crossing_cells
 
 __all__ = [
     "Method", "Param", "Reconstruction", "ReconstructionFailed", "available_methods", "get_method", "method_names",
-    "register_method", "import_plugins", "as_reconstruction", "WrongReturnType", "check_volume", "check_info", "run_reconstruct",
-    "MethodSkipped", "check_skip", "run_warm_up",
+    "register_method", "import_plugins", "as_reconstruction", "WrongReturnType", "check_volume", "check_info",
+    "run_reconstruct", "MethodSkipped", "check_skip", "run_warm_up",
     "ENTRY_POINT_GROUP", "BUILTIN_METHODS", "INFO_KEYS", "PowerLaw", "crossing_cells",
 ]

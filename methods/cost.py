@@ -58,8 +58,8 @@ class PowerLaw:
     ``a`` is the time at 64³ on the reference phantom above a constant ``floor`` (the part that does not grow
     with the grid), ``p`` the exponent in N (M = N³), ``q`` the exponent in
     the surface's size relative to the reference phantom's, whose crossing cells are ``C₀ = c0 · (M / 64³)^(2/3)``
-    (the sphere of radius 1 in the suite's [-2.5, 2.5]³ grid: c0 ≈ 3.0k; the bunny 2.9k).  Without C (the grid runner estimates
-    before any volume exists) the reference surface is assumed.
+    (the sphere of radius 1 in the suite's [-2.5, 2.5]³ grid: c0 ≈ 3.0k; the bunny 2.9k).  Without C (the grid
+    runner estimates before any volume exists) the reference surface is assumed.
 
     Parameters
     ----------

@@ -56,7 +56,8 @@ machine without a GPU and prints errors; ``"auto"`` lets the library choose.
 
 Reported in ``info``: ``cloud_points`` (after the first step) and ``fine_tuned_points``, ``psr_depth``,
 ``rasterization_resolution``, ``points_outside_box``, ``redistanced`` and the distance reading, the three phases'
-times (``time_cloud_s``, ``time_fine_tune_s``, ``time_psr_s``) and the mesh's facts.  The method has no iterations of its own to report beyond ``fine_tune_iters``.
+times (``time_cloud_s``, ``time_fine_tune_s``, ``time_psr_s``) and the mesh's facts.  The method has no iterations
+of its own to report beyond ``fine_tune_iters``.
 
 Limits (the paper): the screened-Poisson surface interpolates the cloud, so the result is smooth but not on
 φ = 0 between the points; the far spheres' clamping makes the first step blind beyond clamp·h; noise in φ puts

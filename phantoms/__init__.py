@@ -25,6 +25,6 @@ from .volume import Sample, Volume
 __all__ = [
     "InputError", "Volume", "Sample", "Phantom", "Truth", "PHANTOMS", "VARIANTS", "NOISE_KINDS",
     "get_phantom", "phantom_names", "grid_volume", "add_noise", "snr_db",
-    "load_volume", "save_volume", "check_volume_output", "mask_to_sdf", "REAL_PHANTOMS", "is_phantom_name", "MeshPhantom",
-    "VolumePhantom", "VOLUME_PREFIX", "expand_phantoms", "is_file_phantom", "phantom_path",
+    "load_volume", "save_volume", "check_volume_output", "mask_to_sdf", "REAL_PHANTOMS", "is_phantom_name",
+    "MeshPhantom", "VolumePhantom", "VOLUME_PREFIX", "expand_phantoms", "is_file_phantom", "phantom_path",
 ]

@@ -20,7 +20,8 @@ def mask_distances(m: np.ndarray, spacing: np.ndarray, reference: bool = False) 
     parallel) is about 2.5× faster than :func:`scipy.ndimage.distance_transform_edt`, the ``reference`` the tests
     compare it with (equal to float32 rounding)."""
     if reference:
-        return (ndimage.distance_transform_edt(~m, sampling=spacing), ndimage.distance_transform_edt(m, sampling=spacing))
+        return (ndimage.distance_transform_edt(~m, sampling=spacing),
+                ndimage.distance_transform_edt(m, sampling=spacing))
     import edt
 
     aniso = tuple(float(x) for x in spacing)

@@ -31,8 +31,8 @@ from .base import DEFAULT_EXTENT, DEFAULT_N, as_points, check_n, grid_volume
 from .mesh import MeshPhantom, load_mesh
 from .volume import Volume
 
-__all__ = ["REAL_SHAPES", "get_real_phantom", "get_mesh_file_phantom", "get_volume_phantom", "Bunny", "Cortex", "BrainMRI",
-           "bunny_path", "cortex_path", "mni152_t1_path"]
+__all__ = ["REAL_SHAPES", "get_real_phantom", "get_mesh_file_phantom", "get_volume_phantom", "Bunny", "Cortex",
+           "BrainMRI", "bunny_path", "cortex_path", "mni152_t1_path"]
 
 
 def _package_dir(package: str, extra_hint: str) -> Path:

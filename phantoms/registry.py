@@ -20,8 +20,8 @@ from .field import FIELD_PREFIX, FieldPhantom, parse_field_spec
 from .real import REAL_SHAPES, get_mesh_file_phantom, get_real_phantom, get_volume_phantom
 from .user import VOLUME_PREFIX, parse_spec
 
-__all__ = ["FIELD_PREFIX", "check_phantom_files", "PHANTOMS", "REAL_PHANTOMS", "MESH_PREFIX", "VOLUME_PREFIX", "phantom_names", "is_phantom_name",
-           "get_phantom", "expand_phantoms", "is_file_phantom", "phantom_path"]
+__all__ = ["FIELD_PREFIX", "check_phantom_files", "PHANTOMS", "REAL_PHANTOMS", "MESH_PREFIX", "VOLUME_PREFIX",
+           "phantom_names", "is_phantom_name", "get_phantom", "expand_phantoms", "is_file_phantom", "phantom_path"]
 
 #: the analytic phantom classes by name
 PHANTOMS: dict[str, type[Phantom]] = {

@@ -25,7 +25,8 @@ from geometry.trilinear import trilinear_channels
 
 from .memory import available_memory, check_memory
 
-__all__ = ["VOLUME_KINDS", "Volume", "Sample", "VolumeSampler", "trilinear_channels", "check_grid", "check_memory", "available_memory"]
+__all__ = ["VOLUME_KINDS", "Volume", "Sample", "VolumeSampler", "trilinear_channels", "check_grid", "check_memory",
+           "available_memory"]
 
 
 #: what a volume's input was (:attr:`Volume.kind`)
@@ -97,9 +98,10 @@ _HESS_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 def _derivative_channels(values: np.ndarray, spacing, order: int) -> np.ndarray:
     """:meth:`Volume.channels` in numpy (the reference of :func:`geometry.grid_derivatives.derivative_stack`),
-    built in place: each grid is written into the (…, C) array as soon as it is computed, and only one gradient's three derivatives are alive beside it — at N = 256 and C = 10 the peak is
-    C + 4 grids instead of C + 16 (1.9 GB instead of 3.5 GB).  The values are those of stacking φ, ∇φ and
-    the symmetrised Hessian ½(∂ᵢ∂ⱼφ + ∂ⱼ∂ᵢφ) (the two difference orders differ at the border)."""
+    built in place: each grid is written into the (…, C) array as soon as it is computed, and only one gradient's
+    three derivatives are alive beside it — at N = 256 and C = 10 the peak is C + 4 grids instead of C + 16
+    (1.9 GB instead of 3.5 GB).  The values are those of stacking φ, ∇φ and the symmetrised Hessian
+    ½(∂ᵢ∂ⱼφ + ∂ⱼ∂ᵢφ) (the two difference orders differ at the border)."""
     n_chan = _N_CHANNELS[order]
     check_memory(values.shape, n_chan + (4 if order >= 2 else 1), what=f"the interpolation grids (order {order})")
     out = np.empty(values.shape + (n_chan,))

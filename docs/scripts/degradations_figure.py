@@ -11,7 +11,6 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 
 from phantoms import get_phantom  # noqa: E402
 from phantoms.degrade import degrade  # noqa: E402
@@ -40,8 +39,8 @@ def main(n: int = 48, out: Path = Path(__file__).resolve().parents[1] / "img" / 
         ax.set_ylim(-1.6, 1.6)
         ax.set_xticks([])
         ax.set_yticks([])
-    fig.suptitle(f"bunny, N = {n}, slice y = 0 (x right, z up): the image each degradation gives; red: the exact surface",
-                 fontsize=10)
+    fig.suptitle(f"bunny, N = {n}, slice y = 0 (x right, z up): the image each degradation gives; "
+                 "red: the exact surface", fontsize=10)
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=90)

@@ -26,7 +26,8 @@ import numpy as np
 
 #: (name, kind, repository, path in it, licence as the repository states it)
 SHAPES = [
-    ("armadillo", "animal", "odedstein/meshes", "objects/armadillo/armadillo.obj", "Stanford 3D Scanning Repository terms (research, credit)"),
+    ("armadillo", "animal", "odedstein/meshes", "objects/armadillo/armadillo.obj",
+     "Stanford 3D Scanning Repository terms (research, credit)"),
     ("cat", "animal", "odedstein/meshes", "objects/cat/cat-low-resolution.obj", "CC BY 4.0"),
     ("scorpion", "animal", "odedstein/meshes", "objects/scorpion/scorpion.obj", "CC BY 3.0"),
     ("koala", "animal", "odedstein/meshes", "objects/koala/koala.obj", "CC BY 3.0"),

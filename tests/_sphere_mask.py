@@ -58,4 +58,5 @@ def closed_outward(mesh) -> bool:
 
 def in_world_box(mesh, spacing) -> bool:
     """The bounding box within one (coarsest) voxel of ±1 on every axis."""
-    return bool(np.all(np.abs(mesh.bounds[0] + 1) <= spacing.max()) and np.all(np.abs(mesh.bounds[1] - 1) <= spacing.max()))
+    return bool(np.all(np.abs(mesh.bounds[0] + 1) <= spacing.max())
+                and np.all(np.abs(mesh.bounds[1] - 1) <= spacing.max()))

@@ -54,8 +54,8 @@ def write_synthetic_run(out: Path, n_shapes: int = 100, seeds: int = 5, noise=("
                     # the store's layout (bench/run/store.py: save_cell), written without its fsyncs for speed
                     np.savez(out / CELLS_DIR / f"{cid}.npz", vertices=v * (1 + 0.01 * k), faces=f,
                              H=np.ones(len(v), np.float32))
-                    records[cid] = {"row": row, "cell": cell, "traceback": None, "artifacts": ["H", "faces", "vertices"],
-                                    "code": None}
+                    records[cid] = {"row": row, "cell": cell, "traceback": None,
+                                    "artifacts": ["H", "faces", "vertices"], "code": None}
                     if sealed:
                         records[cid] = seal(records[cid], out / CELLS_DIR / f"{cid}.npz")
                     (out / CELLS_DIR / f"{cid}.json").write_text(json.dumps(records[cid]))

@@ -62,8 +62,9 @@ def _rms_and_se(d2):
 def test_chamfer_l2_equals_gpytoolbox_sampling(name):
     """The papers' computation, independently: gpytoolbox's random_points_on_mesh (the unit sphere's own points:
     normalised Gaussians, its distance | |p| − 1 |; a fine icosphere would bias it by its sagitta, 0.4 %) and
-    libigl's AABB squared_distance, 200,000 samples a side, against evaluate's chamfer_l2 (100,000 samples, the suite's sampler and exact distances):
-    equal within 4 combined standard errors of the two estimates (each about 0.3 % of the value)."""
+    libigl's AABB squared_distance, 200,000 samples a side, against evaluate's chamfer_l2 (100,000 samples, the
+    suite's sampler and exact distances): equal within 4 combined standard errors of the two estimates (each about
+    0.3 % of the value)."""
     import gpytoolbox as gpy
     from skimage.measure import marching_cubes
 

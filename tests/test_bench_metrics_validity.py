@@ -93,7 +93,8 @@ def test_an_invalid_output_is_an_invalid_row_never_best_and_reconstruct_says_so(
     from phantoms import save_volume
 
     tests = Path(__file__).resolve().parent
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tests), str(tests.parent), os.environ.get("PYTHONPATH", "")]))
+    env = dict(os.environ,
+               PYTHONPATH=os.pathsep.join([str(tests), str(tests.parent), os.environ.get("PYTHONPATH", "")]))
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "bench", "run", "--quick", "--phantoms", "sphere", "--noise", "none",
            "--method", "marching_cubes", "--add-method", "inward", "--import", "runner_plugins", "--out", str(out),
@@ -145,7 +146,8 @@ def test_every_invalid_class_is_invalid_in_the_grid_never_best_and_in_reconstruc
     from phantoms import save_volume
 
     tests = Path(__file__).resolve().parent
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tests), str(tests.parent), os.environ.get("PYTHONPATH", "")]))
+    env = dict(os.environ,
+               PYTHONPATH=os.pathsep.join([str(tests), str(tests.parent), os.environ.get("PYTHONPATH", "")]))
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "bench", "run", "--quick", "--phantoms", "sphere", "--noise", "none",
            "--n", "32", "--n-samples", "2000", "--method", "marching_cubes", "--import", "runner_plugins",

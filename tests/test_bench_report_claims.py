@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pytest
 
 from bench.report.claims import CLAIMS, check_claims
 
@@ -133,10 +132,12 @@ def test_each_variant_gets_its_own_verdict_and_the_row_says_why_they_differ():
     and the suite default beats it on one phantom of two: three columns, three verdicts."""
     mc = [_row("marching_cubes", ph, "none", mean_dist_h=0.1) for ph in ("sphere", "cube")]
     rows = mc + [
-        _variant_row("printed", "sphere", "none", mean_dist_h=0.3), _variant_row("printed", "cube", "none", mean_dist_h=0.2),
+        _variant_row("printed", "sphere", "none", mean_dist_h=0.3),
+        _variant_row("printed", "cube", "none", mean_dist_h=0.2),
         _variant_row("corrected", "sphere", "none", mean_dist_h=0.05),
         _variant_row("corrected", "cube", "none", mean_dist_h=0.08),
-        _variant_row("default", "sphere", "none", mean_dist_h=0.09), _variant_row("default", "cube", "none", mean_dist_h=0.2),
+        _variant_row("default", "sphere", "none", mean_dist_h=0.09),
+        _variant_row("default", "cube", "none", mean_dist_h=0.2),
         _variant_row("printed", "sphere", "gaussian", hausdorff_h=2.0, status="invalid"),
         _variant_row("corrected", "sphere", "gaussian", hausdorff_h=0.6)]
     claims = {c.id: c for c in check_claims(rows)}

@@ -118,8 +118,8 @@ def test_a_real_worsening_is_significant_and_seed_noise_is_not(tmp_path):
     base = {lab: rng.uniform(1.0, 2.0, 10) for lab in ("worse", "noisy", "same")}
     shift = rng.uniform(0.2, 0.4, 10) * np.where(np.arange(10) % 2, 1.0, -1.0)        # ±, alternating seeds
     a = _run(tmp_path / "a", [r for lab in base for r in _seeds(lab, base[lab])])
-    b = _run(tmp_path / "b", _seeds("worse", base["worse"] * 1.3, params='{"k":2}') + _seeds("noisy", base["noisy"] + shift)
-             + _seeds("same", base["same"]))
+    b = _run(tmp_path / "b", _seeds("worse", base["worse"] * 1.3, params='{"k":2}')
+             + _seeds("noisy", base["noisy"] + shift) + _seeds("same", base["same"]))
     cmp = compare_frames(a, b, "A", "B")
     got = {(c["label"], c["metric"]): c for c in cmp.changes}
     w = got[("worse", "hausdorff_h")]

@@ -162,7 +162,8 @@ def test_a_final_row_when_no_iteration_row_shows_the_final_mesh(tmp_path):
     names = [r["name"] for r in tables[0]["rows"]]
     assert names == ["Initial surface Γ₀", "Iteration 1", "Final surface", "Energy"]
     assert tables[0]["rows"][2]["cells"][0]["note"] == "converged at iteration 3"
-    assert [g["title"] for g in galleries] == ["Shape gradient [sg]", "Marching Cube [mc]"]   # no uniform_label: no uniform table
+    # no uniform_label: no uniform table
+    assert [g["title"] for g in galleries] == ["Shape gradient [sg]", "Marching Cube [mc]"]
 
 
 # ---------------------------------------------------------------------------------------------- fallback

@@ -67,7 +67,8 @@ def test_one_table_per_phantom_and_noise_with_the_best_marked():
         _row("b", noise="gaussian", hausdorff=0.4, normal_consistency=0.7, euler=2, n_vertices=100),
     ])
     tables = summary_tables(df)
-    assert [t["title"] for t in tables] == ["sphere — signed distance, clean", "sphere — signed distance, gaussian noise, SNR 40 dB"]
+    assert [t["title"] for t in tables] == ["sphere — signed distance, clean",
+                                            "sphere — signed distance, gaussian noise, SNR 40 dB"]
     assert [t["n_methods"] for t in tables] == [2, 2]
     # clean: b has the smaller distance, a the higher normal consistency and the sphere's Euler characteristic
     assert sorted(_marked(tables[0]["html"])) == sorted(["0.1", "0.99", "2"])
@@ -106,7 +107,8 @@ def test_flags_and_invalid_rows_are_badges_named_in_text():
     bad_row = html[html.index("<td>bad</td>"):].split("</tr>")[0]
     assert 'class="best"' not in bad_row
     assert status_badges("failed", [], False).startswith('<span class="badge badge-failed"')
-    assert status_badges("ok", ["x<y"], True) == 'ok <span class="badge badge-flag" title="suspect result">x&lt;y</span>'
+    assert (status_badges("ok", ["x<y"], True)
+            == 'ok <span class="badge badge-flag" title="suspect result">x&lt;y</span>')
 
 
 def test_several_seeds_show_the_mean_and_a_95_percent_interval():

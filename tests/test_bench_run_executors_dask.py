@@ -24,7 +24,8 @@ TESTS = Path(__file__).resolve().parent
 # columns that measure the machine, not the result
 COST_COLUMNS = {"wall_s", "peak_mem_mb"}
 # the quick grid on one phantom (CI time), plus a method that raises and one that kills its own process
-QUICK = ["--quick", "--phantoms", "sphere", "--import", "runner_plugins", "--add-method", "failing", "--add-method", "crashing"]
+QUICK = ["--quick", "--phantoms", "sphere", "--import", "runner_plugins", "--add-method", "failing",
+         "--add-method", "crashing"]
 
 
 def _env() -> dict:

@@ -1,6 +1,5 @@
 """methods/zmesh_mc.py: zmesh's marching cubes of the label map on the unit sphere's mask at N = 48."""
 
-import numpy as np
 import pytest
 
 pytest.importorskip("zmesh")

@@ -87,7 +87,8 @@ def test_sdf_volume_is_exact_at_grid_points(name):
     closed = {
         "sphere": np.sqrt(x * x + y * y + z * z) - 1,
         "torus": np.hypot(np.hypot(x, y) - 1.0, z) - 0.35,
-        "fused_spheres": np.minimum(np.sqrt(x * x + y * y + (z - 0.7) ** 2), np.sqrt(x * x + y * y + (z + 0.7) ** 2)) - 0.8,
+        "fused_spheres": np.minimum(np.sqrt(x * x + y * y + (z - 0.7) ** 2),
+                                    np.sqrt(x * x + y * y + (z + 0.7) ** 2)) - 0.8,
     }.get(name)
     if closed is not None:
         outside = closed > 0  # union of balls: min of distances is exact outside
@@ -116,7 +117,8 @@ def _implicit_curvature(f, x, h=1e-4):
     Hs = np.empty((len(x), 3, 3))
     for i in range(3):
         for j in range(3):
-            Hs[:, i, j] = (f(x + e[i] + e[j]) - f(x + e[i] - e[j]) - f(x - e[i] + e[j]) + f(x - e[i] - e[j])) / (4 * h * h)
+            Hs[:, i, j] = (f(x + e[i] + e[j]) - f(x + e[i] - e[j])
+                           - f(x - e[i] + e[j]) + f(x - e[i] - e[j])) / (4 * h * h)
     ng = np.linalg.norm(g, axis=1)
     gHg = np.einsum("pi,pij,pj->p", g, Hs, g)
     tr = np.trace(Hs, axis1=1, axis2=2)

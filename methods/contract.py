@@ -155,7 +155,8 @@ def run_reconstruct(method, volume: Volume) -> Any:
     without a row).  Nor may it change the volume it was given: ``values`` is a read-only view, but a method
     can still turn the flag back on, write through the array's base, or rebind ``values``, ``origin`` or
     ``spacing`` — and its mesh would then be checked against the φ it made up.  A fingerprint of the volume
-    (the arrays' CRC-32, the geometry, the kind and level) taken before the call is compared after it.
+    (the arrays' CRC-32, the geometry, the kind and level) taken before the call is compared after it, and the
+    volume's cached interpolation grids (derived, writeable) are dropped, so the suite's checks rebuild them.
 
     Parameters
     ----------
@@ -181,6 +182,9 @@ def run_reconstruct(method, volume: Volume) -> Any:
     except SystemExit as exc:
         raise WrongReturnType(f"method {method.name!r} called sys.exit({exc.code!r}) instead of returning "
                                    "a Reconstruction or raising an exception") from None
+    finally:
+        if hasattr(volume, "forget_derived"):
+            volume.forget_derived()         # grids the method was handed may have been written to: rebuild them
     changed = [name for name, value in _fingerprint(volume).items() if value != before[name]]
     if changed:
         raise WrongReturnType(f"method {method.name!r} changed its input volume ({', '.join(changed)}): the "

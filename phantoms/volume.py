@@ -279,6 +279,12 @@ class Volume:
         return self.has_zero_crossing() and bool((self.boundary_values() > 0).all())
 
     # ------------------------------------------------------------------ interpolation
+    def forget_derived(self) -> None:
+        """Drop the cached interpolation grids (:meth:`channels`): the next read recomputes them from
+        ``values``.  The suite calls it after a method returns, so that what it checks the mesh against was not
+        made by the method (a method can write into the cached arrays it was handed)."""
+        self._channels.clear()
+
     def channels(self, order: int, dtype=np.float64) -> np.ndarray:
         """The stacked grids interpolation reads: an (nx, ny, nz, C) array, computed once and cached.
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pickle
 
+import numpy as np
 import pytest
 
 import hook_plugins
@@ -95,3 +96,18 @@ def test_a_method_that_changes_its_input_volume_is_a_wrong_return_naming_what(ho
 
 def test_a_method_that_only_reads_its_input_passes_the_fingerprint(sphere):
     assert run_reconstruct(get_method("marching_cubes"), sphere).mesh.is_watertight
+
+
+def test_grids_a_method_wrote_into_are_rebuilt_before_the_suite_reads_them():
+    """The cached interpolation grids are derived and writeable: a method that shifts φ there (its mesh still
+    right) must not make the suite's checks read the shifted φ — they are dropped when the method returns."""
+    volume = get_phantom("sphere").volume(n=16)
+    exact = np.array(volume.channels(1))
+
+    class _ShiftsGrids(_Writes):
+        def reconstruct(self, vol):
+            vol.channels(1)[..., 0] += 2 * vol.h
+            return get_method("marching_cubes").reconstruct(vol)
+
+    run_reconstruct(_ShiftsGrids("grids"), volume)
+    np.testing.assert_array_equal(volume.channels(1), exact)

@@ -204,13 +204,15 @@ def _measured_vs_estimate(method: str, phantom: str, n: int, repeats: int = 1) -
 def test_distmesh_estimate_grows_as_measured_and_is_of_the_measured_order():
     """The model was fitted on one machine (docs/NOTES.md); another CPU runs DistMesh at another speed (a
     2026-12 Intel Xeon: 3.8-4.5x faster than the fit), so across machines what must hold is the growth with N
-    (48 -> 96, within a factor 1.5 of the model's 5.8x) and the order of magnitude (a factor 6)."""
+    (48 -> 96, within a factor 1.5 of the model's 5.8x) and the order of magnitude: at most 6x the estimate, at
+    least a tenth of it (the fit errs on the slow side, about 2x at N = 96 on its own machine, and an AMD EPYC CI
+    machine has run the N = 96 sphere in 0.21 s CPU against an estimate of 1.29 s)."""
     # the median of 3: one 0.06 s run at N = 48 is at the mercy of the scheduler on a busy CI machine
     cpu48, est48 = _measured_vs_estimate("distmesh", "sphere", 48, repeats=3)
     cpu96, est96 = _measured_vs_estimate("distmesh", "sphere", 96, repeats=3)
     growth, model = cpu96 / cpu48, est96 / est48
     assert model / 1.5 <= growth <= model * 1.5, (cpu48, cpu96, est48, est96, os.getloadavg())
-    assert est96 / 6 <= cpu96 <= est96 * 6, (cpu96, est96, os.getloadavg())
+    assert est96 / 10 <= cpu96 <= est96 * 6, (cpu96, est96, os.getloadavg())
 
 
 @pytest.mark.heavy

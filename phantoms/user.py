@@ -16,13 +16,13 @@ The image is read with its geometry (:mod:`phantoms.images`: NIfTI, NRRD, MetaIm
 image border has an open zero level set and is refused without it).
 
 Options
-    ``mask`` auto | yes | no; ``threshold`` number; ``label`` integer; ``level`` number; ``invert`` yes | no; ``pad`` integer ≥ 0;
-    ``truth`` a closed mesh file in the same world coordinates (every truth metric is computed against it) or a
-    label image (its voxels > 0, or equal to ``label`` when given, are the reference segmentation; its surface is
-    the zero level set of that mask's signed distance, extracted by marching cubes: vertices on the grid edges
-    half-way between an inside and an outside voxel centre); ``resample`` no | yes (default no: the native grid —
-    the grid's N is then the largest dimension; yes: N points along the longest world axis, isotropic spacing,
-    trilinear); ``series`` a DICOM series UID (a folder holding several).
+    ``mask`` auto | yes | no; ``threshold`` number; ``label`` integer; ``level`` number; ``invert`` yes | no; ``pad``
+    integer ≥ 0; ``truth`` a closed mesh file in the same world coordinates (every truth metric is computed against it)
+    or a label image (its voxels > 0, or equal to ``label`` when given, are the reference segmentation; its surface is
+    the zero level set of that mask's signed distance, extracted by marching cubes: vertices on the grid edges half-way
+    between an inside and an outside voxel centre); ``resample`` no | yes (default no: the native grid — the grid's N is
+    then the largest dimension; yes: N points along the longest world axis, isotropic spacing, trilinear); ``series`` a
+    DICOM series UID (a folder holding several).
 
 The same options are a TOML table in a config: ``{ volume = "ct.nrrd", threshold = 300 }``.
 """
@@ -103,8 +103,7 @@ def _check_options(opts: dict, where: str) -> dict:
     if len(given) > 1:
         raise InputError(f"{where}: give one of label=, labels=, threshold= and level=, not {' and '.join(given)}")
     if "level" in out and out.get("mask") == "yes":
-        raise InputError(f"{where}: level= reads an intensity image as a level set; it cannot be combined with "
-                         "mask=yes")
+        raise InputError(f"{where}: level= reads intensities as a level set; it cannot be combined with mask=yes")
     if out.get("mask") == "no" and ("label" in out or "threshold" in out):
         raise InputError(f"{where}: mask=no reads the values as a level set; it cannot be combined with "
                          "label= or threshold=")
@@ -195,7 +194,8 @@ def _inside(values: np.ndarray, opts: dict, where: str) -> np.ndarray | None:
     elif "threshold" in opts:
         inside = values > opts["threshold"]
         if not inside.any() or inside.all():
-            raise InputError(f"{where}: threshold {opts['threshold']:g} leaves {'no voxel' if not inside.any() else 'every voxel'} "
+            none = 'no voxel' if not inside.any() else 'every voxel'
+            raise InputError(f"{where}: threshold {opts['threshold']:g} leaves {none} "
                              f"inside (values range over [{float(values.min()):g}, {float(values.max()):g}]); "
                              "values above the threshold are inside")
     elif mode == "no":

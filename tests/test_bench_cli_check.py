@@ -48,7 +48,8 @@ def _check_param(n):
     return pytest.param(n, marks=marks + ([pytest.mark.heavy] if n in SLOW_CHECKS else []))
 
 
-#: built-ins that read a surface made elsewhere instead of computing one from the volume (tests/test_methods_mesh_file.py)
+#: built-ins that read a surface made elsewhere instead of computing one from the volume
+#: (tests/test_methods_mesh_file.py)
 IMPORTERS = {"mesh_file"}
 
 

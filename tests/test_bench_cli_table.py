@@ -3,7 +3,6 @@ pipe table, rendered) and CSV, with the numbers of results.parquet."""
 
 from __future__ import annotations
 
-import io
 import re
 import shutil
 import subprocess

@@ -86,7 +86,8 @@ def test_info(tmp_path, capsys):
     assert "(16, 16, 16)" in text and "closed:       yes" in text
     big = tmp_path / "big.npz"
     # a sphere of radius 3 in [-2.5, 2.5]³ is cut by the grid boundary
-    np.savez(big, values=np.linalg.norm(np.stack(np.meshgrid(*[np.linspace(-2.5, 2.5, 16)] * 3, indexing="ij")), axis=0) - 3)
+    xyz = np.stack(np.meshgrid(*[np.linspace(-2.5, 2.5, 16)] * 3, indexing="ij"))
+    np.savez(big, values=np.linalg.norm(xyz, axis=0) - 3)
     assert main(["info", str(big)]) == 0
     assert "closed:       no" in capsys.readouterr().out
 
@@ -101,7 +102,8 @@ def test_info(tmp_path, capsys):
     ],
 )
 def test_bad_input_exit_code_2(tmp_path, args, message):
-    r = subprocess.run([sys.executable, "-m", "bench", *args], capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    r = subprocess.run([sys.executable, "-m", "bench", *args], capture_output=True, text=True, cwd=tmp_path,
+                       timeout=120)
     assert r.returncode == 2
     assert message in r.stderr
     assert "Traceback" not in r.stderr
@@ -113,7 +115,8 @@ def test_info_bad_files_exit_2(tmp_path):
     np.save(tmp_path / "nan.npy", np.full((8, 8, 8), np.nan))
     np.save(tmp_path / "flat.npy", np.zeros((8, 8)))
     np.save(tmp_path / "empty.npy", np.zeros((8, 8, 8), bool))
-    for name, msg in [("t.npz", "cannot read"), ("nan.npy", "NaN"), ("flat.npy", "3-D"), ("empty.npy", "no inside voxels")]:
+    for name, msg in [("t.npz", "cannot read"), ("nan.npy", "NaN"), ("flat.npy", "3-D"),
+                      ("empty.npy", "no inside voxels")]:
         r = run("info", str(tmp_path / name))
         assert r.returncode == 2, name
         assert msg in r.stderr and "Traceback" not in r.stderr

@@ -1,4 +1,5 @@
-"""geometry/broadphase.py: exactly the box-overlapping, vertex-disjoint pairs (brute force), and the same\nself-intersections as the numpy broad phase of geometry/intersections.py."""
+"""geometry/broadphase.py: exactly the box-overlapping, vertex-disjoint pairs (brute force), and the same
+self-intersections as the numpy broad phase of geometry/intersections.py."""
 
 from __future__ import annotations
 

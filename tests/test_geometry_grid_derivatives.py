@@ -27,7 +27,8 @@ def test_exact_on_a_quadratic_border_included():
     x, y, z = np.moveaxis(ijk * h, -1, 0)
     phi = 1.0 + 2 * x - y + 0.5 * z + 3 * x * x + 0.7 * x * y - 1.1 * x * z + 0.4 * y * y + 2.5 * y * z - z * z
     out = derivative_stack(phi, h, 2)
-    grad = np.stack([2 + 6 * x + 0.7 * y - 1.1 * z, -1 + 0.7 * x + 0.8 * y + 2.5 * z, 0.5 - 1.1 * x + 2.5 * y - 2 * z], -1)
+    grad = np.stack([2 + 6 * x + 0.7 * y - 1.1 * z, -1 + 0.7 * x + 0.8 * y + 2.5 * z,
+                     0.5 - 1.1 * x + 2.5 * y - 2 * z], -1)
     hess = np.array([6.0, 0.7, -1.1, 0.8, 2.5, -2.0])                      # xx, xy, xz, yy, yz, zz
     assert np.allclose(out[..., 0], phi, rtol=0, atol=0)
     assert np.allclose(out[..., 1:4], grad, rtol=0, atol=1e-10)

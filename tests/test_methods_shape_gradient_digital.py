@@ -1,5 +1,5 @@
-"""methods.shape_gradient.digital: the simple-point test against its scipy reference, the homotopic growth's topology (one
-component, no handle, no cavity) on volumes with known handles, and marching cubes of ball_field giving exactly
+"""methods.shape_gradient.digital: the simple-point test against its scipy reference, the homotopic growth's topology
+(one component, no handle, no cavity) on volumes with known handles, and marching cubes of ball_field giving exactly
 one closed genus-0 surface — also on random fields full of handles."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
-"""methods.shape_gradient.pinholes and methods.shape_gradient.digital.homotopic_thinning: a noise pinhole in a thin sheet is closed (the
-growth then takes the whole sheet), a real hole is not, and the thinning keeps the topology and removes every
-sample it may."""
+"""methods.shape_gradient.pinholes and methods.shape_gradient.digital.homotopic_thinning: a noise pinhole in a thin
+sheet is closed (the growth then takes the whole sheet), a real hole is not, and the thinning keeps the topology and
+removes every sample it may."""
 
 from __future__ import annotations
 

@@ -43,7 +43,8 @@ def test_crease_polish_does_not_pull_a_convex_tip_in():
     from methods.shape_gradient import GridSampler
     from methods.shape_gradient.polish import crease_polish, newton_project
 
-    mesh = Path(importlib.util.find_spec("pymeshlab").submodule_search_locations[0]) / "tests/sample_meshes/airplane.obj"
+    package = Path(importlib.util.find_spec("pymeshlab").submodule_search_locations[0])
+    mesh = package / "tests/sample_meshes/airplane.obj"
     ph = get_phantom(f"mesh:{mesh}")
     vol = ph.volume(n=64)
     flow = ShapeGradient(polish="off", projection="off").prepare(vol)   # the defaults: genus-0 start, remeshing

@@ -1,7 +1,8 @@
 """The shape-gradient method on the real shapes at N = 96, defaults (issue 14's Must-show), scored by the suite's
 own metrics against the exact surfaces.
 
-Slow (≈ 2–3 min: building the three volumes is half of it): ``pytest -m slow tests/test_methods_shape_gradient_real.py``.
+Slow (≈ 2–3 min: building the three volumes is half of it):
+``pytest -m slow tests/test_methods_shape_gradient_real.py``.
 Targets: bunny Hausdorff ≤ 0.65 h (marching cubes' value), 95th percentile ≤ 0.12 h; cortex one component, χ = 2,
 95th percentile ≤ 0.5 h, mean ≤ 0.1 h (marching cubes gives χ = −44 there); brain_mri Hausdorff ≤ 0.75 h; all
 without self-intersections; the bunny under 40 dB Gaussian noise: Hausdorff ≤ 1.0 h and smoother than marching

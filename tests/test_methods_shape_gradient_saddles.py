@@ -1,5 +1,5 @@
-"""Pieces of a sampled region and their lowest saddles (methods/shape_gradient/saddles.py): which pieces are joined, through
-which samples, and that the growth through the joined values is one genus-0 solid."""
+"""Pieces of a sampled region and their lowest saddles (methods/shape_gradient/saddles.py): which pieces are joined,
+through which samples, and that the growth through the joined values is one genus-0 solid."""
 
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """Tests of ``phantoms.mesh.grid_kernels``, the compiled kernels of the grid signed distance, one by one:
 :func:`tri_eval` against :func:`geometry.closest.closest_point_on_triangles`, :func:`mark_band` against the
-distance to the vertices, the neighbour table against three nested loops.  (The whole grid: test_phantoms_mesh_grid_sdf.py.)"""
+distance to the vertices, the neighbour table against three nested loops.  (The whole grid:
+test_phantoms_mesh_grid_sdf.py.)"""
 
 from __future__ import annotations
 

@@ -128,8 +128,8 @@ def _resolve_config(args) -> RunConfig:
         cfg.methods = cfg.methods + [parse_method_spec(s) for s in args.add_method]
     if args.n_samples:
         cfg.n_samples = args.n_samples
-    overrides = [f"--{k.replace('_', '-')}" for k in ("phantoms", "n", "noise", "degrade", "seeds", "method", "add_method",
-                                                       "imports", "n_samples") if getattr(args, k)]
+    overrides = [f"--{k.replace('_', '-')}" for k in ("phantoms", "n", "noise", "degrade", "seeds", "method",
+                                                       "add_method", "imports", "n_samples") if getattr(args, k)]
     note = f"Changed on the command line ({', '.join(o.replace('--imports', '--import') for o in overrides)})."
     if overrides and note not in cfg.description:
         cfg.description = (cfg.description + " " if cfg.description else "") + note

@@ -23,8 +23,9 @@ def _cmd_phantoms(args) -> int:
     for name, cls in REAL_SHAPES.items():
         print(f"{name:<15} {cls.genus:>5} {str(cls.has_creases).lower():>7} {'-':>9}  data: {cls.data}")
         print(f"{'':<40}{cls.description}")
-    print(f"{'mesh:PATH':<15} {'':>5} {'':>7} {'-':>9}  any closed triangle mesh file trimesh reads (OBJ, PLY, STL, OFF, ...)")
-    print(f"{'volume:PATH':<15} {'':>5} {'':>7} {'-':>9}  your volume: NIfTI, NRRD, MetaImage, DICOM folder, .npz/.npy; "
+    blank = f"{'':>5} {'':>7} {'-':>9}"
+    print(f"{'mesh:PATH':<15} {blank}  any closed triangle mesh file trimesh reads (OBJ, PLY, STL, OFF, ...)")
+    print(f"{'volume:PATH':<15} {blank}  your volume: NIfTI, NRRD, MetaImage, DICOM folder, .npz/.npy; "
           "?threshold=T, label=L, truth=FILE, ... (docs/PHANTOMS.md)")
     print(f"{'':<40}a glob in PATH (mesh:shapes/*.obj) is one phantom per file")
     print(f"\nvariants: {', '.join(VARIANTS)} (default sdf); grid: N³ points over [-2.5, 2.5]³ (default N = 96)")

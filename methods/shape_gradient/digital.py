@@ -16,14 +16,14 @@ to be separate.
   has a pure-Python reference (:func:`is_simple_reference`, scipy labelling) the tests compare it with.
 * :func:`homotopic_thinning` — the reverse: samples of a solid removed, highest φ first, each only while it is
   a simple point (the topology is kept; what must stay to close a hole stays).
-* :func:`ball_field` — a copy of φ whose marching-cubes surface (scikit-image, Lewiner's topologically
-  consistent tables) has the grown solid's topology: samples left out of the solid are set just outside
-  (+ ``eps``·h), samples of the solid at or above the level just inside (− ``eps``·h); then marching cubes'
-  ambiguous cells (faces with diagonal signs, cubes whose inside or outside corners are not edge-connected)
-  are resolved toward the solid's 26-connectivity, first gently (the outside values of a face scaled until the
-  face's asymptotic decider joins the inside corners), then, if the surface still has a handle, by clamping the values of the ambiguous cells (inside ≤ −``floor``, outside
-  ≤ δ) with ``floor`` growing.  Each attempt is checked (:func:`surface_is_sphere`); the caller receives the
-  first that gives one closed genus-0 surface, and which one it was.
+* :func:`ball_field` — a copy of φ whose marching-cubes surface (scikit-image, Lewiner's topologically consistent
+  tables) has the grown solid's topology: samples left out of the solid are set just outside (+ ``eps``·h), samples of
+  the solid at or above the level just inside (− ``eps``·h); then marching cubes' ambiguous cells (faces with diagonal
+  signs, cubes whose inside or outside corners are not edge-connected) are resolved toward the solid's 26-connectivity,
+  first gently (the outside values of a face scaled until the face's asymptotic decider joins the inside corners), then,
+  if the surface still has a handle, by clamping the values of the ambiguous cells (inside ≤ −``floor``, outside ≤ δ)
+  with ``floor`` growing.  Each attempt is checked (:func:`surface_is_sphere`); the caller receives the first that gives
+  one closed genus-0 surface, and which one it was.
 
 Simple points (Bertrand & Malandain 1994): a sample x is simple for a 26-connected solid X with a 6-connected
 background iff X ∩ N26*(x) has one 26-component and the background ∩ N18(x) has one 6-component that is
@@ -384,7 +384,8 @@ _CLAMP_FLOORS = (0.2, 0.4, 0.8)
 def ball_field(phi: np.ndarray, solid: np.ndarray, h: float, eps: float = 0.05):
     """(field, mesh, how): φ changed so that marching cubes gives the genus-0 surface of ``solid``, the
     (vertices in index coordinates, faces) of that surface, and which attempt gave it ('gentle',
-    'clamp <floor>' or, last, 'binary': inside samples −h, outside +eps·h); ``(None, None, 'failed')`` if none did.  See the module docstring."""
+    'clamp <floor>' or, last, 'binary': inside samples −h, outside +eps·h); ``(None, None, 'failed')`` if
+    none did.  See the module docstring."""
     base = np.where(solid, phi, np.maximum(phi, eps * h))
     # no sample exactly on the level; a sample above it that the solid holds (a closed pinhole) just inside
     base = np.where(solid, np.where(phi >= 0, -eps * h, np.minimum(base, -1e-6 * h)), base)

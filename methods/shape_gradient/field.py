@@ -10,8 +10,8 @@ import numpy as np
 from geometry.trilinear import trilinear_channels
 from phantoms import Sample, Volume
 
-__all__ = ["GridSampler", "FLOAT32_ABOVE_BYTES", "stack_dtype", "as_field", "estimate_noise", "smoothed_field", "start_smoothing",
-           "noise_after_smoothing"]
+__all__ = ["GridSampler", "FLOAT32_ABOVE_BYTES", "stack_dtype", "as_field", "estimate_noise", "smoothed_field",
+           "start_smoothing", "noise_after_smoothing"]
 
 _NOISE: "weakref.WeakKeyDictionary[Volume, float]" = weakref.WeakKeyDictionary()
 

@@ -409,7 +409,8 @@ class ShapeGradientFlow:
         med = float(np.median(np.abs(phi)))
         noise = float(self.noise) if np.isfinite(self.noise) else 0.0
         limit = float(np.hypot(_OFF_SURFACE_VOXELS * self.h, _OFF_SURFACE_NOISE * noise))
-        facts = {"signed_volume": vol, "median_abs_phi_voxels": med / self.h, "off_surface_limit_voxels": limit / self.h}
+        facts = {"signed_volume": vol, "median_abs_phi_voxels": med / self.h,
+                 "off_surface_limit_voxels": limit / self.h}
         if self.stop != "diverged" and self.settings.guard:
             if vol <= self.h ** 3:
                 raise ReconstructionFailed(
@@ -418,7 +419,8 @@ class ShapeGradientFlow:
             if med > limit:
                 raise ReconstructionFailed(
                     f"method 'shape_gradient': the surface did not reach φ = 0 (median |φ| at the vertices "
-                    f"{med / self.h:.2f} voxels, more than {limit / self.h:.2f} for this volume's noise, after {self.iteration} iterations, {self.stop or 'max_iter'}); "
+                    f"{med / self.h:.2f} voxels, more than {limit / self.h:.2f} for this volume's noise, after "
+                    f"{self.iteration} iterations, {self.stop or 'max_iter'}); "
                     "raise max_iter or check the volume")
         return facts
 

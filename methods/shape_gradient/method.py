@@ -115,8 +115,8 @@ class ShapeGradient(Method):
         "solver": Param("auto", "how the H¹ system is solved: 'direct' = sparse LU of M + sK refreshed every 5 "
                         "iterations and at every remesh; 'amg' = CG preconditioned by a multigrid hierarchy "
                         "(pyamg) refreshed likewise; 'cg' = Jacobi-preconditioned CG every iteration (the "
-                        "slowest for large s); 'auto' = cg while s ≤ 2 squared edge lengths (coarse meshes), else direct up to "
-                        "40,000 vertices, amg above", str,
+                        "slowest for large s); 'auto' = cg while s ≤ 2 squared edge lengths (coarse meshes), "
+                        "else direct up to 40,000 vertices, amg above", str,
                         choices=("auto", "direct", "amg", "cg")),
         "relax": Param(0.5, "tangential relaxation weight per iteration (move toward the 1-ring centroid "
                        "within the tangent plane); 0 = off", float, min=0.0, max=1.0),
@@ -169,8 +169,8 @@ class ShapeGradient(Method):
         "close_pinholes": Param(True, "init='genus0' on a noisy volume: where noise lifted one sample of a thin sheet "
                                 "(an ear, a wing) above 0, the growth would stop at the pinhole and the start lose "
                                 "the tip beyond it; close such holes — one sample below max(noise std, 1/4 voxel), "
-                                "next to the samples left out (methods.shape_gradient.pinholes; docs/NOTES.md). Wider gaps (sulcal "
-                                "banks touching) stay open", bool),
+                                "next to the samples left out (methods.shape_gradient.pinholes; docs/NOTES.md). "
+                                "Wider gaps (sulcal banks touching) stay open", bool),
         "sign_guard": Param(True, "with the genus-0 start on a clean volume: at every remesh, count the grid samples "
                             "that are clearly inside or outside (|φ| > h/4, within 3 h of φ = 0) but on the wrong side "
                             "of the surface (inside samples it covered and no longer covers, outside samples it "
@@ -215,8 +215,9 @@ class ShapeGradient(Method):
                            "needs more triangles of edge_length, the edge length grows (info['init']); 0 = no cap",
                            int, min=0),
         "max_topology_gap": Param(5, "refuse (error, before any iteration) a volume whose region φ < 0, read after "
-                                  "smoothing (σ ≥ 1 voxel; noise below 0.1 voxel), is farther than this from one genus-0 solid: "
-                                  "(components − 1) + |χ − 1| at its most favourable level and connectivity — about "
+                                  "smoothing (σ ≥ 1 voxel; noise below 0.1 voxel), is farther than this from one "
+                                  "genus-0 solid: (components − 1) + |χ − 1| at its most favourable level and "
+                                  "connectivity — about "
                                   "the number of handles (a torus 1; a skull with openings many); one genus-0 "
                                   "surface cannot follow such data (the development and held-out shapes read 0–2 "
                                   "at 20–40 dB)", int, min=0),

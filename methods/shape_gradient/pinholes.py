@@ -1,19 +1,20 @@
 """Noise pinholes in a grown genus-0 solid: inside samples the homotopic growth had to leave out because one
 sample just above the level, in the middle of a thin sheet, would have closed a handle.
 
-Why: in a part a voxel or two thick (an ear, a wing), noise lifts single samples of φ above 0.  The sheet then
-has a pinhole, the inside samples on its rim would close a loop around it, and the growth
-(:func:`methods.shape_gradient.digital.homotopic_growth`) stops there — the start loses the tip beyond it, and a flow that
-never moves far from its start loses it too (the bunny's ear at N = 64, 40 dB: 1.49 h instead of marching
-cubes' 0.92 h).  The object has no hole there: the pinhole is one sample, within noise of the level.
+Why: in a part a voxel or two thick (an ear, a wing), noise lifts single samples of φ above 0.  The sheet then has a
+pinhole, the inside samples on its rim would close a loop around it, and the growth
+(:func:`methods.shape_gradient.digital.homotopic_growth`) stops there — the start loses the tip beyond it, and a flow
+that never moves far from its start loses it too (the bunny's ear at N = 64, 40 dB: 1.49 h instead of marching cubes'
+0.92 h).  The object has no hole there: the pinhole is one sample, within noise of the level.
 
 :func:`close_pinholes` fills such holes and no others:
 
 1. the samples just above the level (below ``close_below``, e.g. one noise std) next to the left-out inside
    samples of the solid's own piece become candidates, and the growth is run again over the inside samples
    and the candidates (a candidate is then added before the left-out samples whose loop it fills);
-2. the candidates that were added are thinned away again (:func:`methods.shape_gradient.digital.homotopic_thinning`) where
-   they are not needed: what remains are the samples that close a hole;
+2. the candidates that were added are thinned away again
+   (:func:`methods.shape_gradient.digital.homotopic_thinning`) where they are not needed: what remains are the
+   samples that close a hole;
 3. a hole counts as a *pinhole* when its group (remaining candidates and the left-out samples they touch) has
    at most ``max_plate`` candidate samples; the growth is run a last time with the pinholes' candidates only.
    A wider gap (two sulcal banks touching over a line of samples) needs a larger plate and stays open:
@@ -36,8 +37,8 @@ _CUBE = np.ones((3, 3, 3), bool)
 
 def close_pinholes(phi: np.ndarray, solid: np.ndarray, level: float, close_below: float,
                    max_plate: int = 1) -> tuple[np.ndarray, dict]:
-    """(solid, facts): ``solid`` (a :func:`~methods.shape_gradient.digital.homotopic_growth` of ``phi < level``) with its
-    noise pinholes closed (see the module docstring); facts: ``left_out_before``, ``left_out``,
+    """(solid, facts): ``solid`` (a :func:`~methods.shape_gradient.digital.homotopic_growth` of ``phi < level``)
+    with its noise pinholes closed (see the module docstring); facts: ``left_out_before``, ``left_out``,
     ``pinholes`` (holes closed), ``pinhole_samples`` (samples above the level now in the solid).
 
     ``close_below`` ≤ ``level`` (then the left-out counts are not computed: 0) or nothing left out: ``solid``

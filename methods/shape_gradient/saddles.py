@@ -11,10 +11,10 @@ the basins' lowest boundary values (the two are the same tree: Cousty et al., wa
 solid the object most plausibly has.
 
 * :func:`piece_saddles` — the pieces, their sizes, and the spanning tree of saddles below ``join_below``.
-* :func:`join_pieces` — a copy of φ where the samples of every tree path are set at most ``-depth``, so a
-  genus-0 growth (:func:`methods.shape_gradient.digital.homotopic_growth`) from the largest piece runs through each path into
-  the next piece.  A path is 6-connected (a diagonal step is split into axis steps through the lower sample),
-  so that marching cubes of the result has an unambiguous tube along it.
+* :func:`join_pieces` — a copy of φ where the samples of every tree path are set at most ``-depth``, so a genus-0 growth
+  (:func:`methods.shape_gradient.digital.homotopic_growth`) from the largest piece runs through each path into the next
+  piece.  A path is 6-connected (a diagonal step is split into axis steps through the lower sample), so that marching
+  cubes of the result has an unambiguous tube along it.
 """
 
 from __future__ import annotations

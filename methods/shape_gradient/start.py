@@ -261,19 +261,19 @@ def genus0_surface(volume: Volume, values: np.ndarray, join_below: float = JOIN_
     """(vertices, faces, facts) of a genus-0 surface of the region ``values < 0`` (world coordinates, outward),
     or ``(None, None, facts)`` when no attempt gave one.
 
-    Where the region falls apart into pieces at grid resolution (a part thinner than a voxel), the pieces whose
-    lowest saddle of φ lies below ``join_below`` voxels are first joined through it
-    (:func:`methods.shape_gradient.saddles.join_pieces`: the samples of a 6-connected path through each saddle of a spanning
-    tree set to −:data:`JOIN_DEPTH_VOXELS` voxel); farther pieces stay apart and the growth keeps the largest
+    Where the region falls apart into pieces at grid resolution (a part thinner than a voxel), the pieces whose lowest
+    saddle of φ lies below ``join_below`` voxels are first joined through it
+    (:func:`methods.shape_gradient.saddles.join_pieces`: the samples of a 6-connected path through each saddle of a
+    spanning tree set to −:data:`JOIN_DEPTH_VOXELS` voxel); farther pieces stay apart and the growth keeps the largest
     group.  The region is grown from its deepest sample, in order of φ, keeping only simple points
-    (:func:`methods.shape_gradient.digital.homotopic_growth`): a solid with one component, no handle and no cavity that takes
-    every inside sample except where the sampled region has a handle (two sulcal banks closer than a voxel), where
-    it stops at the thinnest place — unless that place is a noise pinhole: one sample below ``pinhole_below``
-    voxels closing the hole (:func:`methods.shape_gradient.pinholes.close_pinholes`).  Its marching-cubes surface (:func:`methods.shape_gradient.digital.ball_field`) is one closed
-    genus-0 surface within a fraction of a voxel of φ = 0 elsewhere (a joining path: a tube about a voxel wide).
-    Facts: samples inside / in the solid / left out (the path samples count in the solid, not as inside), how
-    marching cubes' ambiguous cells were resolved, pieces of φ < 0, joins, their saddles (voxels), path samples,
-    pinholes closed and their samples.
+    (:func:`methods.shape_gradient.digital.homotopic_growth`): a solid with one component, no handle and no cavity that
+    takes every inside sample except where the sampled region has a handle (two sulcal banks closer than a voxel), where
+    it stops at the thinnest place — unless that place is a noise pinhole: one sample below ``pinhole_below`` voxels
+    closing the hole (:func:`methods.shape_gradient.pinholes.close_pinholes`).  Its marching-cubes surface
+    (:func:`methods.shape_gradient.digital.ball_field`) is one closed genus-0 surface within a fraction of a voxel of φ
+    = 0 elsewhere (a joining path: a tube about a voxel wide). Facts: samples inside / in the solid / left out (the path
+    samples count in the solid, not as inside), how marching cubes' ambiguous cells were resolved, pieces of φ < 0,
+    joins, their saddles (voxels), path samples, pinholes closed and their samples.
     """
     from .digital import ball_field, homotopic_growth
     from .pinholes import close_pinholes

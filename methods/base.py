@@ -100,8 +100,7 @@ class Method:
             raise InputError(f"method {self.name!r} has no parameter {unknown[0]!r}; valid parameters: {valid}")
         self.config: dict[str, Any] = {}
         for key, spec in self.params.items():
-            value = params.get(key, spec.default)
-            self.config[key] = spec.convert(self.name, key, value) if key in params else spec.default
+            self.config[key] = spec.convert(self.name, key, params[key]) if key in params else spec.default
 
     def reconstruct(self, volume: Volume) -> Reconstruction:  # pragma: no cover - abstract
         """Reconstruct the zero level set of ``volume``.

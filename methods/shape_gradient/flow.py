@@ -136,7 +136,10 @@ class ShapeGradientFlow:
         return True
 
     def step(self) -> bool:
-        """Do one iteration; False when the run has ended (``stop``/``message`` say why)."""
+        """Do one iteration; False when the run has ended (``stop``/``message`` say why).
+
+        The stages: the gradient and the descent direction, the tangential relaxation shift, the step (fixed
+        or an Armijo line search), then accepting the new state (remesh, snapshot) and the convergence tests."""
         if self.stop is not None:
             return False
         if self.iteration >= self.settings.max_iter:
@@ -144,12 +147,10 @@ class ShapeGradientFlow:
                 return self._end("fixed_iterations", f"ran its fixed count of {self.settings.max_iter} iterations "
                                                       "(no convergence test: tol = move_tol = 0)")
             return self._end("max_iter", f"reached max_iter = {self.settings.max_iter}")
-        st, ops, field, timings = self.settings, self.ops, self.field, self.timings
-        alpha, beta, h = self.alpha, self.beta, self.h
         it = self.iteration + 1
         state = self.state
-        G, _ = gradient_from_state(field, state, ops, alpha, beta, kind=self.kind, linear=self.linear,
-                                   timings=timings, density=self.density)
+        G, _ = gradient_from_state(self.field, state, self.ops, self.alpha, self.beta, kind=self.kind,
+                                   linear=self.linear, timings=self.timings, density=self.density)
         self.curvature_fallbacks += state.curvature_fallbacks
         if not np.isfinite(G).all():
             bad = int((~np.isfinite(G)).sum())
@@ -163,56 +164,76 @@ class ShapeGradientFlow:
         slope = dot(b, Vel)                           # −dE/dτ at τ = 0 (> 0)
         if vmax == 0.0:
             return self._end("converged", f"iteration {it}: the shape gradient vanishes")
-        shift = None
-        if st.relax > 0:
-            t0 = time.perf_counter()
-            nt = geo.vertex_normals_t
-            d = ops.ring_mean_t(geo.vertices_t) - geo.vertices_t
-            d -= (d[0] * nt[0] + d[1] * nt[1] + d[2] * nt[2]) * nt
-            shift = st.relax * d.T
-            timings["relax"] += time.perf_counter() - t0
-        if st.step == "fixed":
-            tau = st.tau
+        shift = self._relax_shift(geo)
+        if self.settings.step == "fixed":
+            tau = self.settings.tau
             x_new = state.x + tau * direction + (0.0 if shift is None else shift)
             if not np.isfinite(x_new).all():
                 return self._end("diverged", f"iteration {it}: non-finite vertex positions")
-            new = evaluate_state(field, ops, x_new, alpha, beta, timings, density=self.density)
+            new = evaluate_state(self.field, self.ops, x_new, self.alpha, self.beta, self.timings,
+                                 density=self.density)
             if not np.isfinite(new.E):
                 return self._end("diverged", f"iteration {it}: the mesh left the volume box" if new.X is None
                                  else f"iteration {it}: non-finite energy")
             move = tau * vmax
         else:
-            new = None
-            # first trial: twice the last accepted move after a first-try success, else the same move again
-            first = min(self.max_move, (2.0 if self._grow else 1.0) * self._move_prev)
-            for with_shift in ((True, False) if shift is not None else (False,)):
-                move = first
-                while True:
-                    tau = move / vmax
-                    x_new = state.x + tau * direction
-                    if with_shift:
-                        x_new += shift
-                    cand = evaluate_state(field, ops, x_new, alpha, beta, timings, density=self.density)
-                    if np.isfinite(cand.E) and cand.E <= state.E - _ARMIJO * tau * slope \
-                            and no_fold(geo, cand.geo):
-                        new = cand
-                        break
-                    self.n_rejected_folds += np.isfinite(cand.E) and cand.E <= state.E - _ARMIJO * tau * slope
-                    self.n_backtracks += 1
-                    move *= 0.5
-                    if move < self.floor_move:
-                        break
-                if new is not None:
-                    break
+            new, move = self._line_search(geo, direction, shift, vmax, slope)
             if new is None:
                 return self._settle("line_search_floor",
-                                 f"iteration {it}: no decrease of E for moves down to "
-                                 f"{self.floor_move / h:.1g} voxels (the gradient no longer predicts a "
-                                 "decrease of the discrete energy)")
+                                    f"iteration {it}: no decrease of E for moves down to "
+                                    f"{self.floor_move / self.h:.1g} voxels (the gradient no longer predicts a "
+                                    "decrease of the discrete energy)")
+        return self._accept(it, new, move)
+
+    def _relax_shift(self, geo) -> np.ndarray | None:
+        """The tangential relaxation of the vertices (``relax`` × the tangential part of the one-ring mean's
+        offset), or None without relaxation."""
+        if self.settings.relax <= 0:
+            return None
+        t0 = time.perf_counter()
+        nt = geo.vertex_normals_t
+        d = self.ops.ring_mean_t(geo.vertices_t) - geo.vertices_t
+        d -= (d[0] * nt[0] + d[1] * nt[1] + d[2] * nt[2]) * nt
+        self.timings["relax"] += time.perf_counter() - t0
+        return self.settings.relax * d.T
+
+    def _line_search(self, geo, direction, shift, vmax: float, slope: float):
+        """(new state, move) of the Armijo backtracking search along ``direction`` (first with the relaxation
+        shift, then without it), or ``(None, move)`` when no move down to ``floor_move`` decreases E."""
+        state = self.state
+        new = None
+        # first trial: twice the last accepted move after a first-try success, else the same move again
+        first = min(self.max_move, (2.0 if self._grow else 1.0) * self._move_prev)
+        for with_shift in ((True, False) if shift is not None else (False,)):
+            move = first
+            while True:
+                tau = move / vmax
+                x_new = state.x + tau * direction
+                if with_shift:
+                    x_new += shift
+                cand = evaluate_state(self.field, self.ops, x_new, self.alpha, self.beta, self.timings,
+                                      density=self.density)
+                if np.isfinite(cand.E) and cand.E <= state.E - _ARMIJO * tau * slope \
+                        and no_fold(geo, cand.geo):
+                    new = cand
+                    break
+                self.n_rejected_folds += np.isfinite(cand.E) and cand.E <= state.E - _ARMIJO * tau * slope
+                self.n_backtracks += 1
+                move *= 0.5
+                if move < self.floor_move:
+                    break
+            if new is not None:
+                break
+        if new is not None:
             self._grow = move == first
             self._move_prev = move
+        return new, move
+
+    def _accept(self, it: int, new, move: float) -> bool:
+        """Take ``new`` as iteration ``it``'s state (remesh and snapshot when due), then the convergence tests."""
+        st, h = self.settings, self.h
         self.moves.append(move)
-        prev = state.E
+        prev = self.state.E
         self.state = new
         self.iteration = it
         self.history.append(new.E)

@@ -48,10 +48,14 @@ class ShapeGradientFlow:
     >>> flow = ShapeGradient().prepare(volume)
     >>> while flow.step(): ...                  # or flow.run()
     >>> rec = flow.result()                     # the Reconstruction (mesh + info)
+
+    ``init_flipped``, ``noise``, ``topology`` and ``init_facts`` are what the preparation found (the start was
+    reoriented, the noise estimate, the topology check, the start's facts); the flow reports them in its result.
     """
 
     def __init__(self, field, ops: MeshOperators, x: np.ndarray, settings: FlowSettings, h: float, *,
-                 setup_seconds: float = 0.0):
+                 setup_seconds: float = 0.0, init_flipped: bool = False, noise: float = float("nan"),
+                 topology: dict | None = None, init_facts: dict | None = None):
         self.field, self.ops, self.settings, self.h = field, ops, settings, float(h)
         self.t_start = time.perf_counter() - setup_seconds
         self.timings = dict.fromkeys(("setup", "interpolation", "curvature", "gradient", "preconditioner",
@@ -64,10 +68,10 @@ class ShapeGradientFlow:
         self.max_move = settings.max_move * self.h
         self.floor_move = _FLOOR_MOVE_VOXELS * self.h
         self.snap_set = set(settings.snapshots)
-        self.init_flipped = False
-        self.noise = float("nan")
-        self.topology: dict = {}
-        self.init_facts: dict = {}
+        self.init_flipped = bool(init_flipped)
+        self.noise = float(noise)
+        self.topology: dict = dict(topology or {})
+        self.init_facts: dict = dict(init_facts or {})
         self.iteration = 0
         self.remesh_every = settings.remesh_every
         self.stages = list(settings.stages)             # coarse to fine: the stages still to come, first first

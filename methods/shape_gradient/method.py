@@ -313,12 +313,8 @@ class ShapeGradient(Method):
         if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):
             ops = MeshOperators(faces, len(x))
         field.sample_t(np.ascontiguousarray(x[:1].T), 2)     # build the cached derivative grids now (setup)
-        flow = ShapeGradientFlow(field, ops, x, settings, volume.h, setup_seconds=time.perf_counter() - t_start)
-        flow.init_flipped = flipped
-        flow.noise = noise
-        flow.topology = topology
-        flow.init_facts = init_facts
-        return flow
+        return ShapeGradientFlow(field, ops, x, settings, volume.h, setup_seconds=time.perf_counter() - t_start,
+                                 init_flipped=flipped, noise=noise, topology=topology, init_facts=init_facts)
 
     def reconstruct(self, volume: Volume) -> Reconstruction:
         flow = self.prepare(volume)

@@ -22,7 +22,7 @@ from .base import (
     run_reconstruct,
     run_warm_up,
 )
-from .cost import PowerLaw, crossing_cells
+from .cost_model import PowerLaw, crossing_cells
 
 __all__ = [
     "Method", "Param", "Reconstruction", "ReconstructionFailed", "available_methods", "get_method", "method_names",

@@ -185,9 +185,9 @@ class Method:
     def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:
         """The expected seconds of ``reconstruct`` on a quiet machine, for a volume of ``shape`` (a tuple, or N
         for N³) with ``n_crossing_cells`` cells crossed by the surface (None: unknown, a typical phantom assumed;
-        :func:`methods.cost.crossing_cells` counts them); None (the default) when the method has no cost model.
+        :func:`methods.cost_model.crossing_cells` counts them); None (the default) when the method has no cost model.
         The grid runner refuses a cell whose estimate exceeds its time limit (unless ``--force``), so a method that
-        cannot scale says so before it runs; :class:`methods.cost.PowerLaw` is the built-in models' form."""
+        cannot scale says so before it runs; :class:`methods.cost_model.PowerLaw` is the built-in models' form."""
         return None
 
     def __repr__(self) -> str:

@@ -47,7 +47,7 @@ from phantoms import InputError, Volume
 from geometry.mesh import mesh_facts
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
-from .cost import PowerLaw
+from .cost_model import PowerLaw
 from .marching_cubes import orient_outward
 
 __all__ = ["CGALMesher", "write_inr", "INSTALL"]

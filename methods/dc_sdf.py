@@ -46,7 +46,7 @@ from phantoms import InputError, Volume
 from geometry.topology import directed_edge_repeats, edge_face_counts
 
 from .base import Method, Param, Reconstruction, check_volume
-from .cost import PowerLaw
+from .cost_model import PowerLaw
 from .dual_contouring import library_grid, split_quads
 from .marching_cubes import orient_outward
 

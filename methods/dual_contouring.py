@@ -56,7 +56,7 @@ from geometry.mesh import mesh_facts
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
-from .cost import PowerLaw
+from .cost_model import PowerLaw
 from .dc_manifold import (
     TUNNEL_CUBES,
     bridge_tunnels,

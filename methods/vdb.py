@@ -29,7 +29,7 @@ import trimesh
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, check_volume
-from .cost import PowerLaw
+from .cost_model import PowerLaw
 from .dual_contouring import split_quads
 from .marching_cubes import _nudge_zeros, orient_outward
 

@@ -17,7 +17,7 @@ Pictures are drawn by :mod:`.render` from the arrays the cells stored (:mod:`.ar
 
 from __future__ import annotations
 
-from .cost import cost_section
+from .cost_section import cost_section
 from .page import preload, write_report
 from .paper import gallery_tables, paper_layout, paper_tables
 from .render import render_energy, render_mesh

@@ -16,7 +16,7 @@ from .artifacts import Artifacts
 from .claims import VARIANTS as CLAIM_VARIANTS
 from .claims import check_claims, variant_of
 from .colours import method_colour
-from .cost import cost_section
+from .cost_section import cost_section
 from .interactive import VIEW_FACES, pareto_figure, plotly_js, robustness_figures, viewer_payload
 from .pairwise import pairwise_html
 from .paper import gallery_tables, paper_layout, paper_tables

@@ -1,4 +1,4 @@
-"""Tests of ``methods.cost``: :func:`grid_points`, :func:`crossing_cells` (the cells the zero level set
+"""Tests of ``methods.cost_model``: :func:`grid_points`, :func:`crossing_cells` (the cells the zero level set
 crosses: ≈ 1.5 · area / h² on a sphere; none without a surface) and the :class:`PowerLaw` model's formula."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from methods.cost import PowerLaw, crossing_cells, grid_points
+from methods.cost_model import PowerLaw, crossing_cells, grid_points
 from phantoms import Volume, get_phantom
 
 

@@ -1,4 +1,4 @@
-"""The report's cost section (bench.report.cost): mean time and memory per method and phantom."""
+"""The report's cost section (bench.report.cost_section): mean time and memory per method and phantom."""
 
 from __future__ import annotations
 

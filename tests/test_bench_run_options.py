@@ -54,3 +54,16 @@ def test_keywords_override_the_options_and_an_unknown_one_is_refused_before_anyt
     assert not (tmp_path / "typo").exists()
     with pytest.raises(dataclasses.FrozenInstanceError):
         opts.jobs = 2
+
+
+def test_the_input_checks_are_every_option_check_run_inputs_takes():
+    """RunOptions.input_checks() hands check_run_inputs each of its keyword arguments, with the option's value."""
+    import inspect
+
+    from bench.run.inputs import check_run_inputs
+
+    opts = RunOptions(jobs=3, resume=True, timeout=7.0, memory_gb=2.5, allow_mixed_code=True)
+    checks = opts.input_checks()
+    keywords = {n for n, p in inspect.signature(check_run_inputs).parameters.items() if p.kind is p.KEYWORD_ONLY}
+    assert set(checks) == keywords
+    assert (checks["jobs"], checks["resume"], checks["timeout"], checks["memory_gb"]) == (3, True, 7.0, 2.5)

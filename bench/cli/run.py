@@ -153,18 +153,19 @@ def _drop_replaced_report_labels(cfg: RunConfig) -> None:
 
 
 def _cmd_run(args) -> int:
-    from ..run import expand_grid, run_grid
+    from ..run import RunOptions, expand_grid, run_grid
     from ..run.inputs import ExecutorSpec, check_run_inputs
 
     if args.resume and not args.out:
         raise InputError("--resume needs --out DIR (the folder of the run to complete)")
     cfg = _resolve_config(args)
-    options = dict(jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
-                   allow_mixed_code=args.allow_mixed_code, timeout=args.timeout, method_timeout=args.method_timeout,
-                   score_timeout=args.score_timeout, memory_gb=args.memory_limit,
-                   executor=ExecutorSpec(args.executor, args.scheduler, args.workers))
+    options = RunOptions(jobs=args.jobs, resume=args.resume, retry_failed=args.retry_failed,
+                         allow_mixed_code=args.allow_mixed_code, timeout=args.timeout,
+                         method_timeout=args.method_timeout, score_timeout=args.score_timeout,
+                         memory_gb=args.memory_limit, save_meshes=args.save_meshes, argv=sys.argv[1:],
+                         force=args.force, executor=ExecutorSpec(args.executor, args.scheduler, args.workers))
     if args.dry_run:   # nothing runs, so run_grid does not check the inputs: the same checks, no folder
-        check_run_inputs(cfg, None, **options)
+        check_run_inputs(cfg, None, **options.input_checks())
         cells = expand_grid(cfg)
         for c in cells:
             print(c.cell_id)
@@ -173,7 +174,7 @@ def _cmd_run(args) -> int:
     out = Path(args.out) if args.out else Path("reports") / _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     preload = None if args.no_report else _preload_report()
     try:
-        summary = run_grid(cfg, out, save_meshes=args.save_meshes, argv=sys.argv[1:], force=args.force, **options)
+        summary = run_grid(cfg, out, options)
     except WriteError as exc:
         raise InputError(f"{exc}; the finished cells are saved in {str(out)!r}; free space (or fix the "
                          f"permissions) and complete the run with `python -m bench run --resume --out {out}`") \

@@ -62,6 +62,12 @@ class RunOptions:
     allow_mixed_code: bool = False
     force: bool = False
 
+    def input_checks(self) -> dict:
+        """The options :func:`bench.run.inputs.check_run_inputs` checks, as its keyword arguments."""
+        return dict(jobs=self.jobs, resume=self.resume, retry_failed=self.retry_failed,
+                    allow_mixed_code=self.allow_mixed_code, timeout=self.timeout, method_timeout=self.method_timeout,
+                    score_timeout=self.score_timeout, memory_gb=self.memory_gb, executor=self.executor)
+
 
 def time_limits(cfg, timeout: float | None = None, method_timeout: float | None = None,
                 score_timeout: float | None = None) -> TimeLimits:

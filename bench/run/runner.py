@@ -283,10 +283,7 @@ def run_grid(cfg, out: str | Path, options: RunOptions | None = None, **override
     """
     opts = replace(options or RunOptions(), **overrides)
     out = Path(out)
-    executor = check_run_inputs(cfg, out, jobs=opts.jobs, resume=opts.resume, retry_failed=opts.retry_failed,
-                                allow_mixed_code=opts.allow_mixed_code, timeout=opts.timeout,
-                                method_timeout=opts.method_timeout, score_timeout=opts.score_timeout,
-                                memory_gb=opts.memory_gb, executor=opts.executor)
+    executor = check_run_inputs(cfg, out, **opts.input_checks())
     limits = time_limits(cfg, opts.timeout, opts.method_timeout, opts.score_timeout)
     with RunLock(out), _started(executor, cfg, out, limits) as ex:
         clean_temp_files(out)

@@ -8,7 +8,8 @@ the tests compare both (``tests/test_geometry_kernels.py``):
   iteration in three passes over the vectors instead of a dozen numpy calls;
 * :func:`ring_curvature` — :meth:`geometry.operators.MeshOperators.curvature` (the 1-ring gather and
   :func:`geometry.curvature.fit_ring`) vertex by vertex, nothing but the result written to memory;
-* :func:`trilinear` — :func:`geometry.trilinear.trilinear_channels` point by point;
+* :func:`trilinear` — :func:`geometry.trilinear.trilinear_channels` point by point (:func:`trilinear_point`, the
+  one compiled trilinear sum, also DistMesh's);
 * :func:`face_geometry`, :func:`vertex_sums`, :func:`face_edges` — the face and vertex quantities of
   :class:`geometry.operators.MeshGeometry` (cross products, normals, areas, centroids; vertex normal and
   area sums) in one pass each, without the (3, 3, F) corner array;
@@ -43,8 +44,8 @@ except ImportError:  # pragma: no cover - numba is a dependency; the numpy refer
 #: 1,896-vertex flow (100 iterations, ~8 field samples each) is ~25 % faster compiled (docs/NOTES.md)
 MIN_SIZE = 1000
 
-__all__ = ["AVAILABLE", "MIN_SIZE", "wanted", "cg_csr", "ring_curvature", "trilinear", "face_geometry",
-           "vertex_sums", "face_edges", "ring_mean3", "face_energies"]
+__all__ = ["AVAILABLE", "MIN_SIZE", "wanted", "cg_csr", "ring_curvature", "trilinear", "trilinear_point",
+           "face_geometry", "vertex_sums", "face_edges", "ring_mean3", "face_energies"]
 
 
 def wanted(n: int) -> bool:
@@ -291,25 +292,32 @@ def ring_curvature(x: np.ndarray, n: np.ndarray, ring: np.ndarray, count: np.nda
 
 
 # ------------------------------------------------------------------------------------ trilinear
+@_jit(inline="always")      # inlined by numba: a compiled call per point is slower than the sum itself
+def trilinear_point(flat, n0, n1, n2, fx, fy, fz, out, p):
+    """The first ``out.shape[0]`` channels of the stacked grids ``flat`` (N, C) at one fractional index (fx,
+    fy, fz), inside [0, n − 1] per axis, into column ``p`` of ``out``: the one trilinear sum of the compiled
+    code (the grids' samplers here, DistMesh's loop), equal to :func:`geometry.trilinear.trilinear_channels`."""
+    sx = n1 * n2
+    i0, i1, i2 = min(int(fx), n0 - 2), min(int(fy), n1 - 2), min(int(fz), n2 - 2)   # idx >= 0: floor
+    tx, ty, tz = fx - i0, fy - i1, fz - i2
+    ux, uy, uz = 1.0 - tx, 1.0 - ty, 1.0 - tz
+    a00, a01, a10, a11 = ux * uy, ux * ty, tx * uy, tx * ty
+    w0, w1, w2, w3 = a00 * uz, a00 * tz, a01 * uz, a01 * tz
+    w4, w5, w6, w7 = a10 * uz, a10 * tz, a11 * uz, a11 * tz
+    b = i0 * sx + i1 * n2 + i2
+    for c in range(out.shape[0]):
+        out[c, p] = (w0 * flat[b, c] + w1 * flat[b + 1, c] + w2 * flat[b + n2, c]
+                     + w3 * flat[b + n2 + 1, c] + w4 * flat[b + sx, c] + w5 * flat[b + sx + 1, c]
+                     + w6 * flat[b + sx + n2, c] + w7 * flat[b + sx + n2 + 1, c])
+
+
 @_jit
 def _trilinear(flat, n0, n1, n2, idx_t, out):
-    sx = n1 * n2
-    C = out.shape[0]
     for p in range(idx_t.shape[1]):
         fx, fy, fz = idx_t[0, p], idx_t[1, p], idx_t[2, p]
         if not (0.0 <= fx <= n0 - 1 and 0.0 <= fy <= n1 - 1 and 0.0 <= fz <= n2 - 1):   # NaN too
             raise IndexError("trilinear: fractional indices outside the grid (or not finite)")
-        i0, i1, i2 = min(int(fx), n0 - 2), min(int(fy), n1 - 2), min(int(fz), n2 - 2)   # idx >= 0: floor
-        tx, ty, tz = fx - i0, fy - i1, fz - i2
-        ux, uy, uz = 1.0 - tx, 1.0 - ty, 1.0 - tz
-        a00, a01, a10, a11 = ux * uy, ux * ty, tx * uy, tx * ty
-        w0, w1, w2, w3 = a00 * uz, a00 * tz, a01 * uz, a01 * tz
-        w4, w5, w6, w7 = a10 * uz, a10 * tz, a11 * uz, a11 * tz
-        b = i0 * sx + i1 * n2 + i2
-        for c in range(C):
-            out[c, p] = (w0 * flat[b, c] + w1 * flat[b + 1, c] + w2 * flat[b + n2, c]
-                         + w3 * flat[b + n2 + 1, c] + w4 * flat[b + sx, c] + w5 * flat[b + sx + 1, c]
-                         + w6 * flat[b + sx + n2, c] + w7 * flat[b + sx + n2 + 1, c])
+        trilinear_point(flat, n0, n1, n2, fx, fy, fz, out, p)
 
 
 def trilinear(flat: np.ndarray, shape, idx_t: np.ndarray, channels: int | None = None) -> np.ndarray:

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from geometry.kernels import AVAILABLE, _jit
+from geometry.kernels import AVAILABLE, _jit, trilinear_point
 
 __all__ = ["AVAILABLE", "RETRIANGULATE", "CONVERGED", "DIVERGED", "MAX_ITER", "relax"]
 
@@ -27,18 +27,7 @@ def _sample(flat, n0, n1, n2, origin, spacing, x, y, z, out):
     fx = min(max((x - origin[0]) / spacing[0], 0.0), n0 - 1.0)
     fy = min(max((y - origin[1]) / spacing[1], 0.0), n1 - 1.0)
     fz = min(max((z - origin[2]) / spacing[2], 0.0), n2 - 1.0)
-    i0, i1, i2 = min(int(fx), n0 - 2), min(int(fy), n1 - 2), min(int(fz), n2 - 2)
-    tx, ty, tz = fx - i0, fy - i1, fz - i2
-    ux, uy, uz = 1.0 - tx, 1.0 - ty, 1.0 - tz
-    a00, a01, a10, a11 = ux * uy, ux * ty, tx * uy, tx * ty
-    w0, w1, w2, w3 = a00 * uz, a00 * tz, a01 * uz, a01 * tz
-    w4, w5, w6, w7 = a10 * uz, a10 * tz, a11 * uz, a11 * tz
-    sx = n1 * n2
-    b = i0 * sx + i1 * n2 + i2
-    for c in range(4):
-        out[c] = (w0 * flat[b, c] + w1 * flat[b + 1, c] + w2 * flat[b + n2, c] + w3 * flat[b + n2 + 1, c]
-                  + w4 * flat[b + sx, c] + w5 * flat[b + sx + 1, c] + w6 * flat[b + sx + n2, c]
-                  + w7 * flat[b + sx + n2 + 1, c])
+    trilinear_point(flat, n0, n1, n2, fx, fy, fz, out.reshape(4, 1), 0)
 
 
 @_jit

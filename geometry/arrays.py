@@ -1,8 +1,8 @@
 """Array helpers the hot paths share.
 
-``np.unique`` of numpy ≥ 2.3 takes a hash-based path when asked for the values only; on the large integer
-arrays meshes produce (edge keys, face indices) it is about 10× slower than sorting (570k int64 keys: 0.45 s
-vs 0.04 s), and the shape-gradient flow calls it at every remesh and intersection check.
+``np.unique`` of numpy ≥ 2.3 takes a hash-based path when asked for the values only; on the large integer arrays meshes
+produce (edge keys, face indices) it is about 10× slower than sorting (570k int64 keys), and the shape-gradient flow
+calls it at every remesh and intersection check.
 """
 
 from __future__ import annotations

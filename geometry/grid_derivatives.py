@@ -5,8 +5,8 @@ gives for ∇φ and for ∂ⱼ(∂ᵢφ), symmetrised ½(∂ⱼ∂ᵢφ + ∂ᵢ
 floating-point order — the numpy form (:func:`phantoms.volume._derivative_channels`) is the reference and
 the two are equal bit for bit in float64 (``tests/test_geometry_grid_derivatives.py``).  It writes each
 grid point's C channels together, once, into the (nx, ny, nz, C) array, with no temporary grid: numpy's form
-writes every channel with a stride of C values and keeps up to four N³ temporaries (at N = 256, 9.4 s and
-C + 4 grids; compiled, ~1 s and C grids).
+writes every channel with a stride of C values and keeps up to four N³ temporaries (at N = 256 about ten
+times the time, and C + 4 grids instead of C).
 
 Values are computed in float64; ``dtype=np.float32`` stores them rounded (half the memory).
 """

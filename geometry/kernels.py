@@ -39,7 +39,7 @@ except ImportError:  # pragma: no cover - numba is a dependency; the numpy refer
     AVAILABLE = False
 
 #: the kernels run on arrays of at least this many vertices, faces or points (:func:`wanted`): a process
-#: loads each kernel's cached machine code once (~0.15 s for all; the benchmark's cells come from a fork
+#: loads each kernel's cached machine code once (a fraction of a second; the benchmark's cells come from a fork
 #: server that has loaded them); below this size numpy's per-call overhead is small enough.  The paper's
 #: 1,896-vertex flow (100 iterations, ~8 field samples each) is ~25 % faster compiled (docs/NOTES.md)
 MIN_SIZE = 1000
@@ -63,7 +63,7 @@ def _jit(fn=None, **flags):
 # The matrix is copied into a padded row-major layout (ELL: every row holds a multiple of 8 entries,
 # padding = zero weight on the row's own index): the product's inner loop has a fixed trip count of 8
 # that the compiler unrolls and vectorises — about twice as fast as the CSR loop on a mesh matrix
-# (7 entries per row on a triangulated sphere), which more than pays for the copy (~1 ms at 100k rows).
+# (7 entries per row on a triangulated sphere), which more than pays for the copy.
 # 'reassoc': sums may be taken in SIMD lanes (a single running sum is bound by the latency of one
 # addition per entry).
 _ELL_BLOCK = 8

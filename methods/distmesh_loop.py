@@ -1,11 +1,11 @@
 """DistMesh's iterations between two retriangulations, compiled (numba): bar forces, the force step, Newton
 projection onto φ = 0 and the stopping tests, point by point.
 
-The numpy form of one iteration (:meth:`methods.distmesh.DistMesh` with ``compiled=False``) is about fifteen
-array operations on ~2,000 nodes — ≈ 2 ms, bound by numpy's per-call overhead — and a run takes 1,000–2,000
-iterations (5 s a cell at N = 96).  Here an iteration is one pass over the bars and one over the nodes
-(≈ 0.05 ms).  Every step is the numpy form's, in the same order per node and per bar; sums run in another
-order, so the nodes agree to rounding (the tests compare both forms).
+The numpy form of one iteration (:meth:`methods.distmesh.DistMesh` with ``compiled=False``) is about fifteen array
+operations on ~2,000 nodes, bound by numpy's per-call overhead, and a run takes 1,000–2,000 iterations.  Here an
+iteration is one pass over the bars and one over the nodes (about 40× faster).  Every step is the numpy form's, in the
+same order per node and per bar; sums run in another order, so the nodes agree to rounding (the tests compare both
+forms).
 """
 
 from __future__ import annotations

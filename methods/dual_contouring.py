@@ -23,14 +23,14 @@ sign-changing grid edge uses, in each of its four cells, the vertex of the patch
   (``info["tunnels"]``), and two patches sharing two contour segments get a vertex per segment on their
   common face (``info["segment_vertices"]``): the surface bounds the 26-connected inside samples and is a
   closed, consistently oriented 2-manifold.  ``info``: ``split_cells``, ``patch_vertices``, ``quads``,
-  ``library_quads``, ``wall_dc_s`` (the library), ``wall_manifold_s`` (the rest: ≈ 0.02 s for the bunny at
-  N = 48; 0.08 s / 1.2 s for the torus with 20 dB noise at N = 48 / 96 — 869 / 8027 split cells).
+  ``library_quads``, ``wall_dc_s`` (the library), ``wall_manifold_s`` (the rest: a small share of the library's
+  time, growing with the split cells — 869 / 8027 for the torus with 20 dB noise at N = 48 / 96).
 
 Each quad (or the polygon of a quad with a segment vertex) is split into triangles along its shorter
 diagonal (a fan from the segment vertex).
 
-Cost.  gpytoolbox's implementation is slow: ≈ 0.5–1 s per outer iteration on a 32³ grid (≈ 100 s for its
-default 100 iterations), growing with the samples and the surface.  Two settings keep it usable:
+Cost.  gpytoolbox's implementation is slow: its default 100 outer iterations take minutes on a 32³ grid
+(docs/NOTES.md, "Cost models"), growing with the samples and the surface.  Two settings keep it usable:
 
 * ``iterations`` (default 10, the library's 100 is allowed): on the suite's phantoms the vertex error is
   settled after a few iterations (the iterations move the 95th-percentile distance by a few hundredths of h);

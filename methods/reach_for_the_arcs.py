@@ -17,7 +17,7 @@ on an SDF whose cloud stays inside the grid box (tests/test_methods_reach_for_th
 below).
 
 Cost, and the defaults (measured: docs/NOTES.md, "reach_for_the_arcs: cost and defaults").  Called as it is
-on a sphere at N = 33 the library takes ≈ 5 min and returns 111k vertices.  The time goes to
+on a sphere at N = 33 the library takes minutes and returns 111k vertices.  The time goes to
 
 * the rasterisation, which marks, for every sphere, the cells of a res³ grid inside it: a
   sample far from the surface has a sphere as large as the shape, so the cost grows with Σ |φ|³ ≈ N⁶.  The
@@ -38,7 +38,8 @@ on a sphere at N = 33 the library takes ≈ 5 min and returns 111k vertices.  Th
   accurate, none is half the time and less accurate;
 * the local searches, whose obstacles are ``batch_size`` spheres drawn at random: on a noisy volume most searches
   fail and run all ``local_search_iters``, and with the library's 10,000 obstacles ``check-method``'s noisy
-  sphere took 118 s (3,000, the default: 12 s; the clean bunny at N = 32 and 48 2–3× faster, within 0.15 h).
+  sphere took ten times as long as with 3,000, the default (the clean bunny at N = 32 and 48 2–3× faster,
+  within 0.15 h).
 
 Radii (``redistance``).  The spheres need |φ| to be a distance; the adapter reads it and, when it is not one,
 gives the library the distance to φ's zero set instead, exactly as ``reach_for_the_spheres`` does (its module

@@ -201,7 +201,7 @@ def _cmd_run(args) -> int:
 
 
 def _preload_report():
-    """:func:`bench.report.preload` (the report's imports, ≈ 3 s) in a thread while the cells run in their own
+    """:func:`bench.report.preload` (the report's imports, seconds) in a thread while the cells run in their own
     processes, so the report after the run does not wait for them; an import error shows when the report is
     written."""
     import threading

@@ -204,8 +204,8 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
 
 def preload() -> None:
     """Import what :func:`write_report` loads on its way (pandas, pyarrow, plotly, matplotlib's colour maps,
-    Pillow's encoders, jinja2, scipy.stats, the rasteriser's compiled kernel): ≈ 3 s that ``bench run`` spends in
-    a thread while its cells run in their own processes, instead of after them."""
+    Pillow's encoders, jinja2, scipy.stats, the rasteriser's compiled kernel): seconds that ``bench run`` spends
+    in a thread while its cells run in their own processes, instead of after them."""
     import jinja2  # noqa: F401
     import matplotlib.colors  # noqa: F401
     import narwhals  # noqa: F401  (plotly reads data frames through it)

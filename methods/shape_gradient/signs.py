@@ -6,8 +6,8 @@ remesher's collapses at its tip and by the alignment term (∇φ across a voxel-
 the retracted surface stays small, so neither the energy nor |φ| at the vertices shows it.  The samples inside the
 lost part do: they are now outside the surface.  At every remesh the guard reads which samples with
 h/4 < |φ| < 3 h the surface encloses (its winding number on the grid by scan conversion,
-:func:`geometry.raster.grid_winding`: ≈ 0.01 s at N = 96, where gpytoolbox's fast winding number at the same
-samples took 0.12 s) and counts those on the wrong side: inside samples (φ < 0) the surface covered and no longer
+:func:`geometry.raster.grid_winding`: a tenth of the time gpytoolbox's fast winding number takes at the same
+samples) and counts those on the wrong side: inside samples (φ < 0) the surface covered and no longer
 covers — a cut — and outside samples it covers.  Inside samples its start did not cover are not counted: a flow
 may grow into a part its start missed, and that growth does not earn it the right to cut another part.  When
 the count exceeds the start's by more than 2 + 0.1 % of the samples, the flow stops (``stop_reason =

@@ -41,7 +41,7 @@ def test_grid_rows_carry_their_flags(method, params, flag, stop):
     cfg = config_from_dict({"grid": {"phantoms": ["torus"], "n": 40}, "methods": [{"name": method, "params": params}],
                             "metrics": {"n_samples": 2000}})
     cfg.validate()
-    row = run_cell(expand_grid(cfg)[0]).row
+    row = run_cell(expand_grid(cfg)[0]).row.to_dict()
     assert flag in row["flags"].split(";"), (row["status"], row["error"], row["flags"])
     if stop is not None:
         assert row["stop_reason"] == stop
@@ -61,7 +61,7 @@ def test_poisson_drops_the_inner_surface_of_nested_spheres(tmp_path):
                             "methods": [{"name": "poisson"}, {"name": "marching_cubes"}],
                             "metrics": {"n_samples": 2000}})
     cfg.validate()
-    rows = {c.label: run_cell(c).row for c in expand_grid(cfg)}
+    rows = {c.label: run_cell(c).row.to_dict() for c in expand_grid(cfg)}
     assert "dropped_components" in rows["poisson"]["flags"].split(";"), rows["poisson"]
     assert rows["marching_cubes"]["flags"] == "" and rows["marching_cubes"]["components"] == 2
 
@@ -99,7 +99,7 @@ def test_the_shape_gradient_dropping_one_of_two_balls_is_flagged_missing_parts(t
     cell = {"phantom": f"mesh:{tmp_path / 'two.obj'}", "variant": "sdf", "n": 32, "extent": 2.5, "noise": "none",
             "snr_requested": None, "seed": 0, "method": "shape_gradient", "label": "shape_gradient", "params": {},
             "n_samples": 5000, "imports": [], "cell_id": "two"}
-    row = run_cell(cell).row
+    row = run_cell(cell).row.to_dict()
     assert row["status"] in ("ok", "invalid"), row["error"]
     assert row["coverage_pct"] < 70 and "missing_parts" in row["flags"].split(";")
 

@@ -36,7 +36,7 @@ def test_every_paper_column_is_a_cell_of_the_default_grid():
 @pytest.mark.parametrize("phantom", ["sphere", "fused_spheres"])
 def test_paper_columns_start_from_the_radius_2_sphere_and_run_the_papers_iterations(phantom, label):
     res = _result(phantom, label)
-    row, art = res.row, res.artifacts
+    row, art = res.row.to_dict(), res.artifacts
     assert row["status"] == "ok", row["error"]
     v0 = np.asarray(art["snap0_vertices"], float)
     assert len(v0) == 1896 and "snap0_faces" not in art and len(art["faces"]) == 3788   # fixed connectivity
@@ -56,8 +56,8 @@ def test_paper_columns_start_from_the_radius_2_sphere_and_run_the_papers_iterati
 def test_the_suite_default_starts_elsewhere_under_its_own_label():
     """The plain `shape_gradient` row is the suite's default: the genus-0 start, not the paper's sphere."""
     res = _result("sphere", "shape_gradient")
-    info = res.row["method_info"]
-    assert res.row["status"] == "ok" and info["init"]["kind"] == "genus0"
+    info = res.row.method_info
+    assert res.row.status == "ok" and info["init"]["kind"] == "genus0"
     assert len(res.artifacts["vertices"]) > 5000
 
 
@@ -66,7 +66,7 @@ CLEAN_LIMIT_H = {"sphere": 0.1, "ellipsoid": 0.3, "cylinder": 1.0, "fused_sphere
 
 @pytest.mark.parametrize("phantom", list(CLEAN_LIMIT_H))
 def test_the_corrected_experiment_meets_the_first_versions_limits_on_clean_phantoms(phantom):
-    row = _result(phantom, "shape_gradient[paper+fixes]").row
+    row = _result(phantom, "shape_gradient[paper+fixes]").row.to_dict()
     # (a run the line search ends early is flagged not_converged; nothing else may be)
     assert row["status"] == "ok" and set(row["flags"].split(";")) <= {"", "not_converged"}, (row["error"], row["flags"])
     assert row["hausdorff_h"] <= CLEAN_LIMIT_H[phantom]

@@ -28,7 +28,7 @@ def sphere_cell() -> Cell:
 
 def test_run_cell_on_a_small_sphere_gives_an_ok_row_with_metrics_and_phase_times(sphere_cell):
     result = run_cell(sphere_cell)
-    row = result.row
+    row = result.row.to_dict()
     assert isinstance(result, CellResult)
     assert row["status"] == "ok" and row["error"] == "" and result.traceback is None
     for key in ID_COLUMNS:
@@ -54,7 +54,7 @@ def test_a_method_that_raises_gives_a_failed_row_naming_the_stage_and_never_rais
     cell = {**sphere_cell.to_dict(), "method": "failing", "label": "failing", "imports": ["runner_plugins"],
             "cell_id": "failing"}
     result = run_cell(cell)
-    row = result.row
+    row = result.row.to_dict()
     assert row["status"] == "failed"
     assert row["error"].startswith("reconstruction:") and "deliberate failure" in row["error"]
     assert "RuntimeError" in result.traceback
@@ -62,14 +62,14 @@ def test_a_method_that_raises_gives_a_failed_row_naming_the_stage_and_never_rais
 
 
 def test_an_unknown_phantom_fails_in_the_volume_stage(sphere_cell):
-    row = run_cell({**sphere_cell.to_dict(), "phantom": "no_such_phantom", "cell_id": "nope"}).row
+    row = run_cell({**sphere_cell.to_dict(), "phantom": "no_such_phantom", "cell_id": "nope"}).row.to_dict()
     assert row["status"] == "failed" and row["error"].startswith("volume:")
 
 
 def test_failed_result_has_the_id_columns_status_and_error(sphere_cell):
     result = failed_result(sphere_cell, "timeout", "cell time limit (1 s) exceeded")
     assert result.artifacts == {} and result.traceback is None
-    row = result.row
+    row = result.row.to_dict()
     assert row["status"] == "timeout" and row["error"] == "cell time limit (1 s) exceeded"
     assert row["cell_id"] == sphere_cell.cell_id and row["method"] == "marching_cubes"
 
@@ -136,7 +136,7 @@ def test_a_degraded_cell_names_its_input_kind_and_scores_the_volume_error():
     cfg = config_from_dict({"grid": {"phantoms": ["sphere"], "n": 40, "degrade": ["thick_slices@3+mask"]},
                             "methods": [{"name": "marching_cubes"}]})
     (cell,) = expand_grid(cfg)
-    row = run_cell(cell).row
+    row = run_cell(cell).row.to_dict()
     assert row["status"] == "ok", row["error"]
     assert row["degrade"] == "thick_slices@3+mask" and row["input_kind"] == "mask"
     assert row["h"] == pytest.approx(5 / 39)                     # the in-plane spacing
@@ -164,7 +164,7 @@ def test_an_intensity_at_a_level_keeps_the_subvoxel_boundary_and_its_fidelity_re
         cfg = config_from_dict({"grid": {"phantoms": [f"volume:{ct}?{opt}&truth={ball}"]},
                                 "metrics": {"n_samples": 20000}, "methods": [{"name": "marching_cubes"}]})
         (cell,) = expand_grid(cfg)
-        rows[opt] = run_cell(cell).row
+        rows[opt] = run_cell(cell).row.to_dict()
         assert rows[opt]["status"] == "ok", rows[opt]["error"]
     level, threshold = rows["level=500"], rows["threshold=500"]
     assert level["input_kind"] == "intensity" and threshold["input_kind"] == "mask"
@@ -189,7 +189,7 @@ def test_a_label_map_with_labels_all_is_one_phantom_per_label_each_meshed_in_one
     cells = expand_grid(cfg)
     assert [c.phantom for c in cells] == ["organs_label1", "organs_label2", "organs_label5"]
     for cell, label in zip(cells, (1, 2, 5)):
-        row = run_cell(cell).row
+        row = run_cell(cell).row.to_dict()
         assert row["status"] == "ok" and row["input_kind"] == "mask", row["error"]
         assert row["n_faces"] > 0 and row["components"] == 1
 
@@ -207,7 +207,7 @@ def test_the_sdf_energy_reads_the_exact_clean_grid_even_where_phi_gradient_is_sm
                             "methods": [{"name": "marching_cubes"}], "metrics": {"n_samples": 2000}})
     cfg.validate()
     (cell,) = expand_grid(cfg)
-    row = run_cell(cell).row
+    row = run_cell(cell).row.to_dict()
     assert row["status"] == "ok" and row["phi_gradient"] < 0.8
     vol = get_phantom("field:cortex").volume(n=41, extent=1.0)
     mesh = get_method("marching_cubes").reconstruct(vol).mesh
@@ -228,18 +228,18 @@ def _hook_cell(sphere_cell, method: str, **params) -> dict:
 
 def test_a_method_declining_its_input_gives_a_skipped_row_with_its_reason_and_no_scores(sphere_cell):
     result = run_cell(_hook_cell(sphere_cell, "picky_mc"))
-    row = result.row
+    row = result.row.to_dict()
     assert row["status"] == "skipped" and result.traceback is None and result.artifacts == {}
     assert row["error"] == "the grid has 24 points per axis, fewer than the 30 it needs"
     assert "hausdorff_h" not in row and "wall_s" not in row and '"min_n":30' in row["parameters"]
-    assert run_cell(_hook_cell(sphere_cell, "picky_mc", min_n=20)).row["status"] == "ok"
+    assert run_cell(_hook_cell(sphere_cell, "picky_mc", min_n=20)).row.status == "ok"
 
 
 def test_warm_up_runs_before_the_timed_reconstruct_and_is_not_in_wall_s(sphere_cell, monkeypatch):
     import hook_plugins
 
     monkeypatch.setattr(hook_plugins, "_WARMED", [])
-    row = run_cell(_hook_cell(sphere_cell, "warm_mc")).row
+    row = run_cell(_hook_cell(sphere_cell, "warm_mc")).row.to_dict()
     assert row["status"] == "ok", row["error"]                 # reconstruct found the method warmed up
     assert row["phase_s"]["warm_up"] >= hook_plugins.WARM_SECONDS > row["wall_s"]
     assert row["phase_s"]["method"] < hook_plugins.WARM_SECONDS
@@ -247,6 +247,6 @@ def test_warm_up_runs_before_the_timed_reconstruct_and_is_not_in_wall_s(sphere_c
 
 def test_a_hook_that_raises_fails_the_cell_naming_where(sphere_cell):
     warm = run_cell(_hook_cell(sphere_cell, "bad_hooks", hook="warm_raises"))
-    assert warm.row["status"] == "failed" and warm.row["error"].startswith("warm-up: RuntimeError")
-    skip = run_cell(_hook_cell(sphere_cell, "bad_hooks", hook="skip_type")).row
+    assert warm.row.status == "failed" and warm.row.error.startswith("warm-up: RuntimeError")
+    skip = run_cell(_hook_cell(sphere_cell, "bad_hooks", hook="skip_type")).row.to_dict()
     assert skip["status"] == "failed" and "skip_reason returned 3" in skip["error"]

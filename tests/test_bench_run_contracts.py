@@ -79,5 +79,5 @@ def test_run_cell_takes_a_cell_or_its_dict_and_returns_a_cell_result():
     by_dict, by_cell = run_cell(d), run_cell(Cell.from_dict(d))
     for res in (by_dict, by_cell):
         assert isinstance(res, CellResult) and res.traceback is None
-        assert res.row["status"] == "ok" and res.row["cell_id"] == d["cell_id"] and "vertices" in res.artifacts
-    assert by_dict.row["hausdorff_h"] == by_cell.row["hausdorff_h"]
+        assert res.row.status == "ok" and res.row.cell_id == d["cell_id"] and "vertices" in res.artifacts
+    assert by_dict.row.metrics["hausdorff_h"] == by_cell.row.metrics["hausdorff_h"]

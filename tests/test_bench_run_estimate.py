@@ -79,9 +79,9 @@ def test_reach_for_the_spheres_at_256_is_refused_under_ten_minutes_with_its_esti
     estimate = method_estimate(cell)
     assert estimate is not None and estimate > 600
     result = refusal(cell, TimeLimits(cell=600))
-    assert result.row["status"] == "failed"
-    assert REFUSED.match(result.row["error"]), result.row["error"]
-    assert result.row["estimate_s"] == pytest.approx(estimate, rel=1e-3)
+    assert result.row.status == "failed"
+    assert REFUSED.match(result.row.error), result.row.error
+    assert result.row.estimate_s == pytest.approx(estimate, rel=1e-3)
     assert refusal(cell, TimeLimits(cell=600), force=True) is None
     assert refusal(cell, TimeLimits()) is None                 # no limit: nothing to exceed
     assert refusal(cell, TimeLimits(cell=estimate * 2)) is None

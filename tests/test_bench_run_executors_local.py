@@ -38,7 +38,7 @@ def test_local_executor_runs_two_cells_and_reports_each_start_and_result():
     assert started == [c.cell_id for c in cells]
     assert set(results) == {c.cell_id for c in cells}
     for cell in cells:
-        row = results[cell.cell_id].row
+        row = results[cell.cell_id].row.to_dict()
         assert row["status"] == "ok", row["error"]
         assert row["method"] == cell.method and row["watertight"] and row["euler"] == 2
 
@@ -48,7 +48,7 @@ def test_local_executor_turns_a_cell_over_its_time_limit_into_a_timeout_row():
     t0 = time.monotonic()
     _, results = _run(LocalExecutor(jobs=1, timeout=3.0, preload=["runner_plugins"]), [sleepy])
     assert time.monotonic() - t0 < 30                       # killed at its deadline, not after 60 s
-    row = results["sleepy_cell"].row
+    row = results["sleepy_cell"].row.to_dict()
     assert row["status"] == "timeout"
     assert "no result after 3 s" in row["error"] and "in the method" in row["error"]
     assert row["cell_s"] >= 3.0
@@ -58,9 +58,9 @@ def test_local_executor_reports_a_crashed_cell_as_failed_and_runs_the_others():
     ok, _ = _cells()
     crash = _plugin_cell(ok, "crashing")
     _, results = _run(LocalExecutor(jobs=1, timeout=None, preload=["runner_plugins"]), [crash, ok])
-    crashed = results["crashing_cell"].row
+    crashed = results["crashing_cell"].row.to_dict()
     assert crashed["status"] == "failed" and crashed["error"].startswith("crash: worker process killed by SIGKILL")
-    assert results[ok.cell_id].row["status"] == "ok"
+    assert results[ok.cell_id].row.status == "ok"
 
 
 def test_local_executor_settings():

@@ -47,7 +47,7 @@ def test_a_saved_cell_loads_back_and_its_json_marks_it_done(tmp_path):
     save_cell(tmp_path, _cell("c1"), _result("c1", hausdorff=0.5), save_meshes=True)
     assert (tmp_path / CELLS_DIR / "c1.npz").exists() and (tmp_path / "meshes" / "c1.ply").exists()
     records = load_cells(tmp_path)
-    assert list(records) == ["c1"] and records["c1"]["row"]["hausdorff"] == 0.5
+    assert list(records) == ["c1"] and records["c1"]["row"].metrics["hausdorff"] == 0.5   # read back typed
     assert records["c1"]["cell"]["phantom"] == "sphere" and "finished" in records["c1"]
     (tmp_path / CELLS_DIR / "broken.json").write_text("{not json")
     assert list(load_cells(tmp_path)) == ["c1"]          # an unreadable record is not a finished cell

@@ -111,9 +111,10 @@ def test_brain_mri_through_a_file_scores_like_the_builtin(tmp_path):
     base = {"variant": "sdf", "extent": 2.5, "noise": "none", "snr_requested": None, "seed": 0,
             "method": "marching_cubes", "label": "marching_cubes", "params": {}, "n_samples": 20000,
             "imports": [], "cell_id": "c"}
-    a = run_cell({**base, "phantom": "brain_mri", "n": 40}).row
-    b = run_cell({**base, "phantom": f"volume:{tmp_path / 'brain.nii'}?truth={tmp_path / 'brain.ply'}", "n": 0}).row
-    c = run_cell({**base, "phantom": f"volume:{tmp_path / 'brain.nii'}", "n": 0}).row
+    a = run_cell({**base, "phantom": "brain_mri", "n": 40}).row.to_dict()
+    truth = f"volume:{tmp_path / 'brain.nii'}?truth={tmp_path / 'brain.ply'}"
+    b = run_cell({**base, "phantom": truth, "n": 0}).row.to_dict()
+    c = run_cell({**base, "phantom": f"volume:{tmp_path / 'brain.nii'}", "n": 0}).row.to_dict()
     assert a["status"] == b["status"] == c["status"] == "ok" and b["N"] == 40
     for k in FIDELITY_NAMES + ["euler", "min_angle_deg", "self_intersections"]:
         assert b[k] == a[k] and c[k] == a[k], k

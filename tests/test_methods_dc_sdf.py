@@ -102,8 +102,8 @@ def test_paper_preset_runs_the_library_defaults_and_is_refused_when_too_dear():
             "noise": "none", "snr_requested": None, "seed": 0, "method": "dc_sdf", "label": "dc_sdf",
             "params": {"preset": "paper"}, "n_samples": 1000, "imports": []}
     refused = refusal(cell, TimeLimits(cell=900, method=600))       # the config's default method timeout
-    assert refused is not None and "> method timeout 10 min" in refused.row["error"]
-    assert refused.row["estimate_s"] > 600
+    assert refused is not None and "> method timeout 10 min" in refused.row.error
+    assert refused.row.estimate_s > 600
     assert refusal(dict(cell, params={}), TimeLimits(cell=900, method=600)) is None
 
 

@@ -21,7 +21,7 @@ def test_an_exported_surface_is_a_row_scored_like_the_others(tmp_path):
                                          "params": {"path": str(exports / "{phantom}.stl")}},
                                         {"name": "marching_cubes"}]})
     cfg.validate()
-    rows = {(c.phantom, c.label): run_cell(c).row for c in expand_grid(cfg)}
+    rows = {(c.phantom, c.label): run_cell(c).row.to_dict() for c in expand_grid(cfg)}
     ok = rows["sphere", "slicer_export"]
     assert ok["status"] == "ok", ok["error"]
     assert ok["hausdorff_h"] < 0.2 and abs(ok["volume_err_pct"]) < 1      # an icosphere of the unit sphere

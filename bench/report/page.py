@@ -75,7 +75,8 @@ def _facts(df, records: dict) -> list[dict]:
     """Each cell's method info (``row.method_info`` of its json) as one line of ``key=value`` pairs."""
     facts = []
     for _, r in df.iterrows():
-        info = ((records.get(r["cell_id"]) or {}).get("row") or {}).get("method_info")
+        row = (records.get(r["cell_id"]) or {}).get("row")       # a ResultRow (bench.run.store.scan_cells)
+        info = row.method_info if row is not None else None
         if info:
             text = "; ".join(f"{k}={json.dumps(v, default=str)[:200]}" for k, v in info.items())
             facts.append({"cell_id": r["cell_id"], "label": r["label"], "text": text})

@@ -1,7 +1,7 @@
 """Running the benchmark grid: config → cells → executor → run folder.
 
 * :mod:`~bench.run.contracts` — the stage contracts :class:`Cell` and :class:`CellResult` (frozen; plain dicts only
-  in the run folder);
+  in the run folder), the result's row a :class:`ResultRow` (:mod:`~bench.run.row`: the results row's schema);
 * :mod:`~bench.run.grid` — a config's cells and their ids;
 * :mod:`~bench.run.cell` — one cell from its parameters alone (volume, method, cost, metrics);
 * :mod:`~bench.run.executors` — where cells run (local processes, Dask);
@@ -18,12 +18,12 @@
 """
 
 from .cell import failed_result, run_cell
-from .contracts import Cell, CellResult
+from .contracts import Cell, CellResult, ResultRow
 from .executors import LocalExecutor
 from .grid import cell_id, expand_grid
 from .options import RunOptions
 from .runner import RunSummary, run_grid
 from .store import load_cells, write_results_csv
 
-__all__ = ["Cell", "CellResult", "LocalExecutor", "RunOptions", "RunSummary", "cell_id", "expand_grid", "failed_result",
-           "load_cells", "run_cell", "run_grid", "write_results_csv"]
+__all__ = ["Cell", "CellResult", "LocalExecutor", "ResultRow", "RunOptions", "RunSummary", "cell_id", "expand_grid",
+           "failed_result", "load_cells", "run_cell", "run_grid", "write_results_csv"]

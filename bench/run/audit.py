@@ -21,6 +21,7 @@ from pathlib import Path
 from phantoms import InputError
 
 from .integrity import UNSEALED, record_problem, seal
+from .row import as_row
 from .store import (CELLS_DIR, RESULTS_CSV, RESULTS_PARQUET, _artifact_problem, _read_csv_table, frame_of,
                     read_json, result_columns, results_table, scan_cells, write_json)
 
@@ -81,7 +82,7 @@ def _value_problems(name: str, df, records: dict[str, dict], columns: bool) -> l
     rows = [records[c]["row"] for c in ids]
     want_cols = result_columns([r["row"] for r in records.values()])
     # a column no record carries (a metric added to the registry after this run) is not a damage of the table
-    carried = {k for r in records.values() for k in r["row"]}
+    carried = {k for r in records.values() for k in as_row(r["row"]).present}
     problems = ([f"{name} lacks column {c!r}" for c in want_cols if c not in df.columns and c in carried]
                 if columns else [])
     problems += [f"{name} has column {c!r}, which no record has" for c in df.columns

@@ -4,7 +4,8 @@
 cache, when given), so any executor can run it anywhere.  It takes a :class:`~bench.run.contracts.Cell` (or its
 dict form) and returns a :class:`~bench.run.contracts.CellResult` (``row``, ``artifacts``, ``traceback``).
 
-``row`` is the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop
+``row`` (a :class:`~bench.run.row.ResultRow`, filled as a dict as the stages go and converted once at the end)
+is the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop
 reason, cost, ``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`:
 ``error`` says why; the metrics that can be computed are kept) / ``failed`` and ``error`` (over the process's
 memory limit: ``memory limit (N GB) exceeded in the method`` / ``in scoring ...``, see
@@ -33,7 +34,7 @@ from phantoms.degrade import degrade
 
 from ..metrics.flags import result_flags
 from ..metrics.validity import check_mesh
-from .contracts import Cell, CellResult
+from .contracts import Cell, CellResult, ResultRow
 from .cost import measure
 from .grid import as_cell, canonical_json, slug
 from .limits import memory_error
@@ -383,7 +384,7 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         row["status"], row["error"], tb = _ended(exc, stage)
     row["cell_s"] = time.perf_counter() - t0
     row["cpu_s"] = time.process_time() - c0        # all threads of the cell: its cost whatever the machine's load
-    return CellResult(row, artifacts, tb)
+    return CellResult(ResultRow.from_dict(row, strict=True), artifacts, tb)
 
 
 def failed_result(cell: Cell | dict, status: str, error: str) -> CellResult:
@@ -403,6 +404,4 @@ def failed_result(cell: Cell | dict, status: str, error: str) -> CellResult:
     CellResult
         Its row holds the ID columns, status and error; no artifacts, no traceback.
     """
-    row = _id_row(as_cell(cell))
-    row.update(status=status, error=error)
-    return CellResult(row)
+    return CellResult(ResultRow.from_dict({**_id_row(as_cell(cell)), "status": status, "error": error}, strict=True))

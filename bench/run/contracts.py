@@ -1,5 +1,5 @@
 """The typed contracts between the run's stages: a :class:`Cell` (grid → executor → cell) and a
-:class:`CellResult` (cell → executor → runner → store).
+:class:`CellResult` (cell → executor → runner → store), whose row is a :class:`~bench.run.row.ResultRow`.
 
 Both are frozen dataclasses, so a stage cannot change what the next one receives by accident, and a typo in a
 field name is an ``AttributeError`` at once instead of a ``KeyError`` (or a silent ``.get`` default) stages
@@ -11,10 +11,12 @@ Both pickle as they are, which is how executors ship them to worker processes an
 
 from __future__ import annotations
 
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields, replace
 from typing import Any
 
-__all__ = ["Cell", "CellResult"]
+from .row import ResultRow
+
+__all__ = ["Cell", "CellResult", "ResultRow"]
 
 #: the optional keys a cell dict carries only when set, and where expand_grid puts them
 _OPTIONAL = ("source", "input", "method_code", "degrade")
@@ -149,26 +151,48 @@ class CellResult:
 
     Parameters
     ----------
-    row : dict
-        The cell's results.csv row (plus the json-only keys: ``cell_s``, ``phase_s``, ``method_info`` ...).
+    row : ResultRow
+        The cell's results.csv row (plus the json-only keys: ``cell_s``, ``phase_s``, ``method_info`` ...); a dict
+        is converted with :meth:`ResultRow.from_dict` (``strict``: a key that is no column is an error).
     artifacts : dict
         ``{name: array}`` the report draws (written to ``cells/<cell_id>.npz``); {} when there are none.
     traceback : str or None
         The traceback of a failing cell.
     """
 
-    row: dict
+    row: ResultRow
     artifacts: dict = field(default_factory=dict)
     traceback: str | None = None
 
+    def __post_init__(self) -> None:
+        if isinstance(self.row, dict):
+            object.__setattr__(self, "row", ResultRow.from_dict(self.row, strict=True))
+
+    def with_row(self, values: dict | None = None, **more: Any) -> CellResult:
+        """A copy whose row has ``values`` and ``more`` set (:meth:`ResultRow.updated`).
+
+        Parameters
+        ----------
+        values : dict, optional
+            Keys and values for the row.
+        **more
+            Further keys and values.
+
+        Returns
+        -------
+        CellResult
+        """
+        return replace(self, row=self.row.updated(values, **more))
+
     def to_dict(self) -> dict[str, Any]:
-        """``{"row", "artifacts", "traceback"}``: the result as the plain dict earlier versions passed around.
+        """``{"row", "artifacts", "traceback"}``: the result as the plain dict earlier versions passed around (the
+        row's dict form: :meth:`ResultRow.to_dict`).
 
         Returns
         -------
         dict
         """
-        return {"row": self.row, "artifacts": self.artifacts, "traceback": self.traceback}
+        return {"row": self.row.to_dict(), "artifacts": self.artifacts, "traceback": self.traceback}
 
     @classmethod
     def from_dict(cls, d: dict) -> CellResult:
@@ -177,7 +201,7 @@ class CellResult:
         Parameters
         ----------
         d : dict
-            ``row`` (required), ``artifacts`` and ``traceback`` (optional).
+            ``row`` (required: a :class:`ResultRow` or its dict form), ``artifacts`` and ``traceback`` (optional).
 
         Returns
         -------

@@ -77,9 +77,7 @@ def refusal(cell: Cell | dict, limits: TimeLimits, force: bool = False) -> CellR
         return None
     error = (f"estimated {format_duration(estimate)} > {budget[1]} {format_duration(budget[0])} "
              "(use --force to run it anyway)")
-    result = failed_result(cell, "failed", error)
-    result.row.update(estimate_s=round(estimate, 3), cell_s=0.0)
-    return result
+    return failed_result(cell, "failed", error).with_row(estimate_s=round(estimate, 3), cell_s=0.0)
 
 
 def screen_cells(cells: list[Cell], limits: TimeLimits, force: bool, on_start: Callable[[Cell], None],

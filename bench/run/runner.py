@@ -26,7 +26,7 @@ from geometry.files import WriteError
 from ..terminal import printable
 from .audit import REJECTED, set_aside
 from .checkpoints import ResultTables
-from .contracts import Cell, CellResult
+from .contracts import Cell, CellResult, ResultRow
 from .estimate import screen_cells
 from .executors.local import LocalExecutor
 from .grid import expand_grid
@@ -122,18 +122,18 @@ class RunLog:
         rows = [r["row"] for r in records.values()]
         by_method: dict[str, list[float]] = {}
         for r in rows:
-            if r.get("wall_s") is not None:
-                by_method.setdefault(r.get("label", "?"), []).append(float(r["wall_s"]))
+            if r.value("wall_s") is not None:
+                by_method.setdefault(r.value("label", "?"), []).append(float(r.value("wall_s")))
         meta = {
             "suite": "levelset-bench",
             "config": self.cfg.to_dict(),
             "config_source": self.cfg.source,
             "cells": {"total": self.n_cells, "finished": len(records),
-                      "status": {k: sum(1 for r in rows if r.get("status") == k) for k in STATUSES + (SKIPPED,)}},
+                      "status": {k: sum(1 for r in rows if r.status == k) for k in STATUSES + (SKIPPED,)}},
             "start": self.previous.get("start", self.session["start"]),
             "end": s.get("end"),
             "total_s": round(sum(x.get("total_s", 0.0) for x in sessions), 3),
-            "timings": {"cells_s_sum": round(sum(float(r.get("cell_s") or 0.0) for r in rows), 3),
+            "timings": {"cells_s_sum": round(sum(float(r.cell_s or 0.0) for r in rows), 3),
                         "method_wall_s_mean": {k: round(float(np.mean(v)), 4) for k, v in by_method.items()}},
             "sessions": sessions,
             "config_fingerprint": config_fingerprint(self.cfg.to_dict()),
@@ -167,12 +167,12 @@ class _Progress:
         self.bar.set_postfix_str(printable(f"{cell.phantom}/{cell.noise}/{cell.label}")
                                  + (f", {self.failed} failed" if self.failed else ""), refresh=True)
 
-    def finish(self, cell: Cell, row: dict) -> None:
+    def finish(self, cell: Cell, row: ResultRow) -> None:
         self.done += 1
-        if row.get("status") != "ok":
-            self.failed += row.get("status") != SKIPPED      # a skipped cell is shown, but is no failure
+        if row.status != "ok":
+            self.failed += row.status != SKIPPED      # a skipped cell is shown, but is no failure
             if self.show:
-                self.bar.write(printable(f"{row.get('status')}: {cell.cell_id}: {row.get('error', '')}"))
+                self.bar.write(printable(f"{row.status}: {cell.cell_id}: {row.value('error', '')}"))
         self.bar.update(1)
         now = time.monotonic()
         tenth = max(1, (self.total - self.start_done) // 10)
@@ -221,7 +221,7 @@ def _load_done(out: Path, cells: list[Cell], resume: bool, retry_failed: bool,
     known = {cid: rec.get("checksum") for cid, rec in found.items()}
     records = {k: v for k, v in found.items() if k in ids}
     if retry_failed:
-        records = {k: v for k, v in records.items() if v["row"].get("status") == "ok"}
+        records = {k: v for k, v in records.items() if v["row"].status == "ok"}
     changed = changed_methods(records, cells)       # rerun and overwritten: one row per cell, the new code's
     for entry in changed.values():
         for cid in entry["cells"]:
@@ -362,7 +362,7 @@ def _plan(cfg, out: Path, opts: RunOptions, executor) -> _Plan:
 def _count(summary: RunSummary, records: dict[str, dict]) -> None:
     """Add the finished cells to the summary's counts by status."""
     for r in records.values():
-        st = r["row"].get("status")
+        st = r["row"].status
         if st in STATUSES:
             setattr(summary, st, getattr(summary, st) + 1)
         elif st == SKIPPED:
@@ -384,7 +384,7 @@ def _run_locked(cfg, out: Path, opts: RunOptions, executor) -> RunSummary:
 
     def on_result(cell: Cell, result: CellResult) -> None:
         known[cell.cell_id] = save_cell(out, cell, result, opts.save_meshes, code=plan.code)
-        # a record as stored (and as read back by --resume): plain dicts
+        # a record as read back by --resume (bench.run.store.scan_cells): plain dicts, the row a ResultRow
         records[cell.cell_id] = {"row": result.row, "cell": cell.to_dict(), "code": plan.code}
         tables.finished()
         summary.ran += 1

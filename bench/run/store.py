@@ -41,6 +41,8 @@ from phantoms import InputError
 from .contracts import Cell, CellResult
 from .grid import as_cell
 from .integrity import record_problem, seal
+from .row import ID_COLUMNS, JSON_ONLY, RUNNER_COLUMNS, TAIL_COLUMNS, TEXT_COLUMNS, ResultRow
+from .row import COLUMN_KINDS as _ID_KINDS
 from .values import plain
 
 __all__ = [
@@ -57,16 +59,9 @@ CACHE_DIR = "cache"
 RESULTS_CSV = "results.csv"
 RESULTS_PARQUET = "results.parquet"
 
-#: the leading columns of results.csv (then every metric, then the runner's columns, then the tail)
-ID_COLUMNS = ["cell_id", "phantom", "variant", "N", "noise", "snr_requested", "snr_achieved", "seed",
-              "method", "label", "parameters"]
-#: columns the runner fills from the method's info and the cost measurement
-RUNNER_COLUMNS = ["iterations", "energy_final", "stop_reason", "wall_s", "peak_mem_mb"]
-TAIL_COLUMNS = ["flags", "status", "error"]
+# The columns (ID_COLUMNS, RUNNER_COLUMNS, TAIL_COLUMNS, TEXT_COLUMNS) are the ResultRow's: bench/run/row.py.
 #: how :func:`scan_cells` ends the problem of a record file that is no cell's record
 IGNORED = "ignored"
-#: row keys kept in the cell's json but not in results.csv
-_NOT_IN_CSV = ("cell_s", "cpu_s", "artifact_error", "method_info", "method_output", "phase_s")
 
 
 # ---------------------------------------------------------------------------------------------- atomic writes
@@ -140,7 +135,7 @@ def save_cell(out: Path, cell: Cell | dict, result: CellResult | dict, save_mesh
             _mkdir(Path(out) / MESHES_DIR)
             mesh = trimesh.Trimesh(np.asarray(art["vertices"], float), np.asarray(art["faces"]), process=False)
             write_atomic(Path(out) / MESHES_DIR / f"{cid}.ply", mesh.export(file_type="ply"))
-    record = {"row": result.row, "cell": cell.to_dict(), "traceback": result.traceback,
+    record = {"row": result.row.to_dict(), "cell": cell.to_dict(), "traceback": result.traceback,
               "artifacts": sorted(art), "code": code,
               "finished": _dt.datetime.now().astimezone().isoformat(timespec="seconds")}
     sealed = seal(record, cells_dir / f"{cid}.npz" if art else None)
@@ -183,6 +178,7 @@ def scan_cells(out: Path, verify_artifacts: bool = False) -> tuple[dict[str, dic
             if err is not None:
                 problems.append(f"{p} {err}")
                 continue
+        rec["row"] = ResultRow.from_dict(rec["row"])    # converted once, here (keys of other versions kept)
         records[cid] = rec
     return records, problems
 
@@ -221,10 +217,17 @@ def clean_temp_files(out: Path) -> list[Path]:
 
 
 # ---------------------------------------------------------------------------------------------- results.csv
-def result_columns(rows: list[dict]) -> list[str]:
+def _dicts(rows: "list[ResultRow | dict]") -> list[dict]:
+    """The rows' dict forms (:meth:`ResultRow.to_dict`; a dict row as it is)."""
+    return [r.to_dict() if isinstance(r, ResultRow) else r for r in rows]
+
+
+def result_columns(rows: "list[ResultRow | dict]") -> list[str]:
     """ID columns, every registered metric (in registry order, then any further keys the rows carry, e.g. a
     plug-in's info), the runner's columns, then status and error."""
     from bench.metrics import METRIC_NAMES
+
+    rows = _dicts(rows)
 
     tail = set(TAIL_COLUMNS) | set(ID_COLUMNS)
     cols = list(ID_COLUMNS)
@@ -234,7 +237,7 @@ def result_columns(rows: list[dict]) -> list[str]:
     extra = []
     for r in rows:
         for k in r:
-            if k not in cols and k not in tail and k not in extra and k not in _NOT_IN_CSV:
+            if k not in cols and k not in tail and k not in extra and k not in JSON_ONLY:
                 extra.append(k)
     cols += [k for k in extra if k not in RUNNER_COLUMNS]
     cols += [k for k in RUNNER_COLUMNS if k not in cols]
@@ -276,7 +279,7 @@ def write_results_csv(out: Path, cells: "list[Cell | dict]", records: dict[str, 
         The CSV file.
     """
     ids = [c.cell_id if isinstance(c, Cell) else c["cell_id"] for c in cells]
-    rows = [records[cid]["row"] for cid in ids if cid in records]
+    rows = _dicts([records[cid]["row"] for cid in ids if cid in records])
     cols = result_columns(rows)
     path = Path(out) / RESULTS_CSV
     data = _csv_text(cols, rows).encode("utf-8")
@@ -286,11 +289,6 @@ def write_results_csv(out: Path, cells: "list[Cell | dict]", records: dict[str, 
 
 
 # ---------------------------------------------------------------------------------------------- typed table
-#: columns stored as text (everything else is typed by the metric registry, or by what the values are)
-TEXT_COLUMNS = ("cell_id", "phantom", "variant", "noise", "method", "label", "parameters", "source",
-                "stop_reason", "flags", "status", "error")
-_ID_KINDS = {"N": "int", "seed": "int", "snr_requested": "float", "snr_achieved": "float", "h": "float",
-             "has_truth": "bool"}
 #: the parquet file's metadata key holding the SHA-1 of the results.csv written with it
 _CSV_SHA1 = b"levelset-bench.results_csv_sha1"
 _INFERRED = {"boolean": "bool", "integer": "int", "floating": "float", "mixed-integer-float": "float",
@@ -351,11 +349,12 @@ def _arrow_column(values: list, kind: str):
     return pa.array([None if _missing(v) else str(v) for v in values], pa.string())
 
 
-def results_table(rows: list[dict], cols: list[str] | None = None):
+def results_table(rows: "list[ResultRow | dict]", cols: list[str] | None = None):
     """The rows as a :class:`pyarrow.Table` with one typed column each (``cols``: default
     :func:`result_columns`); NaN stays NaN, a missing value is null, an empty text stays empty."""
     import pyarrow as pa
 
+    rows = _dicts(rows)
     cols = result_columns(rows) if cols is None else cols
     arrays = {}
     for c in cols:

@@ -13,8 +13,11 @@ MAX_MESSAGE = 2000
 
 
 def plain(value: Any) -> Any:
-    """JSON-able plain Python values (numpy scalars/arrays, tuples; non-finite floats kept as floats).
-    Arrays of more than 64 elements become a short ``<array shape [...]>`` note."""
+    """JSON-able plain Python values (numpy scalars/arrays, tuples; non-finite floats kept as floats; a stage
+    contract such as a :class:`~bench.run.row.ResultRow` as its ``to_dict()``).  Arrays of more than 64 elements
+    become a short ``<array shape [...]>`` note."""
+    if hasattr(value, "to_dict") and not isinstance(value, (dict, type)):
+        return plain(value.to_dict())
     if isinstance(value, dict):
         return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):

@@ -140,7 +140,8 @@ class DaskExecutor:
                 why = ("crash: the Dask workers running this cell died repeatedly (KilledWorker)"
                        if isinstance(exc, KilledWorker) else f"dask: {error_text(exc)}")
                 result = fut.result() if exc is None else failed_result(cell, "failed", why)
-                result.row.setdefault("cell_s", time.monotonic() - start)
+                if not result.row.has("cell_s"):
+                    result = result.with_row(cell_s=time.monotonic() - start)
                 on_result(cell, result)
         finally:
             if owned:

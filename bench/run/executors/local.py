@@ -71,11 +71,11 @@ def _cell_process(cell: Cell, cache_dir: str | None, result_conn, lifeline_conn,
             result = failed_result(cell, "failed", f"worker: {error_text(exc)}")
         size, head = captured_head(out.fileno(), OUTPUT_KEPT)
     if size:
-        result.row["method_output"] = {"bytes": size, "head": head}
+        result = result.with_row(method_output={"bytes": size, "head": head})
     try:
         result_conn.send(result)
     except Exception as exc:  # e.g. an unpicklable artifact: send the row alone
-        row = {**result.row, "artifact_error": f"could not send artifacts: {error_text(exc)}"}
+        row = result.row.updated(artifact_error=f"could not send artifacts: {error_text(exc)}")
         result_conn.send(CellResult(row, {}, result.traceback))
     result_conn.close()
 
@@ -199,8 +199,7 @@ class LocalExecutor:
         limit = self.limits.which(r.started, r.phase, r.phase_started)
         facts = r.facts or {}
         result = failed_result(r.cell, "timeout", self.limits.message(limit, r.phase, facts.get("wall_s")))
-        result.row.update({k: v for k, v in facts.items() if v is not None})
-        return result
+        return result.with_row({k: v for k, v in facts.items() if v is not None})
 
     @staticmethod
     def _finish(r: _Running) -> None:
@@ -261,7 +260,8 @@ class LocalExecutor:
                         still.append(r)
                         continue
                     self._finish(r)
-                    result.row.setdefault("cell_s", time.monotonic() - r.started)
+                    if not result.row.has("cell_s"):
+                        result = result.with_row(cell_s=time.monotonic() - r.started)
                     on_result(r.cell, result)
                 running = still
         finally:

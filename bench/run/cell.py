@@ -294,6 +294,50 @@ def _ended(exc: Exception, stage: str) -> tuple[str, str, str | None]:
     return "failed", memory_error(exc, stage) or f"{stage}: {error_text(exc)}", traceback.format_exc()
 
 
+def _metrics(rec, truth, vol, energy_grid, invalid: list, cell: Cell, cache_dir: str | None,
+             artifacts: dict) -> tuple[dict, dict, dict]:
+    """``(metrics, per-vertex mean curvature, metric phase times)`` of the method's mesh.  An invalid mesh keeps
+    what can be computed (no metrics when they fail); a valid one whose metrics fail, or any that runs out of
+    memory, fails the cell — its pictures go into ``artifacts`` first, they are still worth keeping."""
+    from bench.metrics import evaluate
+
+    final_H: dict = {}
+    metric_phases: dict = {}
+    try:
+        metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell.n_samples, seed=cell.seed,
+                           timings=metric_phases, vertex_H=final_H,
+                           truth_points=truth_samples(cell, truth, cache_dir), clean=energy_grid)
+    except Exception as exc:
+        if not invalid or memory_error(exc, "metrics"):
+            try:
+                artifacts.update(_artifacts(rec, vol.h, None, getattr(truth, "sdf", None)))
+            except Exception:  # noqa: BLE001
+                pass
+            raise
+        metrics = {}
+    return metrics, final_H, metric_phases
+
+
+def _pictures(rec, vol, final_H: dict, truth, runner_values: dict) -> dict:
+    """The cell's artifacts (pictures, arrays); optional — a failure is recorded in ``runner_values``'s
+    ``artifact_error`` and the cell goes on."""
+    try:
+        return _artifacts(rec, vol.h, final_H, getattr(truth, "sdf", None))
+    except Exception as exc:  # pictures are optional; the metrics are not
+        runner_values["artifact_error"] = error_text(exc)
+        return {}
+
+
+def _finish(row: dict, runner_values: dict, truth, invalid: list) -> None:
+    """The runner's columns, the flags, the status and the error of a cell whose method returned a mesh."""
+    for k, v in runner_values.items():
+        if v is not None or k not in row:
+            row[k] = plain(v)
+    row["flags"] = ";".join(result_flags(row, truth))
+    row["status"] = "invalid" if invalid else "ok"
+    row["error"] = f"invalid: {'; '.join(invalid)}" if invalid else ""
+
+
 def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> CellResult:
     """Compute one cell from its parameters; never raises for a failing method (see the module docstring).
 
@@ -313,8 +357,6 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         Its row, artifacts and traceback; a failing method's row has ``status`` ``failed``, ``error``; a method
         that declines the input (:meth:`methods.Method.skip_reason`) ``skipped`` and its reason.
     """
-    from bench.metrics import evaluate
-
     cell = as_cell(cell)
     t0, c0 = time.perf_counter(), time.process_time()
     row = _id_row(cell)
@@ -349,37 +391,15 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         invalid = check_mesh(rec.mesh, clean, given=None if vol is clean else vol)
         lap("validity")
         stage = "metrics"
-        final_H: dict = {}
-        metric_phases: dict = {}
-        try:
-            metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell.n_samples, seed=cell.seed,
-                               timings=metric_phases, vertex_H=final_H,
-                               truth_points=truth_samples(cell, truth, cache_dir), clean=energy_grid)
-        except Exception as exc:
-            # an invalid mesh keeps what can be computed — unless the metrics ran out of memory: a failed row
-            if not invalid or memory_error(exc, stage):
-                try:                                   # the row fails; its pictures are still worth keeping
-                    artifacts = _artifacts(rec, vol.h, None, getattr(truth, "sdf", None))
-                except Exception:  # noqa: BLE001
-                    pass
-                raise
-            metrics = {}                               # an invalid mesh keeps what can be computed
+        metrics, final_H, metric_phases = _metrics(rec, truth, vol, energy_grid, invalid, cell, cache_dir,
+                                                   artifacts)
         row.update(plain(dict(metrics)))
         lap("metrics")
         phases.update({f"metrics/{k}": v for k, v in metric_phases.items()})
         stage = "pictures"
-        try:
-            artifacts = _artifacts(rec, vol.h, final_H, getattr(truth, "sdf", None))
-        except Exception as exc:  # pictures are optional; the metrics are not
-            artifacts = {}
-            runner_values["artifact_error"] = error_text(exc)
+        artifacts = _pictures(rec, vol, final_H, truth, runner_values)
         lap("artifacts")
-        for k, v in runner_values.items():
-            if v is not None or k not in row:
-                row[k] = plain(v)
-        row["flags"] = ";".join(result_flags(row, truth))
-        row["status"] = "invalid" if invalid else "ok"
-        row["error"] = f"invalid: {'; '.join(invalid)}" if invalid else ""
+        _finish(row, runner_values, truth, invalid)
     except Exception as exc:
         row["status"], row["error"], tb = _ended(exc, stage)
     row["cell_s"] = time.perf_counter() - t0

@@ -4,6 +4,8 @@ and :func:`method_info`."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import trimesh
@@ -76,7 +78,7 @@ def test_failed_result_has_the_id_columns_status_and_error(sphere_cell):
 
 def test_cell_source_is_the_source_or_the_phantom_name(sphere_cell):
     assert cell_source(sphere_cell) == "sphere"
-    assert cell_source({**sphere_cell.to_dict(), "phantom": "a", "source": "mesh:/data/a.obj"}) == "mesh:/data/a.obj"
+    assert cell_source(replace(sphere_cell, phantom="a", source="mesh:/data/a.obj")) == "mesh:/data/a.obj"
 
 
 def test_build_volume_caches_the_clean_volume_and_reads_it_back(sphere_cell, tmp_path):

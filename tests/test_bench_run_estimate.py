@@ -22,7 +22,7 @@ import pytest
 import cost_plugins  # noqa: F401 - registers costly / uncosted / broken_model in this process
 from bench.cli import main
 from bench.config import config_from_dict
-from bench.run import run_cell, run_grid
+from bench.run import Cell, run_cell, run_grid
 from bench.run.estimate import format_duration, method_budget, method_estimate, refusal
 from bench.run.limits import TimeLimits
 from methods import crossing_cells, get_method
@@ -33,10 +33,10 @@ TESTS = Path(__file__).resolve().parent
 REFUSED = re.compile(r"^estimated [\d.]+ (min|h) > timeout 10 min \(use --force to run it anyway\)$")
 
 
-def _cell(method: str, n: int, **params) -> dict:
-    return {"cell_id": f"sphere-{method}-n{n}", "phantom": "sphere", "variant": "sdf", "n": n, "extent": 2.5,
-            "noise": "none", "snr_requested": None, "seed": 0, "method": method, "label": method, "params": params,
-            "n_samples": 1000, "imports": []}
+def _cell(method: str, n: int, **params) -> Cell:
+    return Cell.from_dict({"cell_id": f"sphere-{method}-n{n}", "phantom": "sphere", "variant": "sdf", "n": n,
+            "extent": 2.5, "noise": "none", "snr_requested": None, "seed": 0, "method": method, "label": method,
+            "params": params, "n_samples": 1000, "imports": []})
 
 
 def _cfg(method: str, n: int, timeout: float, **run) -> object:
@@ -91,7 +91,7 @@ def test_methods_without_a_model_or_with_a_broken_one_are_never_refused():
     for method in ("uncosted", "broken_model", "marching_cubes"):
         assert method_estimate(_cell(method, 512)) is None
         assert refusal(_cell(method, 512), TimeLimits(cell=0.001)) is None
-    assert method_estimate({**_cell("reach_for_the_spheres", 0)}) is None   # a user volume's native grid
+    assert method_estimate(_cell("reach_for_the_spheres", 0)) is None   # a user volume's native grid
 
 
 def test_the_models_grow_with_n_and_with_the_surface():

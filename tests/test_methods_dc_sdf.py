@@ -6,9 +6,12 @@ cost model.  N = 32 in the default suite, N = 64 marked slow (≈ 11 s a sphere 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
+from bench.run.contracts import Cell
 from bench.run.estimate import refusal
 from bench.run.limits import TimeLimits
 from methods import get_method
@@ -98,13 +101,13 @@ def test_paper_preset_runs_the_library_defaults_and_is_refused_when_too_dear():
         get_method("dc_sdf", preset="paper", outer_iterations=3)
     suite = get_method("dc_sdf")
     assert paper.estimate_seconds(64) > 50 * suite.estimate_seconds(64)
-    cell = {"cell_id": "sphere-dc_sdf-n64", "phantom": "sphere", "variant": "sdf", "n": 64, "extent": 2.5,
-            "noise": "none", "snr_requested": None, "seed": 0, "method": "dc_sdf", "label": "dc_sdf",
-            "params": {"preset": "paper"}, "n_samples": 1000, "imports": []}
+    cell = Cell.from_dict({"cell_id": "sphere-dc_sdf-n64", "phantom": "sphere", "variant": "sdf", "n": 64,
+            "extent": 2.5, "noise": "none", "snr_requested": None, "seed": 0, "method": "dc_sdf", "label": "dc_sdf",
+            "params": {"preset": "paper"}, "n_samples": 1000, "imports": []})
     refused = refusal(cell, TimeLimits(cell=900, method=600))       # the config's default method timeout
     assert refused is not None and "> method timeout 10 min" in refused.row.error
     assert refused.row.estimate_s > 600
-    assert refusal(dict(cell, params={}), TimeLimits(cell=900, method=600)) is None
+    assert refusal(replace(cell, params={}), TimeLimits(cell=900, method=600)) is None
 
 
 def test_bad_input_is_one_line_naming_the_method():

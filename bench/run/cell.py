@@ -53,18 +53,16 @@ def _volume_cache_path(cache_dir: str, cell: Cell) -> Path:
     return Path(cache_dir) / f"{slug(key)}.npz"
 
 
-def cell_source(cell: Cell | dict) -> str:
+def cell_source(cell: Cell) -> str:
     """What resolves the cell's phantom (:func:`phantoms.get_phantom`): its ``source`` (a file of a dataset
     glob, named by its stem) or its name."""
-    cell = as_cell(cell)
     return cell.source or cell.phantom
 
 
-def build_volume(cell: Cell | dict, cache_dir: str | None = None):
+def build_volume(cell: Cell, cache_dir: str | None = None):
     """``(phantom, clean volume)`` of a cell, optionally cached on disk: the exact SDF of a phantom can cost
     seconds at N = 96 and is the same for every method and noise setting.  ``n`` 0 is a user volume's native
     grid."""
-    cell = as_cell(cell)
     ph = get_phantom(cell_source(cell))
     path = _volume_cache_path(cache_dir, cell) if cache_dir else None
     if path is not None and path.exists():
@@ -87,12 +85,11 @@ def build_volume(cell: Cell | dict, cache_dir: str | None = None):
     return ph, vol
 
 
-def truth_samples(cell: Cell | dict, ph, cache_dir: str | None = None) -> np.ndarray | None:
+def truth_samples(cell: Cell, ph, cache_dir: str | None = None) -> np.ndarray | None:
     """The phantom's area-uniform surface samples the metrics compare with (``ph.sample_surface(n_samples,
     seed)``), optionally cached on disk beside the volume: the same for every method and noise setting."""
     if ph is None:
         return None
-    cell = as_cell(cell)
     n, seed = int(cell.n_samples), int(cell.seed)
     path = (_volume_cache_path(cache_dir, cell).with_name(f"{slug(cell.phantom)}_samples{n}_s{seed}.npz")
             if cache_dir else None)

@@ -39,11 +39,10 @@ def format_duration(seconds: float) -> str:
     return f"{seconds / 3600:.3g} h"
 
 
-def method_estimate(cell: Cell | dict) -> float | None:
+def method_estimate(cell: Cell) -> float | None:
     """The cell's method's estimate in seconds at the cell's N (None: no model, no N, a model that raises or
     returns no finite number ≥ 0, or a method that cannot even be built — that cell fails on its own when it
     runs)."""
-    cell = as_cell(cell)
     if not cell.n:
         return None
     from methods import get_method
@@ -66,7 +65,7 @@ def method_budget(limits: TimeLimits) -> tuple[float, str] | None:
     return min(options) if options else None
 
 
-def refusal(cell: Cell | dict, limits: TimeLimits, force: bool = False) -> CellResult | None:
+def refusal(cell: Cell, limits: TimeLimits, force: bool = False) -> CellResult | None:
     """The ``failed`` result of a cell whose estimate exceeds its budget (see the module docstring); None when
     it may run."""
     budget = method_budget(limits)

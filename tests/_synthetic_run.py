@@ -10,7 +10,9 @@ import numpy as np
 import json
 
 from bench.run.integrity import seal
-from bench.run.store import CELLS_DIR, write_json, write_results_csv
+from bench.run.row import ResultRow
+from bench.run.store import CELLS_DIR, write_json
+from bench.run.results import write_results_csv
 
 METHODS = ("marching_cubes", "mc_taubin", "poisson", "distmesh", "shape_gradient")
 
@@ -61,7 +63,8 @@ def write_synthetic_run(out: Path, n_shapes: int = 100, seeds: int = 5, noise=("
                     (out / CELLS_DIR / f"{cid}.json").write_text(json.dumps(records[cid]))
                     rows.append(row)
                     cells.append(cell)
-    write_results_csv(out, cells, records)
+    write_results_csv(out, [c["cell_id"] for c in cells],
+                      {cid: {**rec, "row": ResultRow.from_dict(rec["row"])} for cid, rec in records.items()})
     write_json(out / "run.json", {"config": {"name": "synthetic", "grid": {"extent": 2.5}},
                                   "cells": {"total": len(rows)}})
     return len(rows)

@@ -165,7 +165,7 @@ def test_bad_input_is_one_line_exit_2(run, tmp_path, capsys, argv, message):
 def test_the_leaderboard_exports_with_its_ranks_and_compiles(run, capsys, tmp_path):
     """``--leaderboard``: one row per method with its mean ranks (the run's own board), markdown and LaTeX."""
     from bench.report.verdicts import leaderboards
-    from bench.run.store import read_results
+    from bench.run.results import read_results
 
     board = leaderboards(read_results(run).to_dict("records"))[0]
     md = _table([str(run), "--leaderboard"], capsys)

@@ -10,7 +10,8 @@ import pytest
 
 from bench.perf.quality import TOLERANCES, cells_from_rows, quality_gate
 from bench.report.compare import compare_frames, compare_runs, comparison_html, format_comparison
-from bench.run.store import read_results, write_results_csv
+from bench.run.row import ResultRow
+from bench.run.results import read_results, write_results_csv
 
 
 def _row(label="mc", seed=0, params='{"k":1}', **metrics) -> dict:
@@ -28,8 +29,8 @@ def _seed(name: str) -> str:
 def _run(folder, rows):
     """A run folder's results table written by the store itself, read back as compare reads it."""
     folder.mkdir(parents=True, exist_ok=True)
-    cells = [{"cell_id": r["cell_id"]} for r in rows]
-    write_results_csv(folder, cells, {r["cell_id"]: {"row": r} for r in rows})
+    write_results_csv(folder, [r["cell_id"] for r in rows],
+                      {r["cell_id"]: {"row": ResultRow.from_dict(r)} for r in rows})
     return read_results(folder)
 
 

@@ -4,13 +4,14 @@ escaping."""
 from __future__ import annotations
 
 from bench.report.export import group_tables, latex_text, to_latex, to_markdown
-from bench.run.store import read_results, write_results_csv
+from bench.run.row import ResultRow
+from bench.run.results import read_results, write_results_csv
 
 
 def _frame(tmp_path, rows):
     tmp_path.mkdir(parents=True, exist_ok=True)
-    cells = [{"cell_id": r["cell_id"]} for r in rows]
-    write_results_csv(tmp_path, cells, {r["cell_id"]: {"row": r} for r in rows})
+    write_results_csv(tmp_path, [r["cell_id"] for r in rows],
+                      {r["cell_id"]: {"row": ResultRow.from_dict(r)} for r in rows})
     return read_results(tmp_path)
 
 

@@ -17,7 +17,8 @@ from bench.run.audit import check_run_folder
 from bench.run.checkpoints import ResultTables
 from bench.run.contracts import CellResult
 from bench.run.grid import expand_grid
-from bench.run.store import RESULTS_CSV, RESULTS_PARQUET, read_results
+from bench.run.row import ResultRow
+from bench.run.results import RESULTS_CSV, RESULTS_PARQUET, read_results
 
 
 def _csv_ids(out: Path) -> list[str]:
@@ -61,7 +62,7 @@ def _feed(tables: ResultTables, cells, records: dict, n: int) -> list[int]:
     """Finish the next ``n`` cells one by one; the number of finished cells at each checkpoint."""
     at = []
     for cell in cells[len(records):len(records) + n]:
-        records[cell.cell_id] = {"row": _row(cell)}
+        records[cell.cell_id] = {"row": ResultRow.from_dict(_row(cell))}
         if tables.finished():
             at.append(len(records))
     return at
@@ -78,10 +79,10 @@ class _Clock:
 # ---------------------------------------------------------------------------------------------- the policy
 def test_count_checkpoints_double_and_each_holds_exactly_the_cells_finished_by_then(tmp_path):
     cells, records = expand_grid(_grid()), {}
-    tables = ResultTables(tmp_path, cells, records, every_cells=3, every_s=1e9)
+    tables = ResultTables(tmp_path, [c.cell_id for c in cells], records, every_cells=3, every_s=1e9)
     seen = []
     for cell in cells[:50]:
-        records[cell.cell_id] = {"row": _row(cell)}
+        records[cell.cell_id] = {"row": ResultRow.from_dict(_row(cell))}
         if tables.finished():
             seen.append(_csv_ids(tmp_path))
     assert [len(ids) for ids in seen] == [3, 6, 12, 24, 48]
@@ -95,7 +96,7 @@ def test_count_checkpoints_double_and_each_holds_exactly_the_cells_finished_by_t
 
 def test_timed_checkpoints_write_the_few_cells_of_a_slow_grid(tmp_path):
     cells, records, clock = expand_grid(_grid()), {}, _Clock()
-    tables = ResultTables(tmp_path, cells, records, every_cells=1000, every_s=10.0, clock=clock)
+    tables = ResultTables(tmp_path, [c.cell_id for c in cells], records, every_cells=1000, every_s=10.0, clock=clock)
     at = []
     for _ in range(9):
         clock.now += 4.0                                  # a cell every 4 s: a write every third cell (12 s)
@@ -108,13 +109,13 @@ def test_a_slow_write_spaces_the_timed_checkpoints_to_keep_its_share_of_the_time
     cells, records, clock = expand_grid(_grid()), {}, _Clock()
     writes = []
 
-    def slow_write(out, cells_, records_):                # a table that takes 2 s to write
+    def slow_write(out, order_, records_):                # a table that takes 2 s to write
         writes.append(len(records_))
         clock.now += 2.0
         return Path(out) / RESULTS_CSV
 
     monkeypatch.setattr(checkpoints, "write_results_csv", slow_write)
-    tables = ResultTables(tmp_path, cells, records, every_cells=1000, every_s=10.0, clock=clock)
+    tables = ResultTables(tmp_path, [c.cell_id for c in cells], records, every_cells=1000, every_s=10.0, clock=clock)
     for _ in range(40):
         clock.now += 4.0                                  # a cell every 4 s
         _feed(tables, cells, records, 1)

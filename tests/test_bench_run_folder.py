@@ -8,7 +8,7 @@ import shutil
 import pytest
 
 from bench.cli import main
-from bench.run.store import RESULTS_PARQUET
+from bench.run.results import RESULTS_PARQUET
 
 GRID = ('[grid]\nphantoms = ["sphere"]\nn = [24]\nseeds = [0, 1]\nnoise = ["none", "gaussian"]\n'
         '[[methods]]\nname = "marching_cubes"\n')

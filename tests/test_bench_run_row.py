@@ -14,7 +14,7 @@ from bench.metrics.registry import METRICS
 from bench.run import CellResult, ResultRow, failed_result
 from bench.run.grid import as_cell
 from bench.run.row import ID_COLUMNS, JSON_ONLY, RUNNER_COLUMNS, TAIL_COLUMNS, TEXT_COLUMNS, as_row
-from bench.run.store import result_columns
+from bench.run.results import result_columns
 
 #: an ``ok`` row as run_cell stored it in cells/<cell_id>.json before ResultRow existed (keys in its order)
 _STORED = {
@@ -113,4 +113,5 @@ def test_the_column_lists_are_the_ones_results_csv_always_had():
     # columns in the order the row carries them, stop_reason (the runner's column no metric has), the tail
     assert cols == _OLD_ID + list(METRICS) + ["degrade", "input_kind", "h", "has_truth", "phi_gradient",
                                               "stop_reason"] + _OLD_TAIL
-    assert result_columns([_STORED]) == cols                           # a dict row gives the same columns
+    with pytest.raises(TypeError, match="ResultRow"):
+        result_columns([_STORED])                                      # the store writes typed rows only

@@ -44,7 +44,7 @@ def register(subparsers) -> None:
 
 def _cmd_table(args) -> int:
     from ..report.export import group_tables, leaderboard_tables, to_csv, to_latex, to_markdown
-    from ..run.store import read_results
+    from ..run.results import read_results
 
     if args.output:
         check_writable(args.output)

@@ -140,7 +140,7 @@ def run_quality(configs=None, *, jobs: int | None = 2, progress: bool = False) -
     the quality summary (``"format": "levelset-bench-quality/1"``)."""
     from ..config import CONFIG_DIR, load_config
     from ..run import run_grid
-    from ..run.store import read_results
+    from ..run.results import read_results
 
     cells: dict[str, dict] = {}
     names = []

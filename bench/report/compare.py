@@ -34,7 +34,7 @@ from pathlib import Path
 from bench.metrics.tolerances import TOLERANCES
 from bench.perf.quality import cells_from_rows, compare_value
 
-from ..run.store import read_results
+from ..run.results import read_results
 from .export import phantom_genus
 from .pairwise import ALPHA, MIN_PAIRED, holm, median_interval, signed_rank_test
 from .tables import best_rule
@@ -306,7 +306,7 @@ def compare_frames(df_a, df_b, name_a: str = "A", name_b: str = "B") -> Comparis
 
 
 def compare_runs(run_a: str | Path, run_b: str | Path) -> Comparison:
-    """Read two run folders (:func:`bench.run.store.read_results`) and compare them."""
+    """Read two run folders (:func:`bench.run.results.read_results`) and compare them."""
     return compare_frames(read_results(run_a), read_results(run_b), str(run_a), str(run_b))
 
 

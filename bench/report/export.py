@@ -123,7 +123,7 @@ def _method_frame(sub, metrics: list[str]):
 
 
 def group_tables(df, metrics=None, by=None) -> list[GroupTable]:
-    """The tables of the results frame ``df`` (:func:`bench.run.store.read_results`)."""
+    """The tables of the results frame ``df`` (:func:`bench.run.results.read_results`)."""
     if not len(df):
         raise InputError("the run has no finished cells: no table to make")
     df = complete_inputs(df)

@@ -1,4 +1,4 @@
-"""``index.html`` of a run folder: load the results table (:func:`bench.run.store.read_results`), ``run.json``
+"""``index.html`` of a run folder: load the results table (:func:`bench.run.results.read_results`), ``run.json``
 and the cells' records, build the template's context from the report's sections and write the page atomically."""
 
 from __future__ import annotations
@@ -10,7 +10,8 @@ from pathlib import Path
 
 from geometry.files import atomic_write
 
-from ..run.store import read_results, scan_cells
+from ..run.store import scan_cells
+from ..run.results import read_results
 from ..run.values import cap_tail, cap_text
 from .artifacts import Artifacts
 from .claims import VARIANTS as CLAIM_VARIANTS

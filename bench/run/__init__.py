@@ -6,6 +6,7 @@
 * :mod:`~bench.run.cell` — one cell from its parameters alone (volume, method, cost, metrics);
 * :mod:`~bench.run.executors` — where cells run (local processes, Dask);
 * :mod:`~bench.run.store` — the run folder's files, written atomically;
+* :mod:`~bench.run.results` — results.csv and results.parquet, written from the typed rows and read back;
 * :mod:`~bench.run.checkpoints` — when a running grid writes its results tables;
 * :mod:`~bench.run.provenance` — versions, git commit, machine;
 * :mod:`~bench.run.runner` — :func:`run_grid`, which ties them together, run as its
@@ -23,7 +24,8 @@ from .executors import LocalExecutor
 from .grid import cell_id, expand_grid
 from .options import RunOptions
 from .runner import RunSummary, run_grid
-from .store import load_cells, write_results_csv
+from .store import load_cells
+from .results import write_results_csv
 
 __all__ = ["Cell", "CellResult", "LocalExecutor", "ResultRow", "RunOptions", "RunSummary", "cell_id", "expand_grid",
            "failed_result", "load_cells", "run_cell", "run_grid", "write_results_csv"]

@@ -22,8 +22,8 @@ from phantoms import InputError
 
 from .integrity import UNSEALED, record_problem, seal
 from .row import as_row
-from .store import (CELLS_DIR, RESULTS_CSV, RESULTS_PARQUET, _artifact_problem, _read_csv_table, frame_of,
-                    read_json, result_columns, results_table, scan_cells, write_json)
+from .store import CELLS_DIR, _artifact_problem, read_json, scan_cells, write_json
+from .results import RESULTS_CSV, RESULTS_PARQUET, _read_csv_table, frame_of, result_columns, results_table
 
 __all__ = ["check_run_folder", "table_problems", "refuse_damaged", "set_aside", "seal_unsealed", "REJECTED"]
 
@@ -79,8 +79,8 @@ def _value_problems(name: str, df, records: dict[str, dict], columns: bool) -> l
     import pandas as pd
 
     ids = [c for c in df["cell_id"].astype(str) if c in records]
-    rows = [records[c]["row"] for c in ids]
-    want_cols = result_columns([r["row"] for r in records.values()])
+    rows = [as_row(records[c]["row"]) for c in ids]       # a record read here, not by scan_cells: its row a dict
+    want_cols = result_columns([as_row(r["row"]) for r in records.values()])
     # a column no record carries (a metric added to the registry after this run) is not a damage of the table
     carried = {k for r in records.values() for k in as_row(r["row"]).present}
     problems = ([f"{name} lacks column {c!r}" for c in want_cols if c not in df.columns and c in carried]

@@ -24,8 +24,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from .contracts import Cell
-from .store import write_results_csv
+from .results import write_results_csv
 
 __all__ = ["EVERY_CELLS", "EVERY_S", "WRITE_SHARE", "ResultTables"]
 
@@ -44,8 +43,8 @@ class ResultTables:
     ----------
     out : Path
         The run folder.
-    cells : list of Cell
-        The grid's cells; rows follow their order.
+    order : list of str
+        The grid's cell ids (:attr:`~bench.run.contracts.Cell.cell_id`) in grid order; rows follow it.
     records : dict
         ``{cell_id: record}`` of the finished cells: the runner's own dict, which it fills as cells finish (the
         tables are written from it).
@@ -57,9 +56,9 @@ class ResultTables:
         Seconds, monotonic (for tests).
     """
 
-    def __init__(self, out: Path, cells: list[Cell], records: dict[str, dict], every_cells: int | None = None,
+    def __init__(self, out: Path, order: list[str], records: dict[str, dict], every_cells: int | None = None,
                  every_s: float | None = None, clock: Callable[[], float] = time.monotonic) -> None:
-        self.out, self.cells, self.records = Path(out), cells, records
+        self.out, self.order, self.records = Path(out), list(order), records
         self.every_cells = EVERY_CELLS if every_cells is None else every_cells
         self.every_s = EVERY_S if every_s is None else every_s
         self.clock = clock
@@ -90,7 +89,7 @@ class ResultTables:
         """Write both tables now, from every record (the end of a session, an interruption); returns the CSV's
         path."""
         start = self.clock()
-        path = write_results_csv(self.out, self.cells, self.records)
+        path = write_results_csv(self.out, self.order, self.records)
         self.last_end = self.clock()
         self.last_cost = self.last_end - start
         self.rows_written = len(self.records)

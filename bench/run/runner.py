@@ -380,7 +380,7 @@ def _run_locked(cfg, out: Path, opts: RunOptions, executor) -> RunSummary:
                     log=opts.progress is None)
     if bar.show:
         bar.bar.write(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
-    tables = ResultTables(out, cells, records)
+    tables = ResultTables(out, [c.cell_id for c in cells], records)
 
     def on_result(cell: Cell, result: CellResult) -> None:
         known[cell.cell_id] = save_cell(out, cell, result, opts.save_meshes, code=plan.code)

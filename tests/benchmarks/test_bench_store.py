@@ -19,7 +19,8 @@ import pytest
 from bench.metrics.registry import METRICS
 from bench.perf import rounds
 from bench.run.checkpoints import ResultTables
-from bench.run.store import RESULTS_CSV
+from bench.run.row import ResultRow
+from bench.run.results import RESULTS_CSV
 
 SMALL, LARGE = 500, 5000
 #: the largest ratio of the time per cell at LARGE to the time per cell at SMALL
@@ -36,18 +37,18 @@ def _record(i: int) -> dict:
         row[name] = _VALUE.get(spec.dtype, 0.1 + (i * 7 + k) % 1000 / 997)
     row.update({"iterations": None, "energy_final": None, "stop_reason": None, "wall_s": 0.0123,
                 "peak_mem_mb": 51.5, "flags": "", "status": "ok", "error": ""})
-    return {"row": row}
+    return {"row": ResultRow.from_dict(row)}
 
 
 def _write_run(out, records: list[dict]) -> float:
     """Seconds to finish ``records`` one by one into fresh tables, as the runner does, and close the session."""
-    cells = [{"cell_id": r["row"]["cell_id"]} for r in records]
+    order = [r["row"].cell_id for r in records]
     done: dict[str, dict] = {}
     out.mkdir()
     t0 = time.perf_counter()
-    tables = ResultTables(out, cells, done)
+    tables = ResultTables(out, order, done)
     for r in records:
-        done[r["row"]["cell_id"]] = r
+        done[r["row"].cell_id] = r
         tables.finished()
     tables.write()
     return time.perf_counter() - t0

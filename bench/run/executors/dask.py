@@ -20,7 +20,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from phantoms import InputError
 
 from .. import provenance
-from ..cell import Cell, CellResult, as_cell, failed_result   # the stage contracts, as run_cell takes and gives them
+from ..cell import Cell, CellResult, failed_result   # the stage contracts, as run_cell takes and gives them
 from ..limits import TimeLimits
 from ..values import error_text
 from .local import LocalExecutor
@@ -127,7 +127,7 @@ class DaskExecutor:
     def run(self, cells: list[Cell], on_start, on_result) -> None:
         """Submit every cell (the runner's order first), hand each result to ``on_result`` as it arrives.  The client
         does not see a task start (no ``on_start``); closing the client cancels what is left on the cluster."""
-        owned, start, lost, cells = self.client is None, time.monotonic(), [], [as_cell(c) for c in cells]
+        owned, start, lost = self.client is None, time.monotonic(), []
         futures = {self.connect().client.submit(_run_cell_task, cell, self.cache_dir, self.limits, self.imports,
                                                 pure=False, retries=self.retries, priority=len(cells) - i): cell
                    for i, cell in enumerate(cells)}

@@ -22,7 +22,6 @@ from typing import Any, Callable
 
 from ..cell import failed_result, run_cell
 from ..contracts import Cell, CellResult
-from ..grid import as_cell
 from ..limits import TimeLimits, apply_memory_limit, memory_phase
 from ..values import error_text
 from ...terminal import captured_head, redirect_output
@@ -215,14 +214,14 @@ class LocalExecutor:
         if r.orphan and _pid_running(r.proc.pid):   # its lifeline is closed: it exits by itself; make sure
             LocalExecutor._kill(r)
 
-    def run(self, cells: "list[Cell | dict]", on_start: Callable[[Cell], None],
+    def run(self, cells: list[Cell], on_start: Callable[[Cell], None],
             on_result: Callable[[Cell, CellResult], None]) -> None:
         """Run ``cells`` and report each as it starts and ends; returns when all have ended.
 
         Parameters
         ----------
         cells : list of Cell
-            The cells, started in this order (a cell's dict form is read with :meth:`Cell.from_dict`).
+            The cells, started in this order.
         on_start : callable
             ``on_start(cell)``, as a cell's process starts.
         on_result : callable
@@ -232,7 +231,7 @@ class LocalExecutor:
         from multiprocessing.connection import wait
 
         ctx = self._context()
-        pending = deque(as_cell(c) for c in cells)
+        pending = deque(cells)
         running: list[_Running] = []
         try:
             while pending or running:

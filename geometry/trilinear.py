@@ -3,9 +3,10 @@
 :func:`trilinear_channels` is the numpy reference; with numba, the compiled :func:`geometry.kernels.trilinear`
 (the same 8-term sum, point by point) runs in its place on large batches.  :class:`phantoms.volume.Volume`
 samples φ, ∇φ and the Hessian with it, and so does the shape-gradient flow's field.  DistMesh's compiled
-iterations keep their own compiled copy of the per-point sum inside their jitted loop (a jitted function that
-calls a jitted function of another file is not recompiled when that file changes: numba's cache watches the
-caller's file only); ``tests/test_methods_distmesh_loop.py`` compares that copy with this reference.
+iterations inline the same per-point sum (:func:`geometry.kernels.trilinear_point`) into their jitted loop;
+numba's disk cache watches the caller's file only, so after editing that sum delete the callers' caches
+(``methods/__pycache__/distmesh_loop.*.nb[ic]``); ``tests/test_methods_distmesh_loop.py`` compares DistMesh's
+samples with this reference.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Tests of ``methods.distmesh_loop``: the compiled DistMesh iterations — :func:`flip_candidates` equals the
-numpy flip test, its own compiled trilinear sample equals the one trilinear reference, and a DistMesh run
+numpy flip test, its compiled trilinear sample equals the one trilinear reference, and a DistMesh run
 through :func:`relax` (``compiled=True``) ends where the numpy iterations end, to rounding."""
 
 from __future__ import annotations
@@ -42,9 +42,9 @@ def test_a_thin_quad_flips_to_its_short_diagonal():
 
 
 def test_the_compiled_sample_is_the_trilinear_reference_clamped_onto_the_grid():
-    """``_sample`` is a compiled copy of the trilinear sum inside the jitted loop (numba's cache would not see a
-    change of a jitted function in another file): bit for bit the compiled kernel's sum at the clamped grid
-    indices, and geometry.trilinear.trilinear_channels' numpy reference to rounding."""
+    """``_sample`` inlines the compiled trilinear sum (geometry.kernels.trilinear_point) into the jitted loop: bit
+    for bit the compiled kernel's sum at the clamped grid indices, and geometry.trilinear.trilinear_channels'
+    numpy reference to rounding."""
     vol = get_phantom("ellipsoid").volume(n=20)
     sampler = vol.sampler(1)
     flat, shape = sampler.flat, np.asarray(sampler.shape)

@@ -108,6 +108,14 @@ def test_no_import_cycle_between_modules():
     assert find_cycle(import_graph()) is None
 
 
+def test_the_report_reads_tolerances_from_the_metrics_not_from_the_performance_gate():
+    """The report and the gates share the metric tolerances and the value comparison (bench.metrics.tolerances);
+    the report never imports bench.perf."""
+    graph = import_graph()
+    assert [f"{m} imports {t}" for m in sorted(graph) if m.startswith("bench.report")
+            for t in sorted(graph[m]) if t.startswith("bench.perf")] == []
+
+
 def test_the_checks_catch_a_cycle_and_an_upward_import(tmp_path):
     """The two checks above on a made-up graph that breaks both rules (so they can fail)."""
     graph = {"phantoms.a": {"phantoms.b"}, "phantoms.b": {"phantoms.a"}, "geometry.x": {"bench.y"},

@@ -7,7 +7,7 @@ cell id, so ids are not used; a method whose label changed too (the default labe
 in each run.  Changed parameters are listed per label.
 
 Each metric of the quality gate (:data:`bench.metrics.tolerances.TOLERANCES`) is judged as the gate judges it
-(:func:`bench.perf.quality.compare_value`, the same tolerances): *better*, *worse* or *same* within the
+(:func:`bench.metrics.tolerances.compare_value`, the quality gate's tolerances): *better*, *worse* or *same* within the
 tolerance.  A cell whose status or flags changed is listed apart (``ok`` → anything else, or a gained flag, is
 worse).  Time is not judged (one cell's time is noise on a shared machine: ``bench perf`` measures it); the
 median ratio of ``wall_s`` is shown.
@@ -31,8 +31,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench.metrics.tolerances import TOLERANCES
-from bench.perf.quality import cells_from_rows, compare_value
+from bench.metrics.tolerances import TOLERANCES, cells_from_rows, compare_value
 
 from ..run.results import read_results
 from .export import phantom_genus

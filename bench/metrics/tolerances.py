@@ -2,11 +2,11 @@
 
 One home for the resolution of each gated metric (:data:`TOLERANCES`) and for how a value compares with a
 baseline's under it (:func:`compare_value`, over the gated values of a results row, :func:`cells_from_rows`), read
-by the quality gate (:mod:`bench.perf.quality`: how much worse a value may get before a cell fails) and by the report (ties in the
-rankings, pairwise wins, ``compare``'s verdicts: two values within the tolerance are the same).  Distances and
-errors are *relative* (``rel``: 5 % on the distances in units of h, plus an absolute floor ``abs`` so a value
-near zero cannot differ on round-off), scores *absolute* (normal consistency, F-score), counts exactly, the Euler
-characteristic and component count by their distance to the truth's, ``watertight`` as a flag.
+by the quality gate (:mod:`bench.perf.quality`: how much worse a value may get before a cell fails) and by the
+report (ties in the rankings, pairwise wins, ``compare``'s verdicts: two values within the tolerance are the
+same).  Distances and errors are *relative* (``rel``: 5 % on the distances in units of h, plus an absolute floor
+``abs`` so a value near zero cannot differ on round-off), scores *absolute* (normal consistency, F-score), counts
+exactly, the Euler characteristic and component count by their distance to the truth's, ``watertight`` as a flag.
 """
 
 from __future__ import annotations

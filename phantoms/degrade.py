@@ -36,7 +36,7 @@ from scipy import ndimage
 from geometry.errors import InputError
 
 from .base import DEFAULT_EXTENT, check_extent, check_n
-from .masks import mask_to_sdf
+from .masks import mask_sdf_values
 from .volume import Volume, check_memory
 
 __all__ = ["Degradation", "parse_degradation", "degrade", "partial_volume_fraction", "flip_boundary",
@@ -231,7 +231,7 @@ def _level_set_of(image: np.ndarray, kind: str, origin, spacing) -> np.ndarray:
     if not inside.any() or inside.all():
         raise InputError(f"the degraded {kind} has no {'inside' if not inside.any() else 'outside'} voxels: "
                          "there is no surface to reconstruct (a larger N or a milder degradation)")
-    phi = np.array(mask_to_sdf(inside, origin, spacing).values)
+    phi = mask_sdf_values(inside, spacing)
     if kind == "intensity":
         part = (image > 0) & (image < 1)
         phi[part] = float(np.min(spacing)) * (0.5 - image[part])

@@ -9,7 +9,7 @@ from geometry.errors import InputError
 
 from .volume import Volume
 
-__all__ = ["mask_to_sdf", "mask_distances"]
+__all__ = ["mask_to_sdf", "mask_sdf_values", "mask_distances"]
 
 
 def mask_distances(m: np.ndarray, spacing: np.ndarray, reference: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -74,6 +74,19 @@ def mask_to_sdf(mask, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> Volume
     InputError
         Not 3-D, or no inside / no outside voxel.
     """
+    spacing = np.broadcast_to(np.asarray(spacing, dtype=float), (3,))
+    return Volume(mask_sdf_values(mask, spacing), origin, spacing)
+
+
+def mask_sdf_values(mask, spacing) -> np.ndarray:
+    """The values of :func:`mask_to_sdf` (float64, C order, a new array): for callers that build their own
+    :class:`~phantoms.volume.Volume` around them (a degraded volume keeps its raw image beside them).
+
+    Raises
+    ------
+    InputError
+        Not 3-D, or no inside / no outside voxel.
+    """
     m = np.asarray(mask).astype(bool)
     if m.ndim != 3:
         raise InputError(f"a mask must be a 3-D array; got shape {m.shape}")
@@ -84,5 +97,7 @@ def mask_to_sdf(mask, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> Volume
     spacing = np.broadcast_to(np.asarray(spacing, dtype=float), (3,))
     half = 0.5 * float(spacing.min())
     d_out, d_in = mask_distances(m, spacing)
-    values = np.where(m, half - d_in.astype(float), d_out.astype(float) - half)
-    return Volume(values, origin, spacing)
+    values = d_out.astype(np.float64)            # outside: distance − s/2; inside: s/2 − distance (in place)
+    values -= half
+    np.subtract(half, d_in, out=values, where=m, dtype=np.float64)
+    return values

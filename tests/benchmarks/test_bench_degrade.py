@@ -5,7 +5,8 @@ The target is a degraded volume at most 2× the signed-distance volume.  Each ro
 cache: a degraded volume builds the exact volume it is made from, so the ratio is (exact volume + degradation) /
 exact volume — on the bunny and the cortex about 1.0–1.1 (mask) and 1.5–1.9 (partial volume: the winding number
 of the sub-samples no distance ball decides).  The sphere's exact volume is one norm per point, about the cost of
-the mask's two distance transforms alone, so the target cannot hold there (mask ≈ 2×, partial volume ≈ 2.5×).
+the mask's outside distance transform alone, so the target does not hold there (mask ≈ 1.8–2.2×, partial volume
+≈ 2.5×).
 The assertions guard against regressions with room for a busy machine (docs/NOTES.md has the figures).
 """
 

@@ -24,7 +24,8 @@ refinement also goes on until the mesh is a manifold without boundary).  What th
   sampling) and ``distance`` (upper bound on the distance between a facet's circumcentre and the centre of
   its surface Delaunay ball, default 0.1 h);
 * reads the mesh back from CGAL's OFF output (coordinates with 6 significant digits: 10⁻⁶ of the grid's
-  extent) and orients it outward.
+  extent), drops the vertices no facet uses (the writer lists every vertex of the complex) and orients it
+  outward.
 
 A component that no ray from the centre reaches gets no initial point and is missing from the mesh — a
 limitation of the mesher's initialisation, not of the adapter (``info["components"]`` shows it).
@@ -50,12 +51,39 @@ from .base import Method, Param, Reconstruction, ReconstructionFailed, check_vol
 from .cost_model import PowerLaw
 from .marching_cubes import orient_outward
 
-__all__ = ["CGALMesher", "write_inr", "INSTALL"]
+__all__ = ["CGALMesher", "write_inr", "read_off_surface", "INSTALL"]
 
 INSTALL = 'pip install cgal (or pip install -e ".[peers]")'
 
 #: the relative precision of the intersection oracle (of the bounding sphere's radius)
 ORACLE_PRECISION = 1e-6
+
+
+def read_off_surface(path: str, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices (float64) and faces (int64) of CGAL's OFF output, without the vertices no facet uses: the
+    OFF writer lists every vertex of the complex, and now and then one of them is on no surface facet (a
+    closed surface then read Euler characteristic 3).
+
+    Parameters
+    ----------
+    path : str
+        The OFF file.
+    name : str
+        The method's name, for the error message.
+
+    Raises
+    ------
+    InputError
+        No face, or a non-finite coordinate.
+    """
+    mesh = trimesh.load(path, file_type="off", process=False, force="mesh")
+    if len(mesh.faces) == 0 or not np.isfinite(mesh.vertices).all():
+        raise InputError(f"method {name!r}: CGAL's OFF output holds no usable mesh")
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    used = np.unique(faces)
+    index = np.full(len(mesh.vertices), -1, np.int64)
+    index[used] = np.arange(len(used))
+    return np.asarray(mesh.vertices, dtype=np.float64)[used], index[faces]
 
 
 def write_inr(path: str, values: np.ndarray, spacing) -> None:
@@ -124,11 +152,8 @@ class CGALMesher(Method):
             if complex_2.number_of_facets() == 0:
                 raise ReconstructionFailed(f"method {self.name!r}: CGAL's mesher found no surface")
             SM.output_surface_facets_to_off(off_path, complex_2)
-            mesh = trimesh.load(off_path, file_type="off", process=False, force="mesh")
-        if len(mesh.faces) == 0 or not np.isfinite(mesh.vertices).all():
-            raise InputError(f"method {self.name!r}: CGAL's OFF output holds no usable mesh")
-        mesh = trimesh.Trimesh(np.asarray(mesh.vertices, dtype=np.float64) + volume.origin,
-                               np.asarray(mesh.faces, dtype=np.int64), process=False)
+            vertices, faces = read_off_surface(off_path, self.name)
+        mesh = trimesh.Trimesh(vertices + volume.origin, faces, process=False)
         orient_outward(mesh)
         info = {"iterations": 0, "stop_reason": "done", "wall_cgal_s": wall, "size_world": cfg["size"] * h,
                 "distance_world": cfg["distance"] * h}

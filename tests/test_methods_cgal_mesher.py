@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from methods import get_method
-from methods.cgal_mesher import write_inr
+from methods.cgal_mesher import read_off_surface, write_inr
 
 from _optional_peers import check_bad_input, check_missing_package, validity
 from _peers_common import (RADIUS, check_closed_outward, edge_and_vertex_manifold, hausdorff_h, offcentre_sphere,
@@ -71,3 +71,22 @@ def test_without_the_package_listed_unavailable(monkeypatch, tmp_path, capsys):
 def test_bad_input_is_one_line_naming_the_method():
     pytest.importorskip("CGAL")
     check_bad_input("cgal_mesher", size=0.0, angle=45.0)
+
+
+def test_the_off_reader_drops_a_vertex_no_facet_uses(tmp_path):
+    """CGAL's OFF writer lists every vertex of the complex; one on no facet made a closed surface read χ = 3."""
+    import trimesh
+
+    tet = trimesh.creation.box().convex_hull
+    v, f = np.asarray(tet.vertices), np.asarray(tet.faces)
+    stray = np.vstack([v[:3], [[9.0, 9.0, 9.0]], v[3:]])             # the stray vertex is the fourth
+    faces = np.where(f >= 3, f + 1, f)
+    lines = ["OFF", f"{len(stray)} {len(faces)} 0"] + [" ".join(map(str, p)) for p in stray] + \
+        [f"3 {a} {b} {c}" for a, b, c in faces]
+    (tmp_path / "m.off").write_text("\n".join(lines) + "\n")
+    got_v, got_f = read_off_surface(str(tmp_path / "m.off"), "cgal_mesher")
+    assert len(got_v) == len(v) and not np.any(np.all(got_v == 9.0, axis=1))
+    np.testing.assert_allclose(got_v[got_f], v[f])                   # the same triangles, renumbered
+    mesh = trimesh.Trimesh(got_v, got_f, process=False)
+    assert mesh.euler_number == 2 and mesh.is_watertight
+

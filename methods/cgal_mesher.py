@@ -79,11 +79,8 @@ def read_off_surface(path: str, name: str) -> tuple[np.ndarray, np.ndarray]:
     mesh = trimesh.load(path, file_type="off", process=False, force="mesh")
     if len(mesh.faces) == 0 or not np.isfinite(mesh.vertices).all():
         raise InputError(f"method {name!r}: CGAL's OFF output holds no usable mesh")
-    faces = np.asarray(mesh.faces, dtype=np.int64)
-    used = np.unique(faces)
-    index = np.full(len(mesh.vertices), -1, np.int64)
-    index[used] = np.arange(len(used))
-    return np.asarray(mesh.vertices, dtype=np.float64)[used], index[faces]
+    mesh.remove_unreferenced_vertices()
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
 
 
 def write_inr(path: str, values: np.ndarray, spacing) -> None:

@@ -15,7 +15,6 @@ the tests compare both (``tests/test_geometry_kernels.py``):
   area sums) in one pass each, without the (3, 3, F) corner array;
 * :func:`ring_mean3` — :meth:`geometry.operators.MeshOperators.ring_mean_t` (3 rows) without its
   (W, V) temporaries;
-* :func:`face_energies` — :func:`methods.shape_gradient.energy.face_energies` face by face.
 
 Why: at 100k vertices one flow iteration is ~80 CG iterations whose numpy form is bound by passes over
 memory, and a paraboloid fit whose numpy form streams dozens of (W, V) temporaries; numpy alone stays
@@ -45,7 +44,7 @@ except ImportError:  # pragma: no cover - numba is a dependency; the numpy refer
 MIN_SIZE = 1000
 
 __all__ = ["AVAILABLE", "MIN_SIZE", "wanted", "cg_csr", "ring_curvature", "trilinear", "trilinear_point",
-           "face_geometry", "vertex_sums", "face_edges", "ring_mean3", "face_energies"]
+           "face_geometry", "vertex_sums", "face_edges", "ring_mean3"]
 
 
 def wanted(n: int) -> bool:
@@ -410,27 +409,6 @@ def ring_mean3(xt: np.ndarray, ring: np.ndarray) -> np.ndarray:
     out = np.empty((3, xt.shape[1]))
     _ring_mean(np.ascontiguousarray(xt, dtype=np.float64), ring, out)
     return out
-
-
-# ------------------------------------------------------------------------------ face energies
-@_jit
-def _face_energies(ch, nrm, areas, alpha, beta, Ef, X):
-    for f in range(areas.shape[0]):
-        phi, d0, d1, d2 = ch[0, f], ch[1, f], ch[2, f], ch[3, f]
-        m0, m1, m2 = nrm[0, f], nrm[1, f], nrm[2, f]
-        phi_n = d0 * m0 + d1 * m1 + d2 * m2
-        g0, g1, g2 = d0 - phi_n * m0, d1 - phi_n * m1, d2 - phi_n * m2
-        Ef[f] = areas[f] * (alpha * phi * phi + beta * (g0 * g0 + g1 * g1 + g2 * g2))
-        X[0, f], X[1, f], X[2, f] = phi_n * g0, phi_n * g1, phi_n * g2
-
-
-def face_energies(ch: np.ndarray, normals_t: np.ndarray, areas: np.ndarray, alpha: float, beta: float):
-    """(E_f, X_f) of :func:`methods.shape_gradient.energy.face_energies` from the sampled channels ``ch``
-    (≥ 4, F) — φ, ∇φ at the centroids — face by face (the same arithmetic)."""
-    F = len(areas)
-    Ef, X = np.empty(F), np.empty((3, F))
-    _face_energies(ch, normals_t, areas, float(alpha), float(beta), Ef, X)
-    return Ef, X
 
 
 @_jit

@@ -115,19 +115,6 @@ def test_ring_mean_kernel_equals_numpy(bumpy):
                                rtol=1e-14, atol=1e-15)
 
 
-def test_face_energies_kernel_equals_numpy():
-    from methods.shape_gradient.energy import face_energies
-    rng = np.random.default_rng(3)
-    ch = rng.normal(size=(4, 500))
-    n = rng.normal(size=(3, 500))
-    n /= np.linalg.norm(n, axis=0)
-    a = rng.uniform(0, 1, 500)
-    ref = face_energies(ch[0], ch[1:4], n, a, 5.0, 1.0)
-    got = kernels.face_energies(ch, n, a, 5.0, 1.0)
-    np.testing.assert_allclose(got[0], ref[0], rtol=1e-14, atol=0)
-    np.testing.assert_allclose(got[1], ref[1], rtol=1e-14, atol=1e-15)
-
-
 def test_trilinear_reads_only_the_first_channels_when_asked_equal_to_a_copy_of_them():
     from geometry import kernels
     from geometry.trilinear import trilinear_channels

@@ -99,3 +99,17 @@ def test_fd_helper_agrees_with_the_energy():
         xm[i] -= 1e-6 * n[i]
         full = (discrete_energy(field, xp, f, 5, 1) - discrete_energy(field, xm, f, 5, 1)) / 2e-6
         assert fd[i] == pytest.approx(full, rel=1e-5, abs=1e-9)
+
+
+def test_face_energies_kernel_equals_numpy():
+    from methods.shape_gradient.energy import face_energies, face_energies_compiled
+
+    rng = np.random.default_rng(3)
+    ch = rng.normal(size=(4, 500))
+    n = rng.normal(size=(3, 500))
+    n /= np.linalg.norm(n, axis=0)
+    a = rng.uniform(0, 1, 500)
+    ref = face_energies(ch[0], ch[1:4], n, a, 5.0, 1.0)
+    got = face_energies_compiled(ch, n, a, 5.0, 1.0)
+    np.testing.assert_allclose(got[0], ref[0], rtol=1e-14, atol=0)
+    np.testing.assert_allclose(got[1], ref[1], rtol=1e-14, atol=1e-15)

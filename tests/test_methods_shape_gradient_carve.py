@@ -70,3 +70,25 @@ def test_the_clamp_cuts_only_the_inward_normal_part():
 def test_off_by_default_and_in_the_paper_preset():
     assert ShapeGradient().config["hold_carved"] is False
     assert ShapeGradient(preset="paper").config["hold_carved"] is False
+
+
+def test_the_remesher_keeps_only_the_tips_the_carved_hull_holds():
+    """With ``hold_carved`` alone a remesh keeps the sharply convex vertices whose inward move is 0 — the tips
+    of a thin part no ball covers — and not those of a part that lies inside a ball (free to retreat)."""
+    from types import SimpleNamespace
+
+    import trimesh
+
+    from geometry.operators import MeshOperators
+    from methods.shape_gradient.carve import remesh_keep
+
+    ico = trimesh.creation.icosphere(3, radius=2.0 * _H)          # mean curvature 0.5 per voxel: every vertex a tip
+    x = np.asarray(ico.vertices, float)
+    ops = MeshOperators(np.asarray(ico.faces), len(x))
+    geo = ops.geometry(x)
+    settings = SimpleNamespace(keep_tips=False, tip_curvature=0.3)
+    held = SimpleNamespace(limits=lambda p: np.where(p[:, 0] > 0, 0.0, 1.0))   # held on the side x > 0
+    kept = remesh_keep(ops, geo, _H, settings, held)
+    assert len(kept) > 0 and np.all(x[kept, 0] > 0) and len(kept) == int((x[:, 0] > 0).sum())
+    assert len(remesh_keep(ops, geo, _H, settings, None)) == 0
+    assert len(remesh_keep(ops, geo, _H, SimpleNamespace(keep_tips=True, tip_curvature=0.3), None)) == len(x)

@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .tips import _gradient_scale
+from .tips import _gradient_scale, tip_vertices
 
-__all__ = ["CarvedHull", "ball_depth"]
+__all__ = ["CarvedHull", "ball_depth", "remesh_keep"]
 
 _BLOCK = 16384            # vertices per block: (block, 64) arrays of the nearby samples
 _SCALE_POINTS = 20_000    # vertices (at most, evenly strided) where the distance scale is read
@@ -103,3 +103,16 @@ class CarvedHull:
         inward = -np.einsum("vd,vd->v", step, normals)
         cut = np.maximum(inward - limit, 0.0)
         return step + cut[:, None] * normals
+
+
+def remesh_keep(ops, geo, h: float, settings, carve: "CarvedHull | None") -> np.ndarray:
+    """The vertices a remesh keeps in place: with ``keep_tips`` every tip of a sharply convex part (mean
+    curvature above ``tip_curvature`` per voxel); with ``hold_carved`` alone the tips the carved hull holds (no
+    inward move allowed: no ball says the space there is empty) — the remesher's collapses would otherwise
+    shorten a thin limb that the flow may not shorten; else none."""
+    if not settings.keep_tips and carve is None:
+        return np.zeros(0, dtype=np.int64)
+    tips = tip_vertices(ops, geo, h, settings.tip_curvature)
+    if settings.keep_tips or len(tips) == 0:
+        return tips
+    return tips[carve.limits(geo.vertices[tips]) <= 0.0]

@@ -14,14 +14,13 @@ from geometry.operators import MeshOperators, dot, jacobi_cg
 from phantoms import InputError
 
 from ..base import Reconstruction, ReconstructionFailed
-from .carve import CarvedHull
+from .carve import CarvedHull, remesh_keep
 from .energy import evaluate_state, gradient_from_state, no_fold
 from .guard import count_intersections, repair_intersections
 from .post import post_steps
 from .remesh import remesh
 from .settings import FlowSettings, Stage
 from .signs import SignGuard
-from .tips import tip_vertices
 
 __all__ = ["ShapeGradientFlow", "STOP_REASONS"]
 
@@ -360,9 +359,8 @@ class ShapeGradientFlow:
         # all the rounds (marching cubes' slivers); a later mesh is near isotropic: one round
         rounds = self.settings.remesh_iterations if it == 0 else 1
         before = (self.state.x, self.ops, self.state)
-        # keep_tips: the tips stay (the start, marching cubes' slivers, is remeshed freely)
-        keep = ({"keep": tip_vertices(self.ops, self.state.geo, self.h, self.settings.tip_curvature)}
-                if it > 0 and self.settings.keep_tips else {})
+        # keep_tips / hold_carved: (held) tips stay (the start, marching cubes' slivers, is remeshed freely)
+        keep = {"keep": remesh_keep(self.ops, self.state.geo, self.h, self.settings, self.carve)} if it > 0 else {}
         out = remesh(self.state.x, self.ops.faces, self.edge_length, rounds, closed=it > 0, **keep)
         if out is None:
             self.remesh_refused += 1

@@ -98,6 +98,12 @@ class CarvedHull:
         return limit, np.where(stop, 0.0, Vel)
 
     @staticmethod
+    def still(shift: np.ndarray | None, limit: np.ndarray) -> np.ndarray | None:
+        """The tangential relaxation ``shift`` (V, 3) without the vertices that may not move inwards: at a thin
+        part's rim a tangential move toward the 1-ring's centre shortens the part as an inward one would."""
+        return None if shift is None else np.where((limit > 0.0)[:, None], shift, 0.0)
+
+    @staticmethod
     def clamp(step: np.ndarray, normals: np.ndarray, limit: np.ndarray) -> np.ndarray:
         """``step`` (V, 3) with each vertex's inward normal part cut to its limit (tangential parts kept)."""
         inward = -np.einsum("vd,vd->v", step, normals)

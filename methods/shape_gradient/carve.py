@@ -11,6 +11,10 @@ only as far as it stays within ``margin`` of the union of the balls: with b(x) =
 ball, its depth; < 0 outside all of them, minus the distance to the nearest one), b is 1-Lipschitz, so an inward
 move of at most max(b(x) + margin, 0) keeps b ≥ −margin.  Where the surface lies in a ball (too far out) it
 retreats freely; where it lies on the carved hull (a thin limb, a tip) it holds.  Outward moves are never limited.
+A vertex with no allowance left also gets no tangential relaxation (at a thin part's rim the shift toward the
+1-ring's centre shortens the part as an inward move would), and the remesher keeps such vertices where they are
+tips (:func:`remesh_keep`).  The limits clamp the trial moves of the capped line search (``step='capped'``, the
+default); with ``step='fixed'`` only the zeroed velocity and the held relaxation act.
 
 b is read from the 4×4×4 samples around each vertex (the balls that reach a point near the surface are those of
 the samples next to it; a far sample's ball missed only makes the limit stricter), d(q) = φ(q)/g with g the

@@ -14,6 +14,7 @@ from geometry.operators import MeshOperators, dot, jacobi_cg
 from phantoms import InputError
 
 from ..base import Reconstruction, ReconstructionFailed
+from .carve import CarvedHull, remesh_keep
 from .energy import evaluate_state, gradient_from_state, no_fold
 from .guard import count_intersections, repair_intersections
 from .post import post_steps
@@ -106,6 +107,7 @@ class ShapeGradientFlow:
         self._polished = None
         self.guard = settings.guard
         self.signs = None                            # the sign guard (signs.py), on clean volumes
+        self.carve = CarvedHull.of(field, settings, self.state, self.h)   # hold_carved (carve.py), or None
         if self.remesh_every and settings.remesh_start:
             self._remesh_and_guard(0)                # a start with marching cubes' slivers: isotropic first
         elif self.guard:
@@ -163,12 +165,13 @@ class ShapeGradientFlow:
         geo = state.geo
         b = geo.vertex_areas * G
         Vel = self._velocity(geo, G, b)
+        limit, Vel = (None, Vel) if self.carve is None else self.carve.hold(state.x, Vel)   # hold_carved
         direction = -Vel[:, None] * geo.vertex_normals
         vmax = float(np.abs(Vel).max())
         slope = dot(b, Vel)                           # −dE/dτ at τ = 0 (> 0)
         if vmax == 0.0:
             return self._end("converged", f"iteration {it}: the shape gradient vanishes")
-        shift = self._relax_shift(geo)
+        shift = self._relax_shift(geo) if limit is None else CarvedHull.still(self._relax_shift(geo), limit)
         if self.settings.step == "fixed":
             tau = self.settings.tau
             x_new = state.x + tau * direction + (0.0 if shift is None else shift)
@@ -181,7 +184,7 @@ class ShapeGradientFlow:
                                  else f"iteration {it}: non-finite energy")
             move = tau * vmax
         else:
-            new, move = self._line_search(geo, direction, shift, vmax, slope)
+            new, move = self._line_search(geo, direction, shift, vmax, slope, limit)
             if new is None:
                 return self._settle("line_search_floor",
                                     f"iteration {it}: no decrease of E for moves down to "
@@ -201,9 +204,10 @@ class ShapeGradientFlow:
         self.timings["relax"] += time.perf_counter() - t0
         return self.settings.relax * d.T
 
-    def _line_search(self, geo, direction, shift, vmax: float, slope: float):
+    def _line_search(self, geo, direction, shift, vmax: float, slope: float, limit=None):
         """(new state, move) of the Armijo backtracking search along ``direction`` (first with the relaxation
-        shift, then without it), or ``(None, move)`` when no move down to ``floor_move`` decreases E."""
+        shift, then without it), or ``(None, move)`` when no move down to ``floor_move`` decreases E; ``limit``:
+        each vertex's largest inward move (hold_carved)."""
         state = self.state
         new = None
         # first trial: twice the last accepted move after a first-try success, else the same move again
@@ -212,7 +216,8 @@ class ShapeGradientFlow:
             move = first
             while True:
                 tau = move / vmax
-                x_new = state.x + tau * direction
+                x_new = state.x + (tau * direction if limit is None
+                                   else CarvedHull.clamp(tau * direction, geo.vertex_normals, limit))
                 if with_shift:
                     x_new += shift
                 cand = evaluate_state(self.field, self.ops, x_new, self.alpha, self.beta, self.timings,
@@ -354,8 +359,8 @@ class ShapeGradientFlow:
         # all the rounds (marching cubes' slivers); a later mesh is near isotropic: one round
         rounds = self.settings.remesh_iterations if it == 0 else 1
         before = (self.state.x, self.ops, self.state)
-        # keep_tips: the tips stay (the start, marching cubes' slivers, is remeshed freely)
-        keep = {"keep": self._tips()} if it > 0 and self.settings.keep_tips else {}
+        # keep_tips / hold_carved: (held) tips stay (the start, marching cubes' slivers, is remeshed freely)
+        keep = {"keep": remesh_keep(self.ops, self.state.geo, self.h, self.settings, self.carve)} if it > 0 else {}
         out = remesh(self.state.x, self.ops.faces, self.edge_length, rounds, closed=it > 0, **keep)
         if out is None:
             self.remesh_refused += 1
@@ -371,13 +376,6 @@ class ShapeGradientFlow:
             self.remesh_refused += 1                                           # the start as grown is safe
             self._set_mesh(*before)
             self._hold_stop = self._guard(it)
-
-    def _tips(self) -> np.ndarray:
-        """The vertices the remesher keeps: tips of sharply convex parts (mean curvature above ``tip_curvature``
-        per voxel, the tip extension's threshold), which its collapses would otherwise shorten (a thin leg's
-        hoof); the start's marching-cubes mesh, with its slivers, is remeshed freely."""
-        H, _ = self.ops.curvature(self.state.geo)
-        return np.flatnonzero(np.isfinite(H) & (H * self.h > self.settings.tip_curvature))
 
     def _checked(self) -> bool:
         """True when the current mesh is the last one the intersection guard passed (nothing moved since)."""
@@ -487,6 +485,7 @@ class ShapeGradientFlow:
             "polish": polish_info,
             "projection": projection_info,
             "tips": tips_info,
+            "carved_held": None if self.carve is None else int(self.carve.held),
             "remeshes": [list(r) for r in self.remeshes],
             "stages": [dict(r) for r in self.stage_starts],
             "remesh_refused": int(self.remesh_refused),

@@ -206,6 +206,12 @@ class ShapeGradient(Method):
                            "tip_curvature per voxel) where they are: its collapses otherwise shorten a thin limb's "
                            "tip by a voxel or more per remesh (better on the development shapes with thin limbs, worse "
                            "on the N = 32 needle's tip extension; off by default, docs/NOTES.md)", bool),
+        "hold_carved": Param(False, "the flow moves a vertex inwards only as far as it stays within carve_margin "
+                             "voxels of the union of the outside samples' empty balls |x − q| < φ(q)/|∇φ| (carve.py): "
+                             "a part thinner than a voxel, which φ shows only as a dip, is not cut where no ball "
+                             "covers it (docs/NOTES.md)", bool),
+        "carve_margin": Param(0.25, "hold_carved: how far, in voxels, the surface may retreat past the union of the "
+                              "empty balls", float, min=0.0, max=10.0),
         "tip_curvature": Param(0.3, "tip extension: the least mean curvature, per voxel, of a vertex that may move",
                                float, min=0.0),
         "strict_topology": Param(False, "refuse (error) when the region φ < 0 is not compatible with one genus-0 "

@@ -109,6 +109,9 @@ class FlowSettings:
         The Gaussian σ (voxels) of the derivative grids and of the start's values, as decided (reported).
     keep_tips : bool
         The remesher keeps the tips of sharply convex parts (mean curvature above ``tip_curvature``) in place.
+    hold_carved, carve_margin : bool, float
+        The flow's inward moves stay within ``carve_margin`` voxels of the union of the outside samples' empty
+        balls (carve.py).
     parameters : Mapping
         The parameters as the run reports them (``info['parameters']``): every parameter with ``'auto'``
         decided, plus the values derived from them.
@@ -146,6 +149,8 @@ class FlowSettings:
     start_smooth: float
     parameters: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
     keep_tips: bool = False
+    hold_carved: bool = False
+    carve_margin: float = 0.25
 
     @classmethod
     def resolve(cls, config: Mapping[str, Any], *, h: float, clean: bool, noise: float, presmooth: float,
@@ -209,7 +214,8 @@ class FlowSettings:
             tip_curvature=float(c["tip_curvature"]), noise_variance=float(c["noise_variance"]),
             stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),
             snapshots=tuple(c["snapshots"]), presmooth=c["presmooth_used"], start_smooth=c["start_smooth_used"],
-            parameters=_reported(c), keep_tips=bool(c.get("keep_tips", False)))
+            parameters=_reported(c), keep_tips=bool(c.get("keep_tips", False)),
+            hold_carved=bool(c.get("hold_carved", False)), carve_margin=float(c.get("carve_margin", 0.25)))
 
     def reported_parameters(self) -> dict[str, Any]:
         """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""

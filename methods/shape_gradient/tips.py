@@ -21,7 +21,7 @@ import numpy as np
 
 from geometry.operators import MeshOperators
 
-__all__ = ["extend_tips"]
+__all__ = ["extend_tips", "tip_vertices"]
 
 _BLOCK = 16384        # vertices per block: (block, 64) arrays of the nearby samples
 _NEAR_ZERO_VOXELS = 0.5   # only vertices this near φ = 0 move (a surface that reached the data)
@@ -110,3 +110,11 @@ def _gradient_scale(v, origin: np.ndarray, spacing: np.ndarray, points: np.ndarr
         diff = (np.asarray(v[tuple(up.T)], float) - np.asarray(v[tuple(down.T)], float)) / (2.0 * spacing[axis])
         g2 += diff * diff
     return float(np.median(np.sqrt(g2))) if len(g2) else 1.0
+
+
+def tip_vertices(ops: MeshOperators, geo, h: float, min_curvature: float) -> np.ndarray:
+    """The vertices of sharply convex parts (mean curvature above ``min_curvature`` per voxel, the tip extension's
+    threshold): what ``keep_tips`` has the remesher keep, whose collapses would otherwise shorten a thin leg's
+    hoof (the start's marching-cubes mesh, with its slivers, is remeshed freely)."""
+    H, _ = ops.curvature(geo)
+    return np.flatnonzero(np.isfinite(H) & (H * h > min_curvature))

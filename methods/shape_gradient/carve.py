@@ -1,0 +1,128 @@
+"""The carved hull as a constraint of the flow (``hold_carved``): the surface may not retreat into the region no
+sample's empty ball reaches, farther than a margin.
+
+Why: every outside sample q (φ(q) > 0) has an empty ball of radius d(q) = φ(q)/g around it — no surface is
+closer (the observation Reach for the Spheres builds its surface from, and the tip extension, tips.py, uses on the
+final mesh).  The object lies in the complement of the union of these balls, the *carved hull*.  A part thinner
+than a voxel shows in φ only as a dip; interpolated φ is above 0 along it, so the data term αφ² pulls its surface
+inwards and the flow cuts it (on clean volumes the sign guard then stops the run), although no ball covers the
+part: the samples never said it is empty.  The constraint lets a vertex move inwards (against its outward normal)
+only as far as it stays within ``margin`` of the union of the balls: with b(x) = max_q (d(q) − |x − q|) (> 0 in a
+ball, its depth; < 0 outside all of them, minus the distance to the nearest one), b is 1-Lipschitz, so an inward
+move of at most max(b(x) + margin, 0) keeps b ≥ −margin.  Where the surface lies in a ball (too far out) it
+retreats freely; where it lies on the carved hull (a thin limb, a tip) it holds.  Outward moves are never limited.
+A vertex with no allowance left also gets no tangential relaxation (at a thin part's rim the shift toward the
+1-ring's centre shortens the part as an inward move would), and the remesher keeps such vertices where they are
+tips (:func:`remesh_keep`).  The limits clamp the trial moves of the capped line search (``step='capped'``, the
+default); with ``step='fixed'`` only the zeroed velocity and the held relaxation act.
+
+b is read from the 4×4×4 samples around each vertex (the balls that reach a point near the surface are those of
+the samples next to it; a far sample's ball missed only makes the limit stricter), d(q) = φ(q)/g with g the
+median |∇φ| of the raw samples 1.5 voxels outside the start (tips.py's scale), so a level set that is not a
+distance reads the same.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .tips import _gradient_scale, tip_vertices
+
+__all__ = ["CarvedHull", "ball_depth", "remesh_keep"]
+
+_BLOCK = 16384            # vertices per block: (block, 64) arrays of the nearby samples
+_SCALE_POINTS = 20_000    # vertices (at most, evenly strided) where the distance scale is read
+_SCALE_PROBE_VOXELS = 1.5  # ... this far outside the start along its normals
+
+
+def ball_depth(volume, points: np.ndarray, scale: float) -> np.ndarray:
+    """b at ``points`` (P, 3): the largest d(q) − |x − q| over the outside samples q among the 4×4×4 around x
+    (−inf where none is outside); d(q) = φ(q)/scale."""
+    v = volume.values
+    spacing = np.asarray(volume.spacing, float) * np.ones(3)
+    origin = np.asarray(volume.origin, float)
+    shape = np.asarray(v.shape)
+    offs = np.stack(np.meshgrid(*[np.arange(-1, 3)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    out = np.full(len(points), -np.inf)
+    for s in range(0, len(points), _BLOCK):
+        p = points[s:s + _BLOCK]
+        idx = np.floor((p - origin) / spacing).astype(np.int64)[:, None, :] + offs
+        valid = ((idx >= 0) & (idx < shape)).all(-1)
+        idx = np.clip(idx, 0, shape - 1)
+        vq = np.asarray(v[idx[..., 0], idx[..., 1], idx[..., 2]], float)
+        dist = np.linalg.norm(p[:, None, :] - (origin + idx * spacing), axis=-1)
+        depth = np.where(valid & (vq > 0), vq / scale - dist, -np.inf)
+        out[s:s + _BLOCK] = depth.max(1)
+    return out
+
+
+class CarvedHull:
+    """The inward-move limits of the flow's vertices (see the module docstring).
+
+    Parameters
+    ----------
+    volume : Volume
+        The raw samples (not the flow's pre-smoothed field).
+    h : float
+        The grid spacing.
+    x, normals : ndarray
+        The start's vertices and outward vertex normals, where the distance scale is read.
+    margin : float
+        How far (world units) the surface may retreat past the union of the balls.
+    """
+
+    def __init__(self, volume, h: float, x: np.ndarray, normals: np.ndarray, margin: float):
+        self.volume, self.h, self.margin = volume, float(h), float(margin)
+        stride = max(1, len(x) // _SCALE_POINTS)
+        probe = x[::stride] + _SCALE_PROBE_VOXELS * h * normals[::stride]
+        scale = _gradient_scale(volume.values, np.asarray(volume.origin, float),
+                                np.asarray(volume.spacing, float) * np.ones(3), probe)
+        self.scale = scale if np.isfinite(scale) and scale > 0 else 1.0
+        self.held = 0          # vertex-iterations whose inward velocity was set to 0 (reported)
+
+    def limits(self, x: np.ndarray) -> np.ndarray:
+        """The largest inward move (world units, ≥ 0) of each vertex of ``x``."""
+        b = ball_depth(self.volume, np.asarray(x, float), self.scale)
+        return np.maximum(np.where(np.isfinite(b), b, -np.inf) + self.margin, 0.0)
+
+    @classmethod
+    def of(cls, field, settings, state, h: float) -> "CarvedHull | None":
+        """The flow's limits (``settings.hold_carved``, margin ``settings.carve_margin`` voxels) at its start
+        ``state``, or None when off or when the field has no samples (a callable field)."""
+        if not settings.hold_carved or getattr(field, "volume", None) is None:
+            return None
+        return cls(field.volume, h, state.x, state.geo.vertex_normals, settings.carve_margin * h)
+
+    def hold(self, x: np.ndarray, Vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(limits at ``x``, the velocity with the inward part — Vel > 0: the flow moves along −Vel·ν — of the
+        vertices that may not move inwards at all set to 0, so the line search does not wait on them)."""
+        limit = self.limits(x)
+        stop = (Vel > 0) & (limit <= 0)
+        self.held += int(stop.sum())
+        return limit, np.where(stop, 0.0, Vel)
+
+    @staticmethod
+    def still(shift: np.ndarray | None, limit: np.ndarray) -> np.ndarray | None:
+        """The tangential relaxation ``shift`` (V, 3) without the vertices that may not move inwards: at a thin
+        part's rim a tangential move toward the 1-ring's centre shortens the part as an inward one would."""
+        return None if shift is None else np.where((limit > 0.0)[:, None], shift, 0.0)
+
+    @staticmethod
+    def clamp(step: np.ndarray, normals: np.ndarray, limit: np.ndarray) -> np.ndarray:
+        """``step`` (V, 3) with each vertex's inward normal part cut to its limit (tangential parts kept)."""
+        inward = -np.einsum("vd,vd->v", step, normals)
+        cut = np.maximum(inward - limit, 0.0)
+        return step + cut[:, None] * normals
+
+
+def remesh_keep(ops, geo, h: float, settings, carve: "CarvedHull | None") -> np.ndarray:
+    """The vertices a remesh keeps in place: with ``keep_tips`` every tip of a sharply convex part (mean
+    curvature above ``tip_curvature`` per voxel); with ``hold_carved`` alone the tips the carved hull holds (no
+    inward move allowed: no ball says the space there is empty) — the remesher's collapses would otherwise
+    shorten a thin limb that the flow may not shorten; else none."""
+    if not settings.keep_tips and carve is None:
+        return np.zeros(0, dtype=np.int64)
+    tips = tip_vertices(ops, geo, h, settings.tip_curvature)
+    if settings.keep_tips or len(tips) == 0:
+        return tips
+    return tips[carve.limits(geo.vertices[tips]) <= 0.0]

@@ -1,0 +1,94 @@
+"""Tests of ``methods.shape_gradient.carve`` (``hold_carved``): the flow may not retreat into the region no
+outside sample's empty ball reaches, so a limb thinner than a voxel that the start has is not cut; the limits
+are those of the balls, and the clamp cuts only the inward normal part of a step."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from methods.shape_gradient import ShapeGradient
+from methods.shape_gradient.carve import CarvedHull, ball_depth
+from phantoms import Volume
+
+_N, _LO = 32, -2.0
+_H = 4.0 / (_N - 1)
+
+
+def _grid():
+    g = _LO + _H * np.arange(_N)
+    return np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)
+
+
+@pytest.fixture(scope="module")
+def limb():
+    """A ball of radius 0.8 with a limb of radius 0.4 voxel (a capsule, its axis on a row of samples) out to
+    x = 1.6, at N = 32: the samples on the axis read −0.4 voxel, all others are outside, so the start has the
+    limb and φ interpolated between the samples is above 0 around it."""
+    p = _grid()
+    r, off = 0.4 * _H, _LO + 16 * _H               # the axis through the samples of index 16 in y and z
+    a, b = np.array([0.0, off, off]), np.array([1.6, off, off])
+    t = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+    capsule = np.linalg.norm(p - (a + t[..., None] * (b - a)), axis=-1) - r
+    return Volume(np.minimum(np.linalg.norm(p, axis=-1) - 0.8, capsule), [_LO] * 3, _H), 1.6 + r
+
+
+def test_a_sub_voxel_limb_is_kept_with_hold_carved_and_cut_without(limb):
+    vol, tip = limb
+    plain = ShapeGradient().reconstruct(vol)
+    held = ShapeGradient(hold_carved=True).reconstruct(vol)
+    short_plain = (tip - plain.mesh.vertices[:, 0].max()) / _H
+    short_held = (tip - held.mesh.vertices[:, 0].max()) / _H
+    assert short_plain > 1.0                       # the flow shortens the limb by more than a voxel ...
+    assert abs(short_held) < 0.5                   # ... and keeps it whole when it may not leave the balls
+    assert held.info["carved_held"] > 0 and plain.info["carved_held"] is None
+    assert held.info["parameters"]["hold_carved"] is True
+    assert held.mesh.is_watertight and held.mesh.euler_number == 2
+
+
+def test_ball_depth_is_the_depth_in_the_nearest_samples_balls():
+    """On a sphere's distance volume b is the depth of x in the union of the balls: about the distance to the
+    sphere outside it (the ball of the sample nearest x reaches the sphere), and below 0 inside."""
+    p = _grid()
+    vol = Volume(np.linalg.norm(p, axis=-1) - 1.0, [_LO] * 3, _H)
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=(200, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    out = ball_depth(vol, 1.5 * u, 1.0)            # half a unit outside: b ≤ 0.5 and close to it
+    assert np.all(out <= 0.5 + 1e-9) and np.all(out > 0.5 - 0.25 * _H)
+    inside = ball_depth(vol, 0.9 * u, 1.0)         # inside the sphere: no ball reaches it
+    assert np.all(inside < 0.0)
+
+
+def test_the_clamp_cuts_only_the_inward_normal_part():
+    normals = np.array([[1.0, 0.0, 0.0]] * 3)
+    step = np.array([[-2.0, 1.0, 0.0], [-0.1, 0.0, 1.0], [3.0, 0.0, 0.0]])
+    out = CarvedHull.clamp(step, normals, np.array([0.5, 0.5, 0.0]))
+    assert np.allclose(out, [[-0.5, 1.0, 0.0], [-0.1, 0.0, 1.0], [3.0, 0.0, 0.0]])
+
+
+def test_off_by_default_and_in_the_paper_preset():
+    assert ShapeGradient().config["hold_carved"] is False
+    assert ShapeGradient(preset="paper").config["hold_carved"] is False
+
+
+def test_the_remesher_keeps_only_the_tips_the_carved_hull_holds():
+    """With ``hold_carved`` alone a remesh keeps the sharply convex vertices whose inward move is 0 — the tips
+    of a thin part no ball covers — and not those of a part that lies inside a ball (free to retreat)."""
+    from types import SimpleNamespace
+
+    import trimesh
+
+    from geometry.operators import MeshOperators
+    from methods.shape_gradient.carve import remesh_keep
+
+    ico = trimesh.creation.icosphere(3, radius=2.0 * _H)          # mean curvature 0.5 per voxel: every vertex a tip
+    x = np.asarray(ico.vertices, float)
+    ops = MeshOperators(np.asarray(ico.faces), len(x))
+    geo = ops.geometry(x)
+    settings = SimpleNamespace(keep_tips=False, tip_curvature=0.3)
+    held = SimpleNamespace(limits=lambda p: np.where(p[:, 0] > 0, 0.0, 1.0))   # held on the side x > 0
+    kept = remesh_keep(ops, geo, _H, settings, held)
+    assert len(kept) > 0 and np.all(x[kept, 0] > 0) and len(kept) == int((x[:, 0] > 0).sum())
+    assert len(remesh_keep(ops, geo, _H, settings, None)) == 0
+    assert len(remesh_keep(ops, geo, _H, SimpleNamespace(keep_tips=True, tip_curvature=0.3), None)) == len(x)

@@ -26,32 +26,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from .tips import _gradient_scale, tip_vertices
+from .tips import distance_scale, near_samples, tip_vertices
 
 __all__ = ["CarvedHull", "ball_depth", "remesh_keep"]
 
 _BLOCK = 16384            # vertices per block: (block, 64) arrays of the nearby samples
-_SCALE_POINTS = 20_000    # vertices (at most, evenly strided) where the distance scale is read
-_SCALE_PROBE_VOXELS = 1.5  # ... this far outside the start along its normals
 
 
 def ball_depth(volume, points: np.ndarray, scale: float) -> np.ndarray:
     """b at ``points`` (P, 3): the largest d(q) − |x − q| over the outside samples q among the 4×4×4 around x
     (−inf where none is outside); d(q) = φ(q)/scale."""
-    v = volume.values
-    spacing = np.asarray(volume.spacing, float) * np.ones(3)
-    origin = np.asarray(volume.origin, float)
-    shape = np.asarray(v.shape)
-    offs = np.stack(np.meshgrid(*[np.arange(-1, 3)] * 3, indexing="ij"), -1).reshape(-1, 3)
     out = np.full(len(points), -np.inf)
     for s in range(0, len(points), _BLOCK):
         p = points[s:s + _BLOCK]
-        idx = np.floor((p - origin) / spacing).astype(np.int64)[:, None, :] + offs
-        valid = ((idx >= 0) & (idx < shape)).all(-1)
-        idx = np.clip(idx, 0, shape - 1)
-        vq = np.asarray(v[idx[..., 0], idx[..., 1], idx[..., 2]], float)
-        dist = np.linalg.norm(p[:, None, :] - (origin + idx * spacing), axis=-1)
-        depth = np.where(valid & (vq > 0), vq / scale - dist, -np.inf)
+        q, vq, on_grid = near_samples(volume, p)
+        dist = np.linalg.norm(p[:, None, :] - q, axis=-1)
+        depth = np.where(on_grid & (vq > 0), vq / scale - dist, -np.inf)
         out[s:s + _BLOCK] = depth.max(1)
     return out
 
@@ -73,11 +63,7 @@ class CarvedHull:
 
     def __init__(self, volume, h: float, x: np.ndarray, normals: np.ndarray, margin: float):
         self.volume, self.h, self.margin = volume, float(h), float(margin)
-        stride = max(1, len(x) // _SCALE_POINTS)
-        probe = x[::stride] + _SCALE_PROBE_VOXELS * h * normals[::stride]
-        scale = _gradient_scale(volume.values, np.asarray(volume.origin, float),
-                                np.asarray(volume.spacing, float) * np.ones(3), probe)
-        self.scale = scale if np.isfinite(scale) and scale > 0 else 1.0
+        self.scale = distance_scale(volume, x, normals, h)
         self.held = 0          # vertex-iterations whose inward velocity was set to 0 (reported)
 
     def limits(self, x: np.ndarray) -> np.ndarray:

@@ -215,7 +215,7 @@ class FlowSettings:
             stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),
             snapshots=tuple(c["snapshots"]), presmooth=c["presmooth_used"], start_smooth=c["start_smooth_used"],
             parameters=_reported(c), keep_tips=bool(c.get("keep_tips", False)),
-            hold_carved=bool(c.get("hold_carved", False)), carve_margin=float(c.get("carve_margin", 0.25)))
+            hold_carved=bool(c["hold_carved"]), carve_margin=float(c["carve_margin"]))
 
     def reported_parameters(self) -> dict[str, Any]:
         """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""

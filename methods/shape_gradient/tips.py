@@ -21,9 +21,10 @@ import numpy as np
 
 from geometry.operators import MeshOperators
 
-__all__ = ["extend_tips", "tip_vertices"]
+__all__ = ["extend_tips", "tip_vertices", "near_samples", "distance_scale"]
 
 _BLOCK = 16384        # vertices per block: (block, 64) arrays of the nearby samples
+_OFFSETS = np.stack(np.meshgrid(*[np.arange(-1, 3)] * 3, indexing="ij"), -1).reshape(-1, 3)   # the 4×4×4
 _NEAR_ZERO_VOXELS = 0.5   # only vertices this near φ = 0 move (a surface that reached the data)
 _THIN_PROBE_VOXELS = 1.5  # a part is thin where φ this far inside along the normal ...
 _THIN_DEPTH_VOXELS = 1.0  # ... is still above minus this: thick convex ends (a bone's) keep their zero set
@@ -55,27 +56,13 @@ def extend_tips(field, ops: MeshOperators, x: np.ndarray, h: float, *, min_curva
     if len(sel) == 0:
         return x.copy(), stats
     volume = field.volume
-    v = volume.values                                   # read where needed: no copy of an MRI-sized grid
-    spacing = np.asarray(volume.spacing, float) * np.ones(3)
-    origin = np.asarray(volume.origin, float)
-    # distance = φ / g, one scale g for the whole volume: the median |∇φ| 1.5 voxels outside the mesh.  Per
-    # sample — or on the mesh — differences across a part thinner than two voxels read |∇φ| far below 1 and
-    # would inflate the balls; the raw samples' differences, not the flow's (pre-smoothed on noisy volumes)
-    stride = max(1, len(x) // _SCALE_POINTS)
-    scale = _gradient_scale(v, origin, spacing, x[::stride] + _THIN_PROBE_VOXELS * h * nu[::stride])
-    scale = scale if np.isfinite(scale) and scale > 0 else 1.0
-    shape = np.asarray(v.shape)
-    offs = np.stack(np.meshgrid(*[np.arange(-1, 3)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    scale = distance_scale(volume, x, nu, h)
     t = np.zeros(len(x))
     for s in range(0, len(sel), _BLOCK):
         b = sel[s:s + _BLOCK]
-        idx = np.floor((x[b] - origin) / spacing).astype(np.int64)[:, None, :] + offs
-        inside_grid = ((idx >= 0) & (idx < shape)).all(-1)
-        idx = np.clip(idx, 0, shape - 1)
-        i, j, k = idx[..., 0], idx[..., 1], idx[..., 2]
-        vq = np.asarray(v[i, j, k], float)
+        q, vq, inside_grid = near_samples(volume, x[b])
         ball = inside_grid & (vq > 0)                              # outside samples: empty balls
-        w = x[b, None, :] - (origin + idx * spacing)
+        w = x[b, None, :] - q
         bb = np.einsum("vkd,vd->vk", w, nu[b])                      # |x + τν − q|² = τ² + 2bτ + c
         c = (w * w).sum(-1) - (vq / scale) ** 2
         disc = bb * bb - c
@@ -118,3 +105,29 @@ def tip_vertices(ops: MeshOperators, geo, h: float, min_curvature: float) -> np.
     hoof (the start's marching-cubes mesh, with its slivers, is remeshed freely)."""
     H, _ = ops.curvature(geo)
     return np.flatnonzero(np.isfinite(H) & (H * h > min_curvature))
+
+
+def near_samples(volume, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The 4×4×4 grid samples around each of ``points`` (P, 3): their world positions (P, 64, 3), values (P, 64)
+    and whether each lies on the grid (P, 64; positions and values off the grid are those of the clamped index).
+    The balls of these samples are the ones that reach a point near the surface (tips, the carved hull)."""
+    v = volume.values                                   # read where needed: no copy of an MRI-sized grid
+    spacing = np.asarray(volume.spacing, float) * np.ones(3)
+    origin = np.asarray(volume.origin, float)
+    shape = np.asarray(v.shape)
+    idx = np.floor((points - origin) / spacing).astype(np.int64)[:, None, :] + _OFFSETS
+    on_grid = ((idx >= 0) & (idx < shape)).all(-1)
+    idx = np.clip(idx, 0, shape - 1)
+    return origin + idx * spacing, np.asarray(v[idx[..., 0], idx[..., 1], idx[..., 2]], float), on_grid
+
+
+def distance_scale(volume, x: np.ndarray, normals: np.ndarray, h: float) -> float:
+    """g of the samples' distances φ/g: one scale for the whole volume, the median |∇φ| 1.5 voxels outside the
+    mesh ``x`` along its ``normals`` (at most ``_SCALE_POINTS`` vertices, evenly strided; 1 when unreadable).
+    Per sample — or on the mesh — differences across a part thinner than two voxels read |∇φ| far below 1 and
+    would inflate the balls; the raw samples' differences, not the flow's (pre-smoothed on noisy volumes)."""
+    stride = max(1, len(x) // _SCALE_POINTS)
+    scale = _gradient_scale(volume.values, np.asarray(volume.origin, float),
+                            np.asarray(volume.spacing, float) * np.ones(3),
+                            x[::stride] + _THIN_PROBE_VOXELS * h * normals[::stride])
+    return scale if np.isfinite(scale) and scale > 0 else 1.0

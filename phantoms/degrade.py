@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy import ndimage
 
@@ -176,38 +177,83 @@ def _exact_grid(phantom, n: int, extent: float, k: int, first: int) -> np.ndarra
 _BALL_OFFSETS = np.array([d for d in np.ndindex(3, 3, 3) if sum(abs(x - 1) for x in d) <= 2]) - 1
 
 
-def partial_volume_fraction(phantom, phi: np.ndarray, origin, spacing, samples: int = PV_SAMPLES) -> np.ndarray:
+def partial_volume_fraction(phantom, phi: np.ndarray, origin, spacing, samples: int = PV_SAMPLES,
+                            reference: bool = False) -> np.ndarray:
     """Each voxel's inside fraction (voxel = the box of ``spacing`` centred on the grid point): 0 / 1 where
     the centre's |φ| exceeds half the voxel diagonal, else the share of a ``samples``³ sub-grid of the exact φ
     that is inside (the phantom's exact inside test: the sign of its φ, a mesh's winding number).
 
     φ is 1-Lipschitz, so a sub-sample nearer a grid point g than |φ(g)| is on g's side: the balls of the
-    voxel's centre and its face and edge neighbours decide most sub-samples, and only the others are asked
-    the inside test.  ``phi`` must be the exact distance (or a lower bound of it, with the exact sign) within
-    two voxels of the surface."""
+    voxel's centre and its face and edge neighbours decide most sub-samples (a compiled kernel), and only the
+    others are asked the inside test; ``reference=True`` asks it of every sub-sample.  ``phi`` must be the exact
+    distance (or a lower bound of it, with the exact sign) within two voxels of the surface."""
     origin, spacing = np.asarray(origin, float), np.asarray(spacing, float)
-    frac = (phi < 0).astype(np.float64)
-    band = np.argwhere(np.abs(phi) < 0.5 * float(np.linalg.norm(spacing)))
+    phi = np.asarray(phi, np.float64)
+    frac, band = _sides_and_band(phi, 0.5 * float(np.linalg.norm(spacing)))
     if len(band) == 0:
         return frac
     offs = (np.arange(samples) + 0.5) / samples - 0.5
     sub = np.stack(np.meshgrid(offs, offs, offs, indexing="ij"), axis=-1).reshape(-1, 3) * spacing
-    # reach[k, s]: the distance of sub-sample s from ball centre k, with a margin for φ's rounding
-    reach = np.linalg.norm(sub[None, :, :] - (_BALL_OFFSETS * spacing)[:, None, :], axis=2)
-    reach += 1e-9 * float(spacing.min())
-    padded = np.pad(phi, 1)                                    # 0 beyond the grid: decides nothing
-    chunk = max(1, (1 << 20) // (len(sub) * len(_BALL_OFFSETS)))
+    if reference:
+        side = np.full((len(band), len(sub)), -1, np.int8)
+    else:
+        # reach[k, s]: the distance of sub-sample s from ball centre k, with a margin for φ's rounding
+        reach = np.linalg.norm(sub[None, :, :] - (_BALL_OFFSETS * spacing)[:, None, :], axis=2)
+        reach += 1e-9 * float(spacing.min())
+        side = _ball_sides(phi, band, _BALL_OFFSETS, reach)
+    chunk = max(1, (1 << 20) // len(sub))                     # the inside test on at most ~1 M points at a time
     for c0 in range(0, len(band), chunk):
-        ijk = band[c0:c0 + chunk]
-        near = padded[tuple((ijk[:, None, :] + 1 + _BALL_OFFSETS[None]).transpose(2, 0, 1))]   # (voxels, balls)
-        holds = np.abs(near)[:, :, None] > reach[None]          # (voxels, balls, sub-samples)
-        inside = (holds & (near < 0)[:, :, None]).any(axis=1)
-        rows, cols = np.nonzero(~holds.any(axis=1))
+        part = side[c0:c0 + chunk]
+        rows, cols = np.nonzero(part < 0)
         if len(rows):
-            centres = origin + ijk[rows] * spacing
-            inside[rows, cols] = np.asarray(phantom.inside(centres + sub[cols]), bool)
-        frac[tuple(ijk.T)] = inside.mean(axis=1)
+            centres = origin + band[c0 + rows] * spacing
+            part[rows, cols] = np.asarray(phantom.inside(centres + sub[cols]), bool)
+    frac[tuple(band.T)] = side.mean(axis=1)
     return frac
+
+
+@numba.njit(cache=True, nogil=True)
+def _sides_and_band(phi, limit):
+    """(φ < 0 as 0 / 1 floats, the (k, 3) indices of the points with |φ| < ``limit``) in one pass."""
+    nx, ny, nz = phi.shape
+    frac = np.empty(phi.shape)
+    count = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                v = phi[i, j, k]
+                frac[i, j, k] = 1.0 if v < 0 else 0.0
+                if abs(v) < limit:
+                    count += 1
+    band = np.empty((count, 3), np.int64)
+    c = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if abs(phi[i, j, k]) < limit:
+                    band[c, 0], band[c, 1], band[c, 2] = i, j, k
+                    c += 1
+    return frac, band
+
+
+@numba.njit(cache=True, nogil=True)
+def _ball_sides(phi, band, offsets, reach):
+    """(band voxels, sub-samples) int8: 1 inside, 0 outside where the distance ball of φ at the voxel + one of
+    the ``offsets`` (inside the grid) reaches the sub-sample (``reach[offset, sub-sample]``), −1 where none does."""
+    n_sub = reach.shape[1]
+    nx, ny, nz = phi.shape
+    side = np.full((band.shape[0], n_sub), -1, np.int8)
+    for v in range(band.shape[0]):
+        for b in range(offsets.shape[0]):
+            i, j, k = band[v, 0] + offsets[b, 0], band[v, 1] + offsets[b, 1], band[v, 2] + offsets[b, 2]
+            if i < 0 or j < 0 or k < 0 or i >= nx or j >= ny or k >= nz:
+                continue
+            val = phi[i, j, k]
+            a = abs(val)
+            for s in range(n_sub):
+                if side[v, s] < 0 and a > reach[b, s]:
+                    side[v, s] = 1 if val < 0 else 0
+    return side
 
 
 def flip_boundary(mask: np.ndarray, p: float, seed: int) -> np.ndarray:

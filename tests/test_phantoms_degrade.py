@@ -143,4 +143,5 @@ def test_the_partial_volume_shortcut_equals_the_inside_test_of_every_sub_sample(
     pts = (origin + band * spacing)[:, None, :] + sub[None]
     brute = np.asarray(ph.inside(pts.reshape(-1, 3)), bool).reshape(len(band), -1).mean(axis=1)
     np.testing.assert_array_equal(fast[tuple(band.T)], brute)
+    np.testing.assert_array_equal(fast, partial_volume_fraction(ph, phi, origin, spacing, reference=True))
     assert 0 < ((brute > 0) & (brute < 1)).sum()                      # there are partial voxels to get right

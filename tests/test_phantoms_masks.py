@@ -53,7 +53,7 @@ def test_mask_of_a_known_sphere_zero_level_and_distances():
 @pytest.mark.parametrize("spacing", [(1.0, 1.0, 1.0), (0.8, 0.8, 3.0)])
 @pytest.mark.parametrize("shape", ["ball_and_speckle", "small_off_centre", "touching_a_wall"])
 def test_the_distance_transforms_equal_scipys_reference(spacing, shape):
-    """``edt`` (the fast path, the inside transform cropped to the object's box) against
+    """The compiled transforms (the fast path, the inside one cropped to the object's box) against
     :func:`scipy.ndimage.distance_transform_edt`, anisotropic too."""
     from phantoms.masks import mask_distances
 
@@ -66,3 +66,17 @@ def test_the_distance_transforms_equal_scipys_reference(spacing, shape):
     ref = mask_distances(m, np.asarray(spacing), reference=True)
     for a, b in zip(fast, ref):
         np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-6 * max(spacing))
+
+
+@pytest.mark.parametrize("spacing", [(1.0, 1.0, 1.0), (0.8, 0.8, 3.0)])
+def test_the_signed_distance_is_the_reference_transforms_shifted_by_half_a_voxel(spacing):
+    """mask_to_sdf's values against its definition on scipy's transforms: d_out − s/2 outside, s/2 − d_in inside."""
+    from phantoms.masks import mask_distances
+
+    rng = np.random.default_rng(3)
+    x = np.mgrid[-1:1:31j, -1:1:27j, -1:1:22j]
+    m = ((x ** 2).sum(0) < 0.4) | (rng.random(x.shape[1:]) < 0.01)
+    d_out, d_in = mask_distances(m, np.asarray(spacing), reference=True)
+    half = 0.5 * min(spacing)
+    want = np.where(m, half - d_in, d_out - half)
+    np.testing.assert_allclose(mask_to_sdf(m, spacing=spacing).values, want, rtol=1e-12, atol=1e-12)

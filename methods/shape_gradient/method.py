@@ -210,6 +210,9 @@ class ShapeGradient(Method):
                              "voxels of the union of the outside samples' empty balls |x − q| < φ(q)/|∇φ| (carve.py): "
                              "a part thinner than a voxel, which φ shows only as a dip, is not cut where no ball "
                              "covers it (docs/NOTES.md)", bool),
+        "start_level": Param(0.0, "the genus-0 start is grown from φ < start_level voxels (with hold_carved: a part "
+                             "thinner than a voxel that φ shows as a dip below that level enters the start, and the "
+                             "flow keeps what no empty ball covers)", float, min=0.0, max=2.0),
         "carve_margin": Param(0.25, "hold_carved: how far, in voxels, the surface may retreat past the union of the "
                               "empty balls", float, min=0.0, max=10.0),
         "tip_curvature": Param(0.3, "tip extension: the least mean curvature, per voxel, of a vertex that may move",
@@ -299,6 +302,8 @@ class ShapeGradient(Method):
         if s0 > 0 and cfg["init"] == "genus0" and cfg["init_mesh"] is None:
             from scipy.ndimage import gaussian_filter
             values = gaussian_filter(volume.values, float(s0), mode="nearest")
+        if cfg["start_level"] and cfg["init"] == "genus0" and cfg["init_mesh"] is None:
+            values = (volume.values if values is None else values) - float(cfg["start_level"]) * volume.h
         # under noise a saddle is lower by about a noise std (the lowest of many paths' highest samples): the
         # threshold is lowered by σ̂, so the speckles of 30 dB noise (σ̂ ≈ 0.6 voxel) are never joined
         join_below = float(cfg["join_below"]) if clean else max(float(cfg["join_below"]) - noise / volume.h, 0.0)

@@ -92,3 +92,25 @@ def test_the_remesher_keeps_only_the_tips_the_carved_hull_holds():
     assert len(kept) > 0 and np.all(x[kept, 0] > 0) and len(kept) == int((x[:, 0] > 0).sum())
     assert len(remesh_keep(ops, geo, _H, settings, None)) == 0
     assert len(remesh_keep(ops, geo, _H, SimpleNamespace(keep_tips=True, tip_curvature=0.3), None)) == len(x)
+
+
+def test_a_limb_between_sample_rows_enters_the_start_with_start_level_and_is_kept():
+    """A limb of radius 0.35 voxel whose axis runs half-way between two rows of samples: every sample is outside
+    (the nearest read +0.15 voxel), so the genus-0 start of φ < 0 has no limb and nothing holds it; grown from
+    φ < 0.25 voxel the start has it, and with ``hold_carved`` the flow keeps it (without, it shortens it)."""
+    p = _grid()
+    r, off = 0.35 * _H, _LO + 16 * _H
+    a, b = np.array([0.0, off + 0.5 * _H, off]), np.array([1.6, off + 0.5 * _H, off])
+    t = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+    capsule = np.linalg.norm(p - (a + t[..., None] * (b - a)), axis=-1) - r
+    values = np.minimum(np.linalg.norm(p, axis=-1) - 0.8, capsule)
+    assert values[(p[..., 0] > 0.9) & (p[..., 0] < 1.5)].min() > 0.1 * _H      # no sample inside along the limb
+    vol, tip = Volume(values, [_LO] * 3, _H), 1.6 + r
+    plain = ShapeGradient(hold_carved=True).reconstruct(vol)
+    grown = ShapeGradient(hold_carved=True, start_level=0.25).reconstruct(vol)
+    assert (tip - plain.mesh.vertices[:, 0].max()) / _H > 4.0                   # no limb at all
+    assert abs(tip - grown.mesh.vertices[:, 0].max()) / _H < 1.0                # the limb, within a voxel
+    alone = ShapeGradient(start_level=0.25).reconstruct(vol)
+    assert (tip - alone.mesh.vertices[:, 0].max()) / _H > 1.5                   # without hold_carved: shortened
+    assert grown.mesh.is_watertight and grown.mesh.euler_number == 2
+    assert ShapeGradient().config["start_level"] == 0.0

@@ -88,41 +88,43 @@ def _envelope(f, n_sites, first, w2, n_out, v, z, out_line):
 
 @_jit
 def _transform(m, out, w, lo, hi):
+    """The three passes, in place in ``out``: pass 1 writes the lines through the box, pass 2 reads each line's
+    box sites into a buffer before it writes the line, pass 3 the same along the last axis."""
     na, nb, nc = m.shape
     bb, bc = hi[1] - lo[1], hi[2] - lo[2]
     wa2, wb2, wc2 = w[0] * w[0], w[1] * w[1], w[2] * w[2]
-    g1 = np.empty((bb, bc, na))                  # pass 1 along a, lines (b, c) inside the box
-    for j in range(bb):
-        for k in range(bc):
-            line = g1[j, k]
-            last = -1
-            for i in range(na):                  # index distance to the nearest true voxel at or before i
-                if m[i, lo[1] + j, lo[2] + k]:
-                    last = i
-                line[i] = np.inf if last < 0 else i - last
-            last = -1
-            for i in range(na - 1, -1, -1):      # ... or at or after i
-                if m[i, lo[1] + j, lo[2] + k]:
-                    last = i
-                if last >= 0 and last - i < line[i]:
-                    line[i] = last - i
-            for i in range(na):
-                line[i] = wa2 * line[i] * line[i]
+    # pass 1 along a on the lines (b, c) through the box, plane by plane: d(i) = 0 on a true voxel, else
+    # min(d_before(i), d(i + 1) + 1) with d_before(i) = d_before(i − 1) + 1 (index units; inf before any)
+    for i in range(na):
+        for j in range(lo[1], hi[1]):
+            for k in range(lo[2], hi[2]):
+                if m[i, j, k]:
+                    out[i, j, k] = 0.0
+                else:
+                    out[i, j, k] = np.inf if i == 0 else out[i - 1, j, k] + 1.0
+    after = np.full((bb, bc), np.inf)            # d(i + 1), index units
+    for i in range(na - 1, -1, -1):
+        for j in range(bb):
+            for k in range(bc):
+                d = min(out[i, lo[1] + j, lo[2] + k], after[j, k] + 1.0)
+                after[j, k] = d
+                out[i, lo[1] + j, lo[2] + k] = wa2 * d * d
     n_max = max(na, max(nb, nc))
     f = np.empty(n_max)
     v = np.empty(n_max, np.int64)
     z = np.empty(n_max + 1)
-    g2 = np.empty((na, bc, nb))                  # pass 2 along b, lines (a, c) with c inside the box
-    for i in range(na):
-        for k in range(bc):
+    line = np.empty(n_max)
+    for i in range(na):                          # pass 2 along b, lines (a, c) with c inside the box
+        for k in range(lo[2], hi[2]):
             for j in range(bb):
-                f[j] = g1[j, k, i]
-            _envelope(f, bb, lo[1], wb2, nb, v, z, g2[i, k])
-    col = np.empty(nc)
+                f[j] = out[i, lo[1] + j, k]
+            _envelope(f, bb, lo[1], wb2, nb, v, z, line)
+            for j in range(nb):
+                out[i, j, k] = line[j]
     for i in range(na):                          # pass 3 along c, every line (a, b)
         for j in range(nb):
             for k in range(bc):
-                f[k] = g2[i, k, j]
-            _envelope(f, bc, lo[2], wc2, nc, v, z, col)
+                f[k] = out[i, j, lo[2] + k]
+            _envelope(f, bc, lo[2], wc2, nc, v, z, line)
             for k in range(nc):
-                out[i, j, k] = np.sqrt(col[k])
+                out[i, j, k] = np.sqrt(line[k])

@@ -47,3 +47,16 @@ def test_the_axis_order_does_not_change_the_answer():
     for order in [(2, 0, 1), (1, 2, 0), (2, 1, 0)]:
         moved = outside_distance(np.ascontiguousarray(m.transpose(order)), spacing[list(order)])
         np.testing.assert_allclose(moved, base.transpose(order), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(1, 5, 5), (3, 1, 1), (1, 1, 1), (2, 7, 1), (6, 4, 3)])
+def test_thin_grids_and_fortran_order(shape):
+    """Axes of one or two voxels, and a mask not in C order, against scipy on random masks and spacings."""
+    rng = np.random.default_rng(sum(shape))
+    for _ in range(5):
+        m = rng.random(shape) < 0.3
+        m.flat[rng.integers(m.size)] = True
+        spacing = rng.uniform(0.5, 2.0, 3)
+        want = ndimage.distance_transform_edt(~m, sampling=spacing)
+        np.testing.assert_allclose(outside_distance(m, spacing), want, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(outside_distance(np.asfortranarray(m), spacing), want, rtol=1e-12, atol=1e-12)

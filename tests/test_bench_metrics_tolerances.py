@@ -26,3 +26,11 @@ def test_same_within_tolerance_is_relative_plus_floor_and_exact_for_counts():
     assert not same_within_tolerance("self_intersections", 3, 4)
     assert same_within_tolerance("not_a_gated_column", 1.0, 1.0 + 1e-10)
     assert not same_within_tolerance("not_a_gated_column", 1.0, 1.0 + 1e-6)
+
+
+def test_finite():
+    from bench.metrics.tolerances import finite
+
+    assert finite("2.5") == 2.5 and finite(3) == 3.0
+    assert finite(float("nan")) is None and finite(float("inf")) is None and finite(None) is None
+    assert finite("x") is None

@@ -52,14 +52,6 @@ def test_committed_baseline_is_a_summary_of_every_benchmark():
     assert base["loadavg"] and base["note"]["loadavg_now"]
 
 
-def test_finite():
-    from bench.perf.baseline import finite
-
-    assert finite("2.5") == 2.5 and finite(3) == 3.0
-    assert finite(float("nan")) is None and finite(float("inf")) is None and finite(None) is None
-    assert finite("x") is None
-
-
 def test_save_and_load_a_summary_round_trip_with_its_note(tmp_path):
     from bench.perf.baseline import machine_note, save_summary
 

@@ -15,7 +15,8 @@ import math
 import re
 from dataclasses import dataclass
 
-__all__ = ["Tolerance", "TOLERANCES", "same_within_tolerance", "compare_value", "cells_from_rows", "stable_cell_id"]
+__all__ = ["Tolerance", "TOLERANCES", "same_within_tolerance", "compare_value", "cells_from_rows", "stable_cell_id",
+           "finite"]
 
 
 @dataclass(frozen=True)
@@ -82,7 +83,8 @@ def same_within_tolerance(metric: str, a: float, b: float) -> bool:
     return abs(a - b) <= tol.rel * max(abs(a), abs(b)) + tol.abs
 
 
-def _finite(v) -> float | None:
+def finite(v) -> float | None:
+    """``v`` as a float, or None where it is not a finite number (missing, text, NaN, ±inf)."""
     try:
         x = float(v)
     except (TypeError, ValueError):
@@ -119,7 +121,7 @@ def cells_from_rows(rows: list[dict], prefix: str) -> dict[str, dict]:
         for name, tol in TOLERANCES.items():
             if name not in r:
                 continue
-            metrics[name] = _truthy(r[name]) if tol.better == "true" else _finite(r[name])
+            metrics[name] = _truthy(r[name]) if tol.better == "true" else finite(r[name])
         key = f"{prefix}/{stable_cell_id(str(r['cell_id']))}"
         out[key] = {"status": str(r.get("status") or "?"), "flags": _flags(r.get("flags")), "metrics": metrics,
                     "method": str(r.get("method") or "")}

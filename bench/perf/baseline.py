@@ -7,29 +7,21 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
-import math
 import os
 import platform
 import statistics
 from pathlib import Path
 from typing import Any, Iterable
 
+from ..metrics.tolerances import finite
 from phantoms import InputError
 
-__all__ = ["FORMAT", "BASELINE", "finite", "summarise", "load_summary", "merge_runs", "machine_note",
+__all__ = ["FORMAT", "BASELINE", "summarise", "load_summary", "merge_runs", "machine_note",
            "save_summary"]
 
 FORMAT = "levelset-bench-perf/1"
 #: the committed baseline the CI gate compares with (package data)
 BASELINE = Path(__file__).resolve().parent / "baseline.json"
-
-
-def finite(x) -> float | None:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
 
 
 def summarise(raw: dict) -> dict:

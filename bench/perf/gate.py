@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .baseline import finite
+from ..metrics.tolerances import finite
 
 __all__ = ["DEFAULT_TOLERANCE", "OK", "FASTER", "REGRESSION", "NEW", "MISSING", "SKIPPED", "NO_RATIO",
            "GateResult", "gate", "format_seconds", "format_table"]

@@ -16,16 +16,17 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["outside_distance"]
+__all__ = ["outside_distance", "true_box"]
 
 _jit = numba.njit(cache=True, nogil=True)
 
 
-def outside_distance(m: np.ndarray, spacing) -> np.ndarray:
+def outside_distance(m: np.ndarray, spacing, box: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Distance (float64, world units, C order) of each voxel centre of the boolean 3-D ``m`` to the nearest true
-    voxel centre, 0 on the true voxels; ``spacing`` the per-axis voxel size.  ``m`` must have a true voxel."""
+    voxel centre, 0 on the true voxels; ``spacing`` the per-axis voxel size; ``box`` :func:`true_box` of ``m`` when
+    the caller has it.  ``m`` must have a true voxel."""
     spacing = np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,))
-    lo, hi = _box(m)
+    lo, hi = true_box(m) if box is None else box
     frac = (hi - lo) / np.asarray(m.shape, dtype=float)
     order = [int(a) for a in np.argsort(-frac, kind="stable")]     # largest extent first, smallest last
     out = np.empty(m.shape, np.float64)
@@ -34,7 +35,7 @@ def outside_distance(m: np.ndarray, spacing) -> np.ndarray:
     return out
 
 
-def _box(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def true_box(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The bounding box [lo, hi) of the true voxels, per axis."""
     lo, hi = [], []
     for axis in range(3):

@@ -7,7 +7,7 @@ from scipy import ndimage
 
 from geometry.errors import InputError
 
-from .mask_edt import outside_distance
+from .mask_edt import outside_distance, true_box
 from .volume import Volume
 
 __all__ = ["mask_to_sdf", "mask_sdf_values", "mask_distances"]
@@ -34,13 +34,11 @@ def _inside_distance(m_box: np.ndarray, spacing) -> np.ndarray:
     return outside_distance(~m_box, spacing)
 
 
-def _grown_box(m: np.ndarray) -> tuple[slice, ...]:
-    """The bounding box of the true voxels of ``m``, one voxel larger on each side, clipped to the array."""
-    box = []
-    for axis in range(m.ndim):
-        hit = np.flatnonzero(m.any(axis=tuple(a for a in range(m.ndim) if a != axis)))
-        box.append(slice(max(int(hit[0]) - 1, 0), min(int(hit[-1]) + 2, m.shape[axis])))
-    return tuple(box)
+def _grown_box(m: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[slice, ...]:
+    """The bounding box of the true voxels of ``m`` (:func:`~phantoms.mask_edt.true_box`, or ``box``), one voxel
+    larger on each side, clipped to the array."""
+    lo, hi = true_box(m) if box is None else box
+    return tuple(slice(max(int(a) - 1, 0), min(int(b) + 1, n)) for a, b, n in zip(lo, hi, m.shape))
 
 
 def mask_to_sdf(mask, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> Volume:
@@ -95,9 +93,10 @@ def mask_sdf_values(mask, spacing) -> np.ndarray:
         raise InputError("the mask has no outside voxels (all one): there is no surface to reconstruct")
     spacing = np.broadcast_to(np.asarray(spacing, dtype=float), (3,))
     half = 0.5 * float(spacing.min())
-    values = outside_distance(m, spacing)        # outside: distance − s/2; inside: s/2 − distance (in place)
+    tight = true_box(m)
+    values = outside_distance(m, spacing, tight)  # outside: distance − s/2; inside: s/2 − distance (in place)
     values -= half
-    box = _grown_box(m)
+    box = _grown_box(m, tight)
     inside = values[box]
     np.subtract(half, _inside_distance(m[box], spacing), out=inside, where=m[box])
     return values

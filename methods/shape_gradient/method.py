@@ -13,6 +13,7 @@ from phantoms import InputError, Volume
 
 from ..base import Method, Param, Reconstruction, check_volume
 from .field import estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
+from .carved_start import carved_surface
 from .flow import ShapeGradientFlow
 from .settings import FlowSettings, edge_length_voxels
 from .start import denoised_topology, initial_surface, parse_snapshots, target_topology, topology_gap
@@ -213,6 +214,10 @@ class ShapeGradient(Method):
         "start_level": Param(0.0, "the genus-0 start is grown from φ < start_level voxels (with hold_carved: a part "
                              "thinner than a voxel that φ shows as a dip below that level enters the start, and the "
                              "flow keeps what no empty ball covers)", float, min=0.0, max=2.0),
+        "carved_start": Param(False, "the genus-0 start is grown from the carved hull — the region, read on a grid "
+                              "twice as fine, that no outside sample's empty ball reaches (carved_start.py) — so a "
+                              "part thinner than a voxel that every sample misses is in the start (with hold_carved "
+                              "the flow keeps it)", bool),
         "carve_margin": Param(0.25, "hold_carved: how far, in voxels, the surface may retreat past the union of the "
                               "empty balls", float, min=0.0, max=10.0),
         "tip_curvature": Param(0.3, "tip extension: the least mean curvature, per voxel, of a vertex that may move",
@@ -316,6 +321,10 @@ class ShapeGradient(Method):
             init_center=cfg["init_center"], values=values, pinhole_below=pinhole_below)
         if init_facts["kind"] == "genus0":
             init_facts["pinhole_below_voxels"] = round(pinhole_below, 4)
+            if cfg["carved_start"]:
+                x, faces, init_facts["carved"] = carved_surface(
+                    volume, volume.values if values is None else values, x, faces, join_below, pinhole_below,
+                    0.0 if clean else noise)
         edge = _edge_length_voxels(cfg, x, faces, volume.h, init_facts)
         cfg["edge_length"] = edge
         settings = FlowSettings.resolve(cfg, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,

@@ -1,0 +1,96 @@
+"""The carved start (``carved_start``): the genus-0 start grown from the region no sample's empty ball reaches,
+read on a grid twice as fine, so that a part every sample misses is in the start.
+
+Why: a limb or blade thinner than a voxel that lies between sample rows leaves every sample outside (φ > 0); the
+genus-0 start of φ < 0 has no part there, and a constraint of the flow (``hold_carved``, carve.py) can only keep
+what the start has.  Every outside sample q has an empty ball of radius φ(q)/g (g: the distance scale of
+tips.py); the object lies in the complement of their union, the *carved hull* — where Reach for the Spheres
+grows its surface.  At a sample the sample's own ball covers the point, so the hull is read between samples: on
+the grid refined by 2 per axis, s = min(φ₀, b) with φ₀ the start's values (pre-smoothed on noisy volumes),
+linearly interpolated, and b(x) = max_q (φ(q)/g − |x − q|) over the 4×4×4 raw samples around x (carve.py's
+:func:`ball_depth`; b < 0: no ball reaches x).  b is read only in the band 0 ≤ φ₀ < ``_BAND_VOXELS`` voxels (a
+point farther out is covered by its nearest sample's ball; a point inside already has s ≤ φ₀ < 0).  The region
+s < 0 then goes through the same genus-0 growth as φ < 0 does (start.py's :func:`genus0_surface`), on the fine
+grid.  The carved hull also fills the crevices between neighbouring balls (a fraction of a voxel over a flat
+part): the flow removes them, since they lie within ``carve_margin`` of a ball.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import zoom
+
+from phantoms import Volume
+
+from .carve import ball_depth
+
+__all__ = ["carved_values", "carved_surface", "FINE_MAX_SAMPLES"]
+
+_FACTOR = 2                 # the fine grid: samples per voxel edge
+_BAND_VOXELS = 1.5          # b is read where 0 ≤ φ₀ < this many voxels
+_NOISE_STDS = 2.0           # on a noisy volume each ball is smaller by this many noise stds (a one-sided 98 % bound)
+#: the largest fine grid read (a 128³ volume refines to 255³ = 16.6 M samples); above it the start is the usual one
+FINE_MAX_SAMPLES = 2 ** 24
+
+
+def carved_values(volume: Volume, start_values: np.ndarray, scale: float, shrink: float = 0.0) -> Volume | None:
+    """The fine grid of s = min(φ₀, b) as a Volume (same box, spacing / 2), or None when it would exceed
+    :data:`FINE_MAX_SAMPLES` samples.
+
+    Parameters
+    ----------
+    volume : Volume
+        The raw samples: the balls' centres and radii.
+    start_values : ndarray
+        φ₀, the samples the start is grown from (the volume's, or pre-smoothed ones), on the volume's grid.
+    scale : float
+        g: a ball's radius is φ(q)/g.
+    shrink : float
+        Every ball's radius is less by this much (world units): on a noisy volume a sample's ball is empty only
+        with a margin for its noise.
+    """
+    shape = tuple((n - 1) * _FACTOR + 1 for n in volume.shape)
+    if float(np.prod([float(n) for n in shape])) > FINE_MAX_SAMPLES:
+        return None
+    # order-1 zoom to (n − 1)·r + 1 samples puts fine sample i at coarse position i / r exactly: trilinear φ₀
+    fine = zoom(np.asarray(start_values, float), [s / n for s, n in zip(shape, volume.shape)], order=1,
+                mode="nearest", grid_mode=False)
+    spacing = np.asarray(volume.spacing, float) * np.ones(3) / _FACTOR
+    h = volume.h
+    band = np.flatnonzero(((fine >= 0.0) & (fine < _BAND_VOXELS * h)).ravel())
+    if len(band):
+        idx = np.stack(np.unravel_index(band, shape), axis=1)
+        points = np.asarray(volume.origin, float) + idx * spacing
+        b = ball_depth(volume, points, scale) - shrink
+        flat = fine.reshape(-1)
+        flat[band] = np.minimum(flat[band], np.where(np.isfinite(b), b, np.inf))
+    return Volume(fine, origin=np.asarray(volume.origin, float), spacing=spacing)
+
+
+def carved_surface(volume: Volume, start_values: np.ndarray, x: np.ndarray, faces: np.ndarray, join_below: float,
+                   pinhole_below: float, noise: float = 0.0) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(vertices, faces, facts): the genus-0 surface of the carved region s < 0 (see the module docstring), or the
+    usual start ``x``, ``faces`` (grown from φ₀ < 0) when the fine grid is too large or the growth gave no surface.
+
+    ``join_below`` and ``pinhole_below`` are in voxels of the volume (as for the usual start); the distance scale g
+    is read outside the usual start."""
+    from geometry.operators import MeshOperators
+
+    from .start import genus0_surface
+    from .tips import distance_scale
+
+    geo = MeshOperators(faces, len(x)).geometry(x)
+    scale = distance_scale(volume, x, geo.vertex_normals, volume.h)
+    fine = carved_values(volume, start_values, scale, _NOISE_STDS * noise / scale)
+    if fine is None:
+        return x, faces, {"used": False, "why": f"the fine grid would exceed {FINE_MAX_SAMPLES} samples"}
+    coarse_inside = int((np.asarray(start_values) < 0).sum())
+    xf, ff, more = genus0_surface(fine, fine.values, join_below * _FACTOR, pinhole_below * _FACTOR)
+    facts = {"used": xf is not None, "distance_scale": round(float(scale), 4),
+             "fine_inside_samples": int((fine.values < 0).sum()), "coarse_inside_samples": coarse_inside,
+             "fine_solid_samples": more["solid_samples"], "fine_pieces": more["pieces"],
+             "fine_disambiguation": more["disambiguation"]}
+    if xf is None:
+        facts["why"] = "the genus-0 growth on the fine grid gave no surface"
+        return x, faces, facts
+    return xf, ff, facts

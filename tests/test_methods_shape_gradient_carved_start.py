@@ -1,0 +1,79 @@
+"""Tests of ``methods.shape_gradient.carved_start`` (``carved_start``): the genus-0 start grown from the carved
+hull on a grid twice as fine holds every point of the object and little else, and a limb that every sample
+misses — too far from every sample for ``start_level`` — is in the start, and kept with ``hold_carved``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from methods.shape_gradient import ShapeGradient
+from methods.shape_gradient.carved_start import FINE_MAX_SAMPLES, carved_values
+from phantoms import Volume
+
+_N, _LO = 32, -2.0
+_H = 4.0 / (_N - 1)
+
+
+def _grid():
+    g = _LO + _H * np.arange(_N)
+    return np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)
+
+
+def test_the_carved_region_holds_the_object_and_stays_within_a_crevice_of_it():
+    """An exact signed distance (a sphere of radius 1.1 off the grid's centre): every fine sample inside the
+    sphere is in the carved region s < 0 (no empty ball reaches into the object) — also where trilinear φ is
+    above 0 — and every fine sample in it lies within the deepest crevice between balls, about 0.6 voxel."""
+    c = np.array([0.13, -0.07, 0.05])
+    vol = Volume(np.linalg.norm(_grid() - c, axis=-1) - 1.1, [_LO] * 3, _H)
+    fine = carved_values(vol, vol.values, 1.0)
+    assert fine.shape == tuple(2 * _N - 1 for _ in range(3)) and np.allclose(fine.spacing, _H / 2)
+    g = _LO + 0.5 * _H * np.arange(2 * _N - 1)
+    truth = np.linalg.norm(np.stack(np.meshgrid(g, g, g, indexing="ij"), -1) - c, axis=-1) - 1.1
+    carved = fine.values < 0
+    assert carved[truth < 0].all()
+    assert ((truth < 0) & (fine.values >= 0)).sum() == 0
+    assert truth[carved].max() < 0.65 * _H
+    # fine samples on the coarse grid keep φ itself (a sample's own ball covers it)
+    assert np.array_equal(fine.values[::2, ::2, ::2] < 0, vol.values < 0)
+    # smaller balls (a noise margin) only add to the region
+    assert (carved_values(vol, vol.values, 1.0, shrink=0.2 * _H).values < 0)[carved].all()
+
+
+def test_a_grid_too_large_is_not_refined():
+    n = int(round(FINE_MAX_SAMPLES ** (1 / 3) / 2)) + 2
+    vol = Volume(np.ones((n, n, n)), [0.0] * 3, 1.0)
+    assert carved_values(vol, vol.values, 1.0) is None
+
+
+@pytest.fixture(scope="module")
+def far_limb():
+    """A ball of radius 0.8 with a limb of radius 0.3 voxel whose axis runs through the centres of the squares
+    of four sample rows: the nearest samples read +0.41 voxel, above the quarter voxel ``start_level`` reads."""
+    p = _grid()
+    r, off = 0.3 * _H, _LO + 16.5 * _H
+    a, b = np.array([0.0, off, off]), np.array([1.6, off, off])
+    t = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+    capsule = np.linalg.norm(p - (a + t[..., None] * (b - a)), axis=-1) - r
+    values = np.minimum(np.linalg.norm(p, axis=-1) - 0.8, capsule)
+    assert values[(p[..., 0] > 0.9) & (p[..., 0] < 1.5)].min() > 0.4 * _H
+    return Volume(values, [_LO] * 3, _H), 1.6 + r
+
+
+def test_a_limb_every_sample_misses_is_in_the_carved_start(far_limb):
+    vol, tip = far_limb
+    level = ShapeGradient(start_level=0.25).prepare(vol)
+    carved = ShapeGradient(carved_start=True).prepare(vol)
+    assert (tip - level.state.x[:, 0].max()) / _H > 4.0                         # start_level: no limb
+    assert abs(tip - carved.state.x[:, 0].max()) / _H < 1.0                      # the carved start: the limb
+    facts = carved.init_facts["carved"]
+    assert facts["used"] and facts["fine_pieces"] >= 1
+    assert "carved" not in level.init_facts
+
+
+def test_the_limb_is_kept_by_the_flow_with_hold_carved(far_limb):
+    vol, tip = far_limb
+    rec = ShapeGradient(carved_start=True, hold_carved=True, carve_margin=0.1).reconstruct(vol)
+    assert abs(tip - rec.mesh.vertices[:, 0].max()) / _H < 1.0
+    assert rec.mesh.is_watertight and rec.mesh.euler_number == 2
+    assert ShapeGradient().config["carved_start"] is False

@@ -11,6 +11,7 @@ __all__ = ["newton_project", "crease_polish"]
 
 _POLISH_NEWTON_STEPS = 3      # Newton projections x ← x − φ∇φ/|∇φ|² of the crease-zone vertices
 _POLISH_MAX_ROUNDS = 50       # rounds of the vectorised greedy choice of the vertices put on the crease
+_CREASE_OFF_ZERO_VOXELS = 1.0  # a crease point where |φ| exceeds this many voxels is not on the surface: not snapped
 
 
 def newton_project(field, x: np.ndarray, steps: int = _POLISH_NEWTON_STEPS, max_step: float = np.inf,
@@ -54,12 +55,16 @@ def crease_polish(field, ops: MeshOperators, x: np.ndarray, h: float, *, angle: 
        edges along the crease and no edge crosses it; the other zone vertices take their Newton projection;
     5. vertices of faces that this turns upside down (normal reversed) are put back.
 
+    A crease point where |φ| exceeds a voxel is not snapped (the ring's planes met far from the surface, as in
+    the saddle between two lobes: they are nearly parallel there).
+
     Vertices outside the crease zone do not move: on a smooth surface the polish is a no-op.
     Returns the new vertices and counts for ``info['polish']``.
     """
     x = np.asarray(x, float)
     V = len(x)
-    stats = {"crease_edges": 0, "zone_vertices": 0, "snapped": 0, "reverted": 0, "max_move_voxels": 0.0}
+    stats = {"crease_edges": 0, "zone_vertices": 0, "snapped": 0, "reverted": 0, "off_zero_set": 0,
+             "max_move_voxels": 0.0}
     xp, nu = newton_project(field, x, max_step=2.0 * h)
     ok = np.isfinite(xp).all(1) & np.isfinite(nu).all(1)
     e = ops.edges
@@ -80,6 +85,12 @@ def crease_polish(field, ops: MeshOperators, x: np.ndarray, h: float, *, angle: 
     y[zone] = np.linalg.solve(A, b[..., None])[..., 0]
     cost = np.full(V, np.inf)
     cost[zone] = np.linalg.norm(y[zone] - xp[zone], axis=1)
+    # a crease point lies on the zero set: where the ring's planes meet far from it (a saddle between two
+    # lobes, where the planes are nearly parallel) the point is not a crease — not snapped
+    yz = np.where(np.isfinite(y[zone]), y[zone], xp[zone])
+    off = np.abs(field.sample_t(np.ascontiguousarray(yz.T), 0)[0]) > _CREASE_OFF_ZERO_VOXELS * h
+    cost[zone[off]] = np.inf
+    stats["off_zero_set"] = int(off.sum())
     # at a convex crease the sharp edge lies outside the sampled zero set (interpolating φ's convex kink
     # overestimates φ, so the zero set is rounded inwards): a crease point inside a convex vertex's tangent plane
     # is the quadric's pull towards the centre of a rounded tip, not a crease — not snapped
@@ -110,8 +121,17 @@ def crease_polish(field, ops: MeshOperators, x: np.ndarray, h: float, *, angle: 
     zone_ok = zone[ok[zone]]
     out[zone_ok] = xp[zone_ok]
     out[chosen] = y[chosen]
-    # put back the vertices of faces the polish turned upside down (a few rounds: putting back can expose more)
+    stats["reverted"] = _put_back_flipped(ops, x, out, chosen)
+    stats["snapped"] = int(chosen.sum())
+    stats["max_move_voxels"] = float(np.linalg.norm(out - x, axis=1).max() / h)
+    return out, stats
+
+
+def _put_back_flipped(ops: MeshOperators, x: np.ndarray, out: np.ndarray, chosen: np.ndarray) -> int:
+    """Put back (in ``out``, from ``x``) the vertices of faces the polish turned upside down, a few rounds since
+    putting back can expose more; they are no longer ``chosen``.  Returns how many were put back."""
     n_old = ops.geometry(x).normals_t
+    reverted = 0
     for _ in range(5):
         n_new = ops.geometry(out).normals_t
         bad = (n_old * n_new).sum(0) <= 0.0
@@ -121,11 +141,7 @@ def crease_polish(field, ops: MeshOperators, x: np.ndarray, h: float, *, angle: 
         back = back[np.any(out[back] != x[back], axis=1)]
         if len(back) == 0:
             break
-        stats["reverted"] += int(len(back))
+        reverted += int(len(back))
         out[back] = x[back]
         chosen[back] = False
-    stats["snapped"] = int(chosen.sum())
-    stats["max_move_voxels"] = float(np.linalg.norm(out - x, axis=1).max() / h)
-    return out, stats
-
-
+    return reverted

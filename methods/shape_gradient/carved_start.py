@@ -67,13 +67,13 @@ def carved_values(volume: Volume, start_values: np.ndarray, scale: float, shrink
     return Volume(fine, origin=np.asarray(volume.origin, float), spacing=spacing)
 
 
-def carved_surface(volume: Volume, start_values: np.ndarray, x: np.ndarray, faces: np.ndarray, join_below: float,
+def carved_surface(volume: Volume, start_values: np.ndarray, x: np.ndarray, faces: np.ndarray,
                    pinhole_below: float, noise: float = 0.0) -> tuple[np.ndarray, np.ndarray, dict]:
     """(vertices, faces, facts): the genus-0 surface of the carved region s < 0 (see the module docstring), or the
     usual start ``x``, ``faces`` (grown from φ₀ < 0) when the fine grid is too large or the growth gave no surface.
 
-    ``join_below`` and ``pinhole_below`` are in voxels of the volume (as for the usual start); the distance scale g
-    is read outside the usual start."""
+    ``pinhole_below`` is in voxels of the volume (as for the usual start); pieces are not joined through saddles
+    (see below); the distance scale g is read outside the usual start."""
     from geometry.operators import MeshOperators
 
     from .start import genus0_surface
@@ -85,7 +85,9 @@ def carved_surface(volume: Volume, start_values: np.ndarray, x: np.ndarray, face
     if fine is None:
         return x, faces, {"used": False, "why": f"the fine grid would exceed {FINE_MAX_SAMPLES} samples"}
     coarse_inside = int((np.asarray(start_values) < 0).sum())
-    xf, ff, more = genus0_surface(fine, fine.values, join_below * _FACTOR, pinhole_below * _FACTOR)
+    # no joins on the fine grid: between samples b reads less than the distance (down to φ − 0.87 voxel), so a
+    # gap of a few voxels would read as a shallow saddle; a neck no ball covers is in the region already
+    xf, ff, more = genus0_surface(fine, fine.values, 0.0, pinhole_below * _FACTOR)
     facts = {"used": xf is not None, "distance_scale": round(float(scale), 4),
              "fine_inside_samples": int((fine.values < 0).sum()), "coarse_inside_samples": coarse_inside,
              "fine_solid_samples": more["solid_samples"], "fine_pieces": more["pieces"],

@@ -323,7 +323,7 @@ class ShapeGradient(Method):
             init_facts["pinhole_below_voxels"] = round(pinhole_below, 4)
             if cfg["carved_start"]:
                 x, faces, init_facts["carved"] = carved_surface(
-                    volume, volume.values if values is None else values, x, faces, join_below, pinhole_below,
+                    volume, volume.values if values is None else values, x, faces, pinhole_below,
                     0.0 if clean else noise)
         edge = _edge_length_voxels(cfg, x, faces, volume.h, init_facts)
         cfg["edge_length"] = edge

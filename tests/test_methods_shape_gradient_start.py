@@ -150,6 +150,16 @@ def test_two_balls_joined_by_a_neck_thinner_than_a_voxel_give_one_surface_with_t
     assert lone.info["init"]["joined_pieces"] == 0 and _hausdorff_h(lone.mesh, sdf, h, c, rn) > 5.0
 
 
+def test_the_crease_polish_does_not_snap_onto_the_far_meeting_point_at_a_saddle():
+    """The neck's start from the carved hull (which holds the neck, no join needed): at the saddle between the two
+    lobes the ring's planes are nearly parallel and meet far out — a crease point 2 voxels off the surface; the
+    polish does not snap a vertex there (|φ| > a voxel), so the surface stays within a voxel of the truth."""
+    vol, sdf, h, (c, rn) = _lobes(40, None, 0.6)
+    r = ShapeGradient(carved_start=True, hold_carved=True, carve_margin=0.1, start_level=0.25).reconstruct(vol)
+    assert r.info["init"]["carved"]["used"] and r.info["polish"]["off_zero_set"] > 0
+    assert is_sphere_like(r.mesh.faces, len(r.mesh.vertices)) and _hausdorff_h(r.mesh, sdf, h, c, rn) <= 1.0
+
+
 def test_two_balls_five_voxels_apart_are_not_joined_and_say_so():
     vol, sdf, h, _ = _lobes(40, 5.0)
     r = ShapeGradient().reconstruct(vol)

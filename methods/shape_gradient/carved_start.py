@@ -11,8 +11,9 @@ linearly interpolated, and b(x) = max_q (φ(q)/g − |x − q|) over the 4×4×4
 :func:`ball_depth`; b < 0: no ball reaches x).  b is read only in the band 0 ≤ φ₀ < ``_BAND_VOXELS`` voxels (a
 point farther out is covered by its nearest sample's ball; a point inside already has s ≤ φ₀ < 0).  The region
 s < 0 then goes through the same genus-0 growth as φ < 0 does (start.py's :func:`genus0_surface`), on the fine
-grid.  The carved hull also fills the crevices between neighbouring balls (a fraction of a voxel over a flat
-part): the flow removes them, since they lie within ``carve_margin`` of a ball.
+grid.  No ball covers a gap narrower than a voxel between two parts either (a sulcus between its banks): a point
+with an inside sample ahead of it along ∇φ (:func:`between_inside`) is in a gap, not beside a part, and is left as
+φ₀ says.
 """
 
 from __future__ import annotations
@@ -23,12 +24,14 @@ from scipy.ndimage import zoom
 from phantoms import Volume
 
 from .carve import ball_depth
+from .tips import near_samples
 
-__all__ = ["carved_values", "carved_surface", "FINE_MAX_SAMPLES"]
+__all__ = ["carved_values", "carved_surface", "between_inside", "FINE_MAX_SAMPLES"]
 
 _FACTOR = 2                 # the fine grid: samples per voxel edge
 _BAND_VOXELS = 1.5          # b is read where 0 ≤ φ₀ < this many voxels
 _NOISE_STDS = 2.0           # on a noisy volume each ball is smaller by this many noise stds (a one-sided 98 % bound)
+_BLOCK = 16384              # points per block of the gap test: (block, 64) arrays
 #: the largest fine grid read (a 128³ volume refines to 255³ = 16.6 M samples); above it the start is the usual one
 FINE_MAX_SAMPLES = 2 ** 24
 
@@ -62,9 +65,35 @@ def carved_values(volume: Volume, start_values: np.ndarray, scale: float, shrink
         idx = np.stack(np.unravel_index(band, shape), axis=1)
         points = np.asarray(volume.origin, float) + idx * spacing
         b = ball_depth(volume, points, scale) - shrink
+        b = np.where(np.isfinite(b), b, np.inf)
+        carved = np.flatnonzero(b < 0.0)
+        b[carved[between_inside(volume, points[carved])]] = np.inf        # a gap, not a part: left as φ₀ says
         flat = fine.reshape(-1)
-        flat[band] = np.minimum(flat[band], np.where(np.isfinite(b), b, np.inf))
+        flat[band] = np.minimum(flat[band], b)
     return Volume(fine, origin=np.asarray(volume.origin, float), spacing=spacing)
+
+
+def between_inside(volume: Volume, points: np.ndarray) -> np.ndarray:
+    """Whether each of ``points`` (P, 3) has an inside sample (φ < 0) among the 4×4×4 around it on its outward
+    side: (q − x)·∇φ(x) > 0, ∇φ the volume's trilinear gradient at x.  Where ∇φ vanishes (a point mid-way
+    between symmetric samples: a limb's axis, a gap's mid-plane) any inside sample around it decides.
+
+    Why: no ball covers the air in a gap narrower than a voxel between two parts (a sulcus between its banks) any
+    more than it covers a part thinner than a voxel; what tells them apart is where the object is — beside a
+    protrusion (a limb, a blade, also at its root) every inside sample lies behind the point, against ∇φ; in a
+    gap the banks reach past the point towards the gap's mouth, the way φ grows.  The carved region keeps only
+    the former."""
+    out = np.zeros(len(points), bool)
+    for s in range(0, len(points), _BLOCK):
+        p = points[s:s + _BLOCK]
+        q, vq, on_grid = near_samples(volume, p)
+        g = volume.sample(p, derivatives=1).grad
+        gn = np.linalg.norm(g, axis=1)
+        u = g / np.where(gn > 0, gn, 1.0)[:, None]
+        ahead = np.einsum("pkd,pd->pk", q - p[:, None, :], u) > 0.0
+        inside = on_grid & (vq < 0.0)
+        out[s:s + _BLOCK] = np.where(gn > 1e-12, (inside & ahead).any(1), inside.any(1))
+    return out
 
 
 def carved_surface(volume: Volume, start_values: np.ndarray, x: np.ndarray, faces: np.ndarray,

@@ -196,7 +196,8 @@ class FlowSettings:
             "join_below_used": join_below,
             "remesh_start": remesh_start,
             "presmooth_used": float(presmooth),
-            "noise_variance": _INTERP_NOISE_GAIN * float(noise) ** 2 if (config["unbias"] and not clean) else 0.0,
+            "noise_variance": _noise_variance(noise, presmooth, bool(config["presmooth_phi"]))
+            if (config["unbias"] and not clean) else 0.0,
             "start_smooth_used": float(start_smooth),
             "polish_used": config["polish"] == "on" or (config["polish"] == "auto" and clean),
             "projection_used": config["projection"] == "on" or (config["projection"] == "auto" and clean),
@@ -220,6 +221,17 @@ class FlowSettings:
     def reported_parameters(self) -> dict[str, Any]:
         """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""
         return copy.deepcopy(dict(self.parameters))
+
+
+def _noise_variance(noise: float, presmooth: float, presmooth_phi: bool) -> float:
+    """The noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise of std σ has
+    variance (2/3)³σ² on average over a cell; a pre-smoothed φ (``presmooth_phi``, σ_s voxels) carries the
+    filtered noise, whose std is the filter's gain times σ and which interpolation barely lowers (it is
+    correlated over σ_s)."""
+    if presmooth_phi and presmooth > 0:
+        from .field import noise_after_smoothing
+        return noise_after_smoothing(float(noise), float(presmooth)) ** 2
+    return _INTERP_NOISE_GAIN * float(noise) ** 2
 
 
 def _reported(config: Mapping[str, Any]) -> dict[str, Any]:

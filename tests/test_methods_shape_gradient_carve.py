@@ -114,3 +114,21 @@ def test_a_limb_between_sample_rows_enters_the_start_with_start_level_and_is_kep
     assert (tip - alone.mesh.vertices[:, 0].max()) / _H > 1.5                   # without hold_carved: shortened
     assert grown.mesh.is_watertight and grown.mesh.euler_number == 2
     assert ShapeGradient().config["start_level"] == 0.0
+
+
+def test_a_held_vertex_keeps_a_relaxation_that_does_not_leave_the_balls():
+    """The relaxation of a vertex the hull holds is kept where it moves no farther from the balls (b does not
+    fall) and dropped where it does; a vertex that may move inwards keeps its shift whatever it is."""
+    z0 = _LO + 10.5 * _H                                     # a plane half-way between two rows of samples
+    vol = Volume(_grid()[..., 2] - z0, [_LO] * 3, _H)
+    hull = CarvedHull(vol, _H, np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), 0.0)
+    c = _LO + 16.5 * _H                                      # the centre of a square of sample columns
+    x = np.array([[c, c, z0 + 0.1 * _H]] * 3)                # just above the plane, between the balls
+    b0 = ball_depth(vol, x[:1], hull.scale)[0]
+    assert b0 < 0
+    shift = np.array([[0.0, 0.0, 0.3 * _H], [0.0, 0.0, -0.3 * _H], [0.0, 0.0, -0.3 * _H]])
+    out = hull.still(x, shift, np.array([0.0, 0.0, 1.0]))
+    assert np.array_equal(out[0], shift[0])                   # towards the balls: kept
+    assert np.array_equal(out[1], np.zeros(3))                # deeper into the uncovered region: dropped
+    assert np.array_equal(out[2], shift[2])                   # not held: kept
+    assert hull.still(x, None, np.zeros(3)) is None

@@ -87,11 +87,22 @@ class CarvedHull:
         self.held += int(stop.sum())
         return limit, np.where(stop, 0.0, Vel)
 
-    @staticmethod
-    def still(shift: np.ndarray | None, limit: np.ndarray) -> np.ndarray | None:
-        """The tangential relaxation ``shift`` (V, 3) without the vertices that may not move inwards: at a thin
-        part's rim a tangential move toward the 1-ring's centre shortens the part as an inward one would."""
-        return None if shift is None else np.where((limit > 0.0)[:, None], shift, 0.0)
+    def still(self, x: np.ndarray, shift: np.ndarray | None, limit: np.ndarray) -> np.ndarray | None:
+        """The tangential relaxation ``shift`` (V, 3) of ``x`` without the moves of the vertices that may not move
+        inwards into the region no ball reaches: at a thin part's rim a tangential move toward the 1-ring's centre
+        shortens the part as an inward one would.  Such a vertex keeps its shift where it stays as near the balls
+        as it was (b does not fall): sideways along a limb or over a flat part — without that its neighbours
+        crowd it into slivers."""
+        if shift is None:
+            return None
+        held = np.flatnonzero(limit <= 0.0)
+        if len(held) == 0:
+            return shift
+        b0 = ball_depth(self.volume, x[held], self.scale)
+        b1 = ball_depth(self.volume, x[held] + shift[held], self.scale)
+        out = shift.copy()
+        out[held[~(b1 >= b0)]] = 0.0
+        return out
 
     @staticmethod
     def clamp(step: np.ndarray, normals: np.ndarray, limit: np.ndarray) -> np.ndarray:

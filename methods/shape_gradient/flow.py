@@ -171,7 +171,7 @@ class ShapeGradientFlow:
         slope = dot(b, Vel)                           # −dE/dτ at τ = 0 (> 0)
         if vmax == 0.0:
             return self._end("converged", f"iteration {it}: the shape gradient vanishes")
-        shift = self._relax_shift(geo) if limit is None else CarvedHull.still(self._relax_shift(geo), limit)
+        shift = self._relax_shift(geo) if limit is None else self.carve.still(state.x, self._relax_shift(geo), limit)
         if self.settings.step == "fixed":
             tau = self.settings.tau
             x_new = state.x + tau * direction + (0.0 if shift is None else shift)

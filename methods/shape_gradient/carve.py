@@ -65,11 +65,15 @@ class CarvedHull:
         self.volume, self.h, self.margin = volume, float(h), float(margin)
         self.scale = distance_scale(volume, x, normals, h)
         self.held = 0          # vertex-iterations whose inward velocity was set to 0 (reported)
+        self._last: tuple[np.ndarray, np.ndarray] | None = None   # (x, b at x) of the last hold(): still() reads it
+
+    def depth(self, x: np.ndarray) -> np.ndarray:
+        """b at each point of ``x`` (:func:`ball_depth` with this hull's scale)."""
+        return ball_depth(self.volume, np.asarray(x, float), self.scale)
 
     def limits(self, x: np.ndarray) -> np.ndarray:
         """The largest inward move (world units, ≥ 0) of each vertex of ``x``."""
-        b = ball_depth(self.volume, np.asarray(x, float), self.scale)
-        return np.maximum(np.where(np.isfinite(b), b, -np.inf) + self.margin, 0.0)
+        return np.maximum(self.depth(x) + self.margin, 0.0)
 
     @classmethod
     def of(cls, field, settings, state, h: float) -> "CarvedHull | None":
@@ -82,7 +86,9 @@ class CarvedHull:
     def hold(self, x: np.ndarray, Vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(limits at ``x``, the velocity with the inward part — Vel > 0: the flow moves along −Vel·ν — of the
         vertices that may not move inwards at all set to 0, so the line search does not wait on them)."""
-        limit = self.limits(x)
+        b = self.depth(x)
+        self._last = (x, b)
+        limit = np.maximum(b + self.margin, 0.0)
         stop = (Vel > 0) & (limit <= 0)
         self.held += int(stop.sum())
         return limit, np.where(stop, 0.0, Vel)
@@ -98,8 +104,8 @@ class CarvedHull:
         held = np.flatnonzero(limit <= 0.0)
         if len(held) == 0:
             return shift
-        b0 = ball_depth(self.volume, x[held], self.scale)
-        b1 = ball_depth(self.volume, x[held] + shift[held], self.scale)
+        b0 = self._last[1][held] if self._last is not None and self._last[0] is x else self.depth(x[held])
+        b1 = self.depth(x[held] + shift[held])
         out = shift.copy()
         out[held[~(b1 >= b0)]] = 0.0
         return out

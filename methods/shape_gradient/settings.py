@@ -10,6 +10,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .field import noise_after_smoothing
+
 __all__ = ["FlowSettings", "Stage"]
 
 _AUTO_BETA = (1.0, 0.01)      # beta='auto': on clean / noisy volumes
@@ -229,7 +231,6 @@ def _noise_variance(noise: float, presmooth: float, presmooth_phi: bool) -> floa
     filtered noise, whose std is the filter's gain times σ and which interpolation barely lowers (it is
     correlated over σ_s)."""
     if presmooth_phi and presmooth > 0:
-        from .field import noise_after_smoothing
         return noise_after_smoothing(float(noise), float(presmooth)) ** 2
     return _INTERP_NOISE_GAIN * float(noise) ** 2
 

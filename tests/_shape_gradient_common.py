@@ -139,3 +139,24 @@ def SG(**params) -> ShapeGradient:
     params.setdefault("init", "sphere")
     params.setdefault("remesh_every", 0)
     return ShapeGradient(**params)
+
+
+FAR_LIMB_N, FAR_LIMB_LO = 32, -2.0
+FAR_LIMB_H = 4.0 / (FAR_LIMB_N - 1)
+
+
+def far_limb_volume():
+    """(volume, the limb tip's x): a ball of radius 0.8 with a limb of radius 0.3 voxel whose axis runs through
+    the centres of the squares of four sample rows — the nearest samples read +0.41 voxel, so φ < 0 (and φ below
+    a quarter voxel) has no limb; only the carved hull does."""
+    from phantoms import Volume
+
+    g = FAR_LIMB_LO + FAR_LIMB_H * np.arange(FAR_LIMB_N)
+    p = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)
+    r, off = 0.3 * FAR_LIMB_H, FAR_LIMB_LO + 16.5 * FAR_LIMB_H
+    a, b = np.array([0.0, off, off]), np.array([1.6, off, off])
+    t = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+    capsule = np.linalg.norm(p - (a + t[..., None] * (b - a)), axis=-1) - r
+    values = np.minimum(np.linalg.norm(p, axis=-1) - 0.8, capsule)
+    assert values[(p[..., 0] > 0.9) & (p[..., 0] < 1.5)].min() > 0.4 * FAR_LIMB_H
+    return Volume(values, [FAR_LIMB_LO] * 3, FAR_LIMB_H), 1.6 + r

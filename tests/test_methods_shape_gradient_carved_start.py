@@ -11,6 +11,8 @@ from methods.shape_gradient import ShapeGradient
 from methods.shape_gradient.carved_start import FINE_MAX_SAMPLES, between_inside, carved_values
 from phantoms import Volume
 
+from _shape_gradient_common import far_limb_volume
+
 _N, _LO = 32, -2.0
 _H = 4.0 / (_N - 1)
 
@@ -70,16 +72,7 @@ def test_a_grid_too_large_is_not_refined():
 
 @pytest.fixture(scope="module")
 def far_limb():
-    """A ball of radius 0.8 with a limb of radius 0.3 voxel whose axis runs through the centres of the squares
-    of four sample rows: the nearest samples read +0.41 voxel, above the quarter voxel ``start_level`` reads."""
-    p = _grid()
-    r, off = 0.3 * _H, _LO + 16.5 * _H
-    a, b = np.array([0.0, off, off]), np.array([1.6, off, off])
-    t = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
-    capsule = np.linalg.norm(p - (a + t[..., None] * (b - a)), axis=-1) - r
-    values = np.minimum(np.linalg.norm(p, axis=-1) - 0.8, capsule)
-    assert values[(p[..., 0] > 0.9) & (p[..., 0] < 1.5)].min() > 0.4 * _H
-    return Volume(values, [_LO] * 3, _H), 1.6 + r
+    return far_limb_volume()
 
 
 def test_a_limb_every_sample_misses_is_in_the_carved_start(far_limb):

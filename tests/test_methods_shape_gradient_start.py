@@ -67,7 +67,7 @@ def test_a_very_noisy_volume_starts_from_the_smoothed_samples():
     ph = get_phantom("sphere")
     vol, _ = add_noise(ph.volume(n=40), "gaussian", 20.0, seed=1)     # noise ≈ 1.3 voxels
     plain = genus0_surface(vol, vol.values)
-    r = ShapeGradient(max_iter=20).reconstruct(vol)
+    r = ShapeGradient(max_iter=20, start_choice="off").reconstruct(vol)
     assert r.info["presmooth_used"] > 0 and r.info["start_smooth_used"] > 0
     v0, f0 = r.info["snapshots"][0]
     # the smoothed start has fewer vertices and is smoother than the start from the raw noisy samples
@@ -138,7 +138,7 @@ def test_two_balls_joined_by_a_neck_thinner_than_a_voxel_give_one_surface_with_t
     the join (join_below = 0) the start keeps one ball and the other is lost."""
     vol, sdf, h, (c, rn) = _lobes(40, None, 0.6)
     assert _pieces(vol.values) == 2
-    r = ShapeGradient().reconstruct(vol)
+    r = ShapeGradient(start_choice="off").reconstruct(vol)          # the usual start: the join
     m = r.mesh
     assert r.info["warnings"] == [] and r.info["init"]["kind"] == "genus0"
     assert r.info["init"]["pieces"] == 2 and r.info["init"]["joined_pieces"] == 1
@@ -146,7 +146,7 @@ def test_two_balls_joined_by_a_neck_thinner_than_a_voxel_give_one_surface_with_t
     assert is_sphere_like(m.faces, len(m.vertices)) and len(self_intersection_pairs(m.vertices, m.faces)) == 0
     assert np.any(np.abs(m.vertices[:, 0]) < h)                                    # the neck is there
     assert _hausdorff_h(m, sdf, h, c, rn) <= 1.0
-    lone = ShapeGradient(join_below=0.0).reconstruct(vol)
+    lone = ShapeGradient(join_below=0.0, start_choice="off").reconstruct(vol)
     assert lone.info["init"]["joined_pieces"] == 0 and _hausdorff_h(lone.mesh, sdf, h, c, rn) > 5.0
 
 

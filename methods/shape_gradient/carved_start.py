@@ -26,7 +26,7 @@ from phantoms import Volume
 from .carve import ball_depth
 from .tips import near_samples
 
-__all__ = ["carved_values", "carved_surface", "between_inside", "FINE_MAX_SAMPLES"]
+__all__ = ["carved_values", "carved_surface", "between_inside", "fine_shape", "FINE_MAX_SAMPLES"]
 
 _FACTOR = 2                 # the fine grid: samples per voxel edge
 _BAND_VOXELS = 1.5          # b is read where 0 ≤ φ₀ < this many voxels
@@ -34,6 +34,11 @@ _NOISE_STDS = 2.0           # on a noisy volume each ball is smaller by this man
 _BLOCK = 16384              # points per block of the gap test: (block, 64) arrays
 #: the largest fine grid read (a 128³ volume refines to 255³ = 16.6 M samples); above it the start is the usual one
 FINE_MAX_SAMPLES = 2 ** 24
+
+
+def fine_shape(shape) -> tuple[int, ...]:
+    """The refined grid's shape: (n − 1)·2 + 1 samples per axis (every coarse sample and one between each pair)."""
+    return tuple((int(n) - 1) * _FACTOR + 1 for n in shape)
 
 
 def carved_values(volume: Volume, start_values: np.ndarray, scale: float, shrink: float = 0.0) -> Volume | None:
@@ -52,7 +57,7 @@ def carved_values(volume: Volume, start_values: np.ndarray, scale: float, shrink
         Every ball's radius is less by this much (world units): on a noisy volume a sample's ball is empty only
         with a margin for its noise.
     """
-    shape = tuple((n - 1) * _FACTOR + 1 for n in volume.shape)
+    shape = fine_shape(volume.shape)
     if float(np.prod([float(n) for n in shape])) > FINE_MAX_SAMPLES:
         return None
     # order-1 zoom to (n − 1)·r + 1 samples puts fine sample i at coarse position i / r exactly: trilinear φ₀

@@ -11,9 +11,10 @@ from geometry.operators import MeshOperators
 from geometry.sphere import PAPER_SPHERE_RADIUS, PAPER_SPHERE_VERTICES
 from phantoms import InputError, Volume
 
-from ..base import Method, Param, Reconstruction, check_volume
+from ..base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
 from .field import estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
 from .carved_start import carved_surface
+from .choose import agrees_everywhere, data_errors, pick, start_candidates
 from .flow import ShapeGradientFlow
 from .settings import FlowSettings, edge_length_voxels
 from .start import denoised_topology, initial_surface, parse_snapshots, target_topology, topology_gap
@@ -218,6 +219,12 @@ class ShapeGradient(Method):
                               "twice as fine, that no outside sample's empty ball reaches (carved_start.py) — so a "
                               "part thinner than a voxel that every sample misses is in the start (with hold_carved "
                               "the flow keeps it)", bool),
+        "start_choice": Param("auto", "'auto': on a signed distance whose refined grid fits (N ≤ 128), the flow runs "
+                              "from three genus-0 starts — φ < 0, the carved hull (carved_start, hold_carved, "
+                              "carve_margin = 0.1) and the carved hull read at φ < ¼ voxel (start_level = 0.25) — "
+                              "and keeps the result whose signed distance agrees best with the samples (rms of "
+                              "d_Γ − φ over |φ| < 1.5 voxels; choose.py; info['start_choice']); 'off', or any of "
+                              "those four parameters set: one flow as configured", str, choices=("auto", "off")),
         "carve_margin": Param(0.25, "hold_carved: how far, in voxels, the surface may retreat past the union of the "
                               "empty balls", float, min=0.0, max=10.0),
         "tip_curvature": Param(0.3, "tip extension: the least mean curvature, per voxel, of a vertex that may move",
@@ -255,6 +262,7 @@ class ShapeGradient(Method):
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
+        self.explicit = set(params)
         preset = PRESETS[self.config["preset"]]
         for key, value in preset.items():
             if key not in params:
@@ -282,14 +290,17 @@ class ShapeGradient(Method):
         remeshed ½-voxel surface (≈ 35k vertices at N = 96) ten times that."""
         return 2.0 if self.config["remesh_every"] == 0 and self.config["init"] == "sphere" else 12.0
 
-    def prepare(self, volume: Volume, *, ops: MeshOperators | None = None) -> "ShapeGradientFlow":
+    def prepare(self, volume: Volume, *, ops: MeshOperators | None = None,
+                overrides: dict | None = None) -> "ShapeGradientFlow":
         """Check the input, build the initial surface, the (pre-smoothed) field and the operators, and
         return the flow before its first iteration (``reconstruct`` = ``prepare(volume).run()`` + packing).
 
-        ``ops`` reuses a :class:`MeshOperators` built for the same initial connectivity (benchmarks).
+        ``ops`` reuses a :class:`MeshOperators` built for the same initial connectivity (benchmarks);
+        ``overrides`` replaces parameters for this flow only (a start of the start choice).
         """
         check_volume(volume, self.name)
-        cfg = {**self.config, "edge_length": edge_length_voxels(self.config["edge_length"], volume.kind)}
+        config = {**self.config, **(overrides or {})}
+        cfg = {**config, "edge_length": edge_length_voxels(config["edge_length"], volume.kind)}
         t_start = time.perf_counter()
         topology = target_topology(volume)
         if not topology["compatible"] and cfg["strict_topology"]:
@@ -337,8 +348,41 @@ class ShapeGradient(Method):
                                  init_flipped=flipped, noise=noise, topology=topology, init_facts=init_facts)
 
     def reconstruct(self, volume: Volume) -> Reconstruction:
-        flow = self.prepare(volume)
-        flow.run()
-        return flow.result()
+        candidates = start_candidates(self.config, self.explicit, volume)
+        if not candidates:
+            flow = self.prepare(volume)
+            flow.run()
+            return flow.result()
+        return self._choose(volume, candidates)
+
+    def _choose(self, volume: Volume, candidates) -> Reconstruction:
+        """Flow from every start of ``candidates`` and keep the result :func:`.choose.pick` picks by the data
+        residual (choose.py); the first (the usual start) must succeed — its error is the method's — a later one
+        that fails is left out; where the first's result agrees with every sample, the others are not tried."""
+        results, residuals, facts = {}, {}, {}
+        for k, (name, overrides) in enumerate(candidates):
+            t0 = time.perf_counter()
+            try:
+                flow = self.prepare(volume, overrides=overrides)
+                flow.run()
+                rec = flow.result()
+            except (InputError, ReconstructionFailed) as exc:
+                if k == 0:
+                    raise
+                facts[name] = {"error": str(exc), "seconds": round(time.perf_counter() - t0, 3)}
+                continue
+            errors = data_errors(volume, np.asarray(rec.mesh.vertices), np.asarray(rec.mesh.faces))
+            residual = float(np.sqrt(np.mean(errors ** 2))) if len(errors) else float("nan")
+            facts[name] = {"residual_voxels": round(residual, 5), "stop_reason": rec.info["stop_reason"],
+                           "iterations": rec.info["iterations"], "seconds": round(time.perf_counter() - t0, 3)}
+            results[name], residuals[name] = rec, residual
+            if k == 0:
+                facts[name]["largest_error_voxels"] = round(float(np.abs(errors).max()), 4) if len(errors) else None
+                if agrees_everywhere(errors, float(rec.info["noise_estimate_voxels"])):
+                    break
+        name = pick(residuals)
+        rec = results[name]
+        rec.info["start_choice"] = {"chosen": name, "candidates": facts}
+        return rec
 
 

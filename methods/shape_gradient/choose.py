@@ -1,0 +1,112 @@
+"""The start choice (``start_choice='auto'``): flow from several genus-0 starts and keep the result that agrees
+best with the samples.
+
+Why: no one start suits every shape.  The usual start (φ < 0 grown genus-0) loses a part thinner than a voxel
+that every sample misses — a blade, a limb — and the flow cannot grow it back; the carved start
+(carved_start.py, with ``hold_carved``) keeps such parts but can fill a gap narrower than a voxel (a sulcus
+between its banks), and read at φ < ¼ voxel it keeps the thinnest blades and fills more gaps.  Which one is right
+is a fact about the data, and the data can say: every sample near the surface carries its signed distance, so a
+candidate surface Γ is scored by the root mean square of d_Γ(q) − φ(q) over the samples q with
+|φ(q)| < :data:`BAND_VOXELS` voxels (d_Γ the signed distance to Γ, negative inside).  A lost blade leaves the
+samples around it with small φ but a large d_Γ; a filled gap puts samples of positive φ inside Γ; a surface off
+by a bias shifts every term.  The band is one fixed set of samples, the same for every candidate, so the scores
+compare; noise adds the same variance to each.  The score reads only the input — no truth.
+
+The other starts cost two more flows, so they are tried only where the usual start's result disagrees with some
+sample by more than :func:`agrees_everywhere` allows — half a voxel plus three noise stds: where it agrees with
+every sample, no part of the data is missing from it (a lost limb leaves samples voxels away from Γ).
+
+The candidates are flowed one after the other with the same parameters except the start's (:data:`CANDIDATES`);
+a candidate whose flow fails is left out (its error recorded); the usual start's failure is the method's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry.closest import point_mesh_distance
+from geometry.raster import grid_winding
+from phantoms import Volume
+
+from .carved_start import FINE_MAX_SAMPLES, fine_shape
+
+__all__ = ["data_errors", "data_residual", "agrees_everywhere", "CANDIDATES", "BAND_VOXELS", "PREFER_USUAL",
+           "AGREE_VOXELS", "AGREE_NOISE_STDS", "start_candidates", "pick"]
+
+#: the band of samples the residual reads: |φ| below this many voxels
+BAND_VOXELS = 1.5
+
+#: the usual result agrees with the data everywhere when no band sample is off by more than this many voxels ...
+AGREE_VOXELS = 0.5
+#: ... plus this many noise stds (the estimated noise of the input)
+AGREE_NOISE_STDS = 3.0
+
+#: a carved start is kept only where its residual is below the usual start's by this fraction: where they nearly
+#: tie (a sphere, an ellipsoid under noise) the usual start's mesh is the smoother one (no held vertices)
+PREFER_USUAL = 0.05
+
+#: (name, parameter overrides) of the starts tried, the usual one first
+CANDIDATES: tuple[tuple[str, dict], ...] = (
+    ("usual", {}),
+    ("carved", {"carved_start": True, "hold_carved": True, "carve_margin": 0.1}),
+    ("carved_level", {"carved_start": True, "hold_carved": True, "carve_margin": 0.1, "start_level": 0.25}),
+)
+
+#: the parameters a candidate sets: a user who sets any of them chooses the start, and one flow runs
+_START_KEYS = ("carved_start", "hold_carved", "carve_margin", "start_level")
+
+
+def start_candidates(config: dict, explicit: set, volume: Volume) -> tuple[tuple[str, dict], ...]:
+    """The candidates :func:`CANDIDATES` to flow for ``volume`` with ``config``, or () for one flow as
+    configured: the choice needs ``start_choice='auto'``, the genus-0 start of a signed distance (the carved
+    hull reads distances), the refined grid within :data:`~.carved_start.FINE_MAX_SAMPLES`, and none of the
+    start's parameters set by the user (``explicit``)."""
+    if (config["start_choice"] != "auto" or config["init"] != "genus0" or config["init_mesh"] is not None
+            or volume.kind != "sdf" or explicit & set(_START_KEYS)):
+        return ()
+    if float(np.prod([float(n) for n in fine_shape(volume.shape)])) > FINE_MAX_SAMPLES:
+        return ()
+    return CANDIDATES
+
+
+def pick(residuals: dict) -> str:
+    """The candidate kept, from ``{name: residual}`` in the order of :data:`CANDIDATES` (the usual start first):
+    the least residual among the others if it is below (1 − :data:`PREFER_USUAL`) × the first's, else the first.
+    A NaN residual never wins."""
+    names = list(residuals)
+    first = names[0]
+    others = [n for n in names[1:] if np.isfinite(residuals[n])]
+    if not others:
+        return first
+    best = min(others, key=lambda n: residuals[n])
+    if not np.isfinite(residuals[first]) or residuals[best] < (1.0 - PREFER_USUAL) * residuals[first]:
+        return best
+    return first
+
+
+def data_errors(volume: Volume, vertices: np.ndarray, faces: np.ndarray,
+                band_voxels: float = BAND_VOXELS) -> np.ndarray:
+    """d_Γ(q) − φ(q) in voxels at the samples q with |φ(q)| < ``band_voxels`` voxels, d_Γ the signed distance
+    to the closed mesh (negative inside: its winding number at q is positive)."""
+    h = volume.h
+    phi = np.asarray(volume.values, float).reshape(-1) / h
+    sel = np.flatnonzero(np.abs(phi) < band_voxels)
+    if not len(sel):
+        return np.zeros(0)
+    origin, spacing = np.asarray(volume.origin, float), np.asarray(volume.spacing, float) * np.ones(3)
+    points = origin + np.stack(np.unravel_index(sel, volume.shape), axis=1) * spacing
+    inside = grid_winding(vertices, faces, origin, spacing, volume.shape).reshape(-1)[sel] > 0
+    unsigned = point_mesh_distance(points, vertices, faces) / h
+    return np.where(inside, -unsigned, unsigned) - phi[sel]
+
+
+def data_residual(volume: Volume, vertices: np.ndarray, faces: np.ndarray,
+                  band_voxels: float = BAND_VOXELS) -> float:
+    """The root mean square of :func:`data_errors`, in voxels; NaN when no sample is in the band."""
+    e = data_errors(volume, vertices, faces, band_voxels)
+    return float(np.sqrt(np.mean(e ** 2))) if len(e) else float("nan")
+
+
+def agrees_everywhere(errors: np.ndarray, noise_voxels: float) -> bool:
+    """Whether no sample is off by more than :data:`AGREE_VOXELS` + :data:`AGREE_NOISE_STDS` noise stds."""
+    return bool(len(errors)) and float(np.abs(errors).max()) <= AGREE_VOXELS + AGREE_NOISE_STDS * noise_voxels

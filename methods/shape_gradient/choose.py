@@ -87,7 +87,7 @@ def pick(residuals: dict) -> str:
 def data_errors(volume: Volume, vertices: np.ndarray, faces: np.ndarray,
                 band_voxels: float = BAND_VOXELS) -> np.ndarray:
     """d_Γ(q) − φ(q) in voxels at the samples q with |φ(q)| < ``band_voxels`` voxels, d_Γ the signed distance
-    to the closed mesh (negative inside: its winding number at q is positive)."""
+    to the closed mesh (negative inside: its winding number at q is not 0, as the fidelity metrics read it)."""
     h = volume.h
     phi = np.asarray(volume.values, float).reshape(-1) / h
     sel = np.flatnonzero(np.abs(phi) < band_voxels)
@@ -95,7 +95,7 @@ def data_errors(volume: Volume, vertices: np.ndarray, faces: np.ndarray,
         return np.zeros(0)
     origin, spacing = np.asarray(volume.origin, float), np.asarray(volume.spacing, float) * np.ones(3)
     points = origin + np.stack(np.unravel_index(sel, volume.shape), axis=1) * spacing
-    inside = grid_winding(vertices, faces, origin, spacing, volume.shape).reshape(-1)[sel] > 0
+    inside = grid_winding(vertices, faces, origin, spacing, volume.shape).reshape(-1)[sel] != 0
     unsigned = point_mesh_distance(points, vertices, faces) / h
     return np.where(inside, -unsigned, unsigned) - phi[sel]
 

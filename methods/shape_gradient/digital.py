@@ -334,28 +334,41 @@ def _cell_corners(cells: np.ndarray) -> np.ndarray:
 def _join_faces(phi: np.ndarray, rounds: int = 4, margin: float = 1.5) -> np.ndarray:
     """Scale down the outside values of faces with diagonal signs until each face's asymptotic decider joins
     its two inside corners (a·c > margin·b·d), the gentlest change that gives marching cubes 26-connectivity
-    on faces."""
+    on faces.
+
+    Only outside values are scaled, by factors in (0, 1): no sample changes sign, so the faces with diagonal
+    signs are found once (boolean masks) and each round reads and scales values at those faces only."""
     phi = phi.copy()
+    neg = phi < 0
+    faces = []                                   # (the four corner views, the candidate faces' indices)
+    for ax in range(3):
+        o0, o1 = [a for a in range(3) if a != ax]
+
+        def corner(arr, d0, d1):
+            sl = [slice(None)] * 3
+            sl[o0] = slice(d0, arr.shape[o0] - 1 + d0)
+            sl[o1] = slice(d1, arr.shape[o1] - 1 + d1)
+            return arr[tuple(sl)]
+        views = [corner(phi, 0, 0), corner(phi, 1, 0), corner(phi, 1, 1), corner(phi, 0, 1)]
+        signs = [corner(neg, 0, 0), corner(neg, 1, 0), corner(neg, 1, 1), corner(neg, 0, 1)]
+        for order in ((0, 1, 2, 3), (1, 2, 3, 0)):
+            p, q, r, s = (signs[i] for i in order)
+            idx = np.nonzero(p & r & ~q & ~s)
+            faces.append(([views[i] for i in order], idx))
     for _ in range(rounds):
         changed = False
-        for ax in range(3):
-            o0, o1 = [a for a in range(3) if a != ax]
-
-            def corner(d0, d1):
-                sl = [slice(None)] * 3
-                sl[o0] = slice(d0, phi.shape[o0] - 1 + d0)
-                sl[o1] = slice(d1, phi.shape[o1] - 1 + d1)
-                return phi[tuple(sl)]
-            a, b, c, d = corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)
-            for p, q, r, s in ((a, b, c, d), (b, c, d, a)):
-                bad = (p < 0) & (r < 0) & (q >= 0) & (s >= 0) & (p * r <= margin * q * s)
-                if bad.any():
-                    with np.errstate(divide="ignore", invalid="ignore"):
-                        f = np.sqrt(np.where(bad, p * r / (margin * q * s), 1.0))
-                    f = np.where(bad, np.minimum(f, 1.0) * 0.999, 1.0)
-                    q *= f          # views into phi
-                    s *= f
-                    changed = True
+        for (p, q, r, s), idx in faces:
+            if not len(idx[0]):
+                continue
+            pv, qv, rv, sv = p[idx], q[idx], r[idx], s[idx]
+            bad = pv * rv <= margin * qv * sv
+            if bad.any():
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    f = np.minimum(np.sqrt(pv[bad] * rv[bad] / (margin * qv[bad] * sv[bad])), 1.0) * 0.999
+                sel = tuple(i[bad] for i in idx)
+                q[sel] = qv[bad] * f        # views into phi (each face's corner is its own sample)
+                s[sel] = s[sel] * f
+                changed = True
         if not changed:
             break
     return phi

@@ -15,6 +15,8 @@ the tests compare both (``tests/test_geometry_kernels.py``):
   area sums) in one pass each, without the (3, 3, F) corner array;
 * :func:`ring_mean3` — :meth:`geometry.operators.MeshOperators.ring_mean_t` (3 rows) without its
   (W, V) temporaries;
+* :func:`ball_depth` — the shape gradient's carved hull depth (``methods.shape_gradient.carve.ball_depth_numpy``)
+  point by point, without its (P, 64, 3) gather of the 4×4×4 samples around each point;
 
 Why: at 100k vertices one flow iteration is ~80 CG iterations whose numpy form is bound by passes over
 memory, and a paraboloid fit whose numpy form streams dozens of (W, V) temporaries; numpy alone stays
@@ -44,7 +46,7 @@ except ImportError:  # pragma: no cover - numba is a dependency; the numpy refer
 MIN_SIZE = 1000
 
 __all__ = ["AVAILABLE", "MIN_SIZE", "wanted", "cg_csr", "ring_curvature", "trilinear", "trilinear_point",
-           "face_geometry", "vertex_sums", "face_edges", "ring_mean3"]
+           "face_geometry", "vertex_sums", "face_edges", "ring_mean3", "ball_depth"]
 
 
 def wanted(n: int) -> bool:
@@ -427,3 +429,37 @@ def face_edges(x: np.ndarray, faces: np.ndarray) -> np.ndarray:
     E = np.empty((3, 3, len(faces)))
     _face_edges(np.ascontiguousarray(x, dtype=np.float64), faces, E)
     return E
+
+
+# ---------------------------------------------------------------------------------------------- ball depth
+@_jit
+def _ball_depth(values, origin, spacing, points, scale, out):
+    n0, n1, n2 = values.shape
+    for p in range(points.shape[0]):
+        x, y, z = points[p, 0], points[p, 1], points[p, 2]
+        i0 = int(math.floor((x - origin[0]) / spacing[0]))
+        j0 = int(math.floor((y - origin[1]) / spacing[1]))
+        k0 = int(math.floor((z - origin[2]) / spacing[2]))
+        best = -np.inf
+        for i in range(max(i0 - 1, 0), min(i0 + 3, n0)):
+            dx = x - (origin[0] + i * spacing[0])
+            for j in range(max(j0 - 1, 0), min(j0 + 3, n1)):
+                dy = y - (origin[1] + j * spacing[1])
+                for k in range(max(k0 - 1, 0), min(k0 + 3, n2)):
+                    v = values[i, j, k]
+                    if v > 0:
+                        dz = z - (origin[2] + k * spacing[2])
+                        d = v / scale - math.sqrt(dx * dx + dy * dy + dz * dz)
+                        if d > best:
+                            best = d
+        out[p] = best
+
+
+def ball_depth(values: np.ndarray, origin: np.ndarray, spacing: np.ndarray, points: np.ndarray,
+               scale: float) -> np.ndarray:
+    """max over the positive samples q among the 4×4×4 around each point x (those on the grid) of
+    values(q)/scale − |x − q|, −inf where none; ``values`` on the grid ``origin + index·spacing``."""
+    out = np.empty(len(points))
+    _ball_depth(np.ascontiguousarray(values), np.asarray(origin, float) * np.ones(3),
+                np.asarray(spacing, float) * np.ones(3), np.ascontiguousarray(points, dtype=float), float(scale), out)
+    return out

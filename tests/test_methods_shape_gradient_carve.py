@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from methods.shape_gradient import ShapeGradient
-from methods.shape_gradient.carve import CarvedHull, ball_depth
+from methods.shape_gradient.carve import CarvedHull, ball_depth, ball_depth_numpy
 from phantoms import Volume
 
 _N, _LO = 32, -2.0
@@ -132,3 +132,20 @@ def test_a_held_vertex_keeps_a_relaxation_that_does_not_leave_the_balls():
     assert np.array_equal(out[1], np.zeros(3))                # deeper into the uncovered region: dropped
     assert np.array_equal(out[2], shift[2])                   # not held: kept
     assert hull.still(x, None, np.zeros(3)) is None
+
+
+def test_the_compiled_ball_depth_equals_the_numpy_gather():
+    """Points near a sphere's surface, points off the grid and a few thousand of them (the kernel runs from
+    kernels.MIN_SIZE on): the same depths bit for bit, −inf where no outside sample is near."""
+    from geometry import kernels
+
+    g = _LO + _H * np.arange(_N)
+    p = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)
+    vol = Volume(np.linalg.norm(p, axis=-1) - 0.8, [_LO] * 3, _H)
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-2.3, 2.3, size=(4000, 3))
+    pts[:50] *= 0.1                                                      # deep inside: no outside sample near
+    assert len(pts) >= kernels.MIN_SIZE
+    fast, ref = ball_depth(vol, pts, 0.97), ball_depth_numpy(vol, pts, 0.97)
+    assert np.array_equal(fast, ref)
+    assert np.isneginf(ref[:50]).all() and np.isfinite(ref).sum() > 3000

@@ -26,16 +26,26 @@ from __future__ import annotations
 
 import numpy as np
 
+from geometry import kernels
+
 from .tips import distance_scale, near_samples, tip_vertices
 
-__all__ = ["CarvedHull", "ball_depth", "remesh_keep"]
+__all__ = ["CarvedHull", "ball_depth", "ball_depth_numpy", "remesh_keep"]
 
 _BLOCK = 16384            # vertices per block: (block, 64) arrays of the nearby samples
 
 
 def ball_depth(volume, points: np.ndarray, scale: float) -> np.ndarray:
     """b at ``points`` (P, 3): the largest d(q) − |x − q| over the outside samples q among the 4×4×4 around x
-    (−inf where none is outside); d(q) = φ(q)/scale."""
+    (−inf where none is outside); d(q) = φ(q)/scale.  Compiled (:func:`geometry.kernels.ball_depth`) from
+    :data:`geometry.kernels.MIN_SIZE` points on; :func:`ball_depth_numpy` is the reference."""
+    if kernels.wanted(len(points)):
+        return kernels.ball_depth(volume.values, volume.origin, volume.spacing, points, scale)
+    return ball_depth_numpy(volume, points, scale)
+
+
+def ball_depth_numpy(volume, points: np.ndarray, scale: float) -> np.ndarray:
+    """:func:`ball_depth` by a (block, 64) gather of the nearby samples (the compiled kernel's reference)."""
     out = np.full(len(points), -np.inf)
     for s in range(0, len(points), _BLOCK):
         p = points[s:s + _BLOCK]

@@ -114,3 +114,41 @@ def test_the_choice_tries_no_other_start_where_the_usual_result_agrees_with_ever
     choice = rec.info["start_choice"]
     assert choice["chosen"] == "usual" and list(choice["candidates"]) == ["usual"]
     assert choice["candidates"]["usual"]["largest_error_voxels"] <= AGREE_VOXELS
+
+
+def test_pick_without_a_usual_result_takes_the_least_residual():
+    assert pick({"carved": 0.3, "carved_level": 0.2}) == "carved_level"
+    assert pick({"carved": 0.3, "carved_level": np.nan}) == "carved"
+
+
+def test_a_failed_usual_flow_leaves_the_choice_to_the_carved_starts(monkeypatch):
+    """The usual start's flow fails (here: made to); the carved ones still run and one is kept, the failure
+    recorded; when every start fails the usual one's error is the method's; an input error ends it at once."""
+    from methods import ReconstructionFailed
+    from phantoms import InputError
+
+    vol, tip = far_limb_volume()
+    method = ShapeGradient()
+    real = ShapeGradient.prepare
+
+    def usual_fails(self, volume, *, ops=None, overrides=None):
+        if not overrides:
+            raise ReconstructionFailed("the usual flow collapsed (test)")
+        return real(self, volume, ops=ops, overrides=overrides)
+    monkeypatch.setattr(ShapeGradient, "prepare", usual_fails)
+    rec = method.reconstruct(vol)
+    choice = rec.info["start_choice"]
+    assert choice["candidates"]["usual"]["error"].startswith("the usual flow collapsed")
+    assert choice["chosen"] != "usual" and abs(tip - rec.mesh.vertices[:, 0].max()) / vol.h < 1.0
+
+    def all_fail(self, volume, *, ops=None, overrides=None):
+        raise ReconstructionFailed("collapsed: " + ("usual" if not overrides else "carved"))
+    monkeypatch.setattr(ShapeGradient, "prepare", all_fail)
+    with pytest.raises(ReconstructionFailed, match="collapsed: usual"):
+        method.reconstruct(vol)
+
+    def bad_input(self, volume, *, ops=None, overrides=None):
+        raise InputError("far from one genus-0 surface (test)")
+    monkeypatch.setattr(ShapeGradient, "prepare", bad_input)
+    with pytest.raises(InputError, match="far from"):
+        method.reconstruct(vol)

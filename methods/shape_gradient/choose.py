@@ -17,7 +17,9 @@ sample by more than :func:`agrees_everywhere` allows — half a voxel plus three
 every sample, no part of the data is missing from it (a lost limb leaves samples voxels away from Γ).
 
 The candidates are flowed one after the other with the same parameters except the start's (:data:`CANDIDATES`);
-a candidate whose flow fails is left out (its error recorded); the usual start's failure is the method's.
+a candidate whose flow fails is left out (its error recorded); when the usual start's flow fails (a collapse, a
+result off the surface), the carved ones are still tried, and its error is the method's only if they fail too.
+An error about the input itself (``InputError``) ends the method at once.
 """
 
 from __future__ import annotations
@@ -70,18 +72,19 @@ def start_candidates(config: dict, explicit: set, volume: Volume) -> tuple[tuple
 
 
 def pick(residuals: dict) -> str:
-    """The candidate kept, from ``{name: residual}`` in the order of :data:`CANDIDATES` (the usual start first):
-    the least residual among the others if it is below (1 − :data:`PREFER_USUAL`) × the first's, else the first.
-    A NaN residual never wins."""
+    """The candidate kept, from ``{name: residual}`` in the order of :data:`CANDIDATES` (the usual start first,
+    when its flow succeeded): the least residual among the others if it is below (1 − :data:`PREFER_USUAL`) × the
+    usual one's, else the usual one; without a usual result (its flow failed), the least residual.  A NaN residual
+    never wins."""
     names = list(residuals)
-    first = names[0]
-    others = [n for n in names[1:] if np.isfinite(residuals[n])]
-    if not others:
-        return first
+    usual = CANDIDATES[0][0]
+    others = [n for n in names if n != usual and np.isfinite(residuals[n])]
+    if usual not in residuals or not others:
+        return usual if usual in residuals or not others else min(others, key=lambda n: residuals[n])
     best = min(others, key=lambda n: residuals[n])
-    if not np.isfinite(residuals[first]) or residuals[best] < (1.0 - PREFER_USUAL) * residuals[first]:
+    if not np.isfinite(residuals[usual]) or residuals[best] < (1.0 - PREFER_USUAL) * residuals[usual]:
         return best
-    return first
+    return usual
 
 
 def data_errors(volume: Volume, vertices: np.ndarray, faces: np.ndarray,

@@ -357,9 +357,10 @@ class ShapeGradient(Method):
 
     def _choose(self, volume: Volume, candidates) -> Reconstruction:
         """Flow from every start of ``candidates`` and keep the result :func:`.choose.pick` picks by the data
-        residual (choose.py); the first (the usual start) must succeed — its error is the method's — a later one
-        that fails is left out; where the first's result agrees with every sample, the others are not tried."""
-        results, residuals, facts = {}, {}, {}
+        residual (choose.py); where the first's (the usual start's) result agrees with every sample, the others are
+        not tried.  A candidate whose flow fails is left out — the usual one's failure is the method's only when
+        every candidate fails; an error about the input (InputError) from the usual start is raised at once."""
+        results, residuals, facts, first_error = {}, {}, {}, None
         for k, (name, overrides) in enumerate(candidates):
             t0 = time.perf_counter()
             try:
@@ -367,8 +368,9 @@ class ShapeGradient(Method):
                 flow.run()
                 rec = flow.result()
             except (InputError, ReconstructionFailed) as exc:
-                if k == 0:
+                if k == 0 and isinstance(exc, InputError):
                     raise
+                first_error = exc if k == 0 else first_error
                 facts[name] = {"error": str(exc), "seconds": round(time.perf_counter() - t0, 3)}
                 continue
             errors = data_errors(volume, np.asarray(rec.mesh.vertices), np.asarray(rec.mesh.faces))
@@ -380,6 +382,9 @@ class ShapeGradient(Method):
                 facts[name]["largest_error_voxels"] = round(float(np.abs(errors).max()), 4) if len(errors) else None
                 if agrees_everywhere(errors, float(rec.info["noise_estimate_voxels"])):
                     break
+        if not results:
+            raise first_error if first_error is not None else ReconstructionFailed(
+                "method 'shape_gradient': no start gave a surface")
         name = pick(residuals)
         rec = results[name]
         rec.info["start_choice"] = {"chosen": name, "candidates": facts}

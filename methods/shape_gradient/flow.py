@@ -95,6 +95,7 @@ class ShapeGradientFlow:
         self._hold_stop = False                         # no stop test until a remesh (see _remesh_and_guard)
         self.n_backtracks = 0
         self.n_rejected_folds = 0
+        self.n_l2_fallbacks = 0
         self.curvature_fallbacks = 0
         self._V_prev = None
         self._factor = None                      # the H¹ solve's LU factor or multigrid preconditioner
@@ -185,6 +186,13 @@ class ShapeGradientFlow:
             move = tau * vmax
         else:
             new, move = self._line_search(geo, direction, shift, vmax, slope, limit)
+            if new is None and self.settings.l2_fallback and Vel is not G:
+                Vel2 = G if limit is None else self.carve.hold(state.x, G)[1]
+                vmax2, slope2 = float(np.abs(Vel2).max()), dot(b, Vel2)
+                if vmax2 > 0 and slope2 > 0:
+                    self.n_l2_fallbacks += 1
+                    new, move = self._line_search(geo, -Vel2[:, None] * geo.vertex_normals, None, vmax2, slope2,
+                                                  limit)
             if new is None:
                 return self._settle("line_search_floor",
                                     f"iteration {it}: no decrease of E for moves down to "
@@ -468,6 +476,7 @@ class ShapeGradientFlow:
             "timings": dict(self.timings),
             "n_backtracks": int(self.n_backtracks),
             "n_rejected_folds": int(self.n_rejected_folds),
+            "n_l2_fallbacks": int(self.n_l2_fallbacks),
             "curvature_fallbacks": int(self.curvature_fallbacks),
             "cg_iterations": list(self.cg_iterations),
             "move_history_voxels": [float(m / h) for m in self.moves],

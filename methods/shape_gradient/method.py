@@ -219,6 +219,8 @@ class ShapeGradient(Method):
                               "twice as fine, that no outside sample's empty ball reaches (carved_start.py) — so a "
                               "part thinner than a voxel that every sample misses is in the start (with hold_carved "
                               "the flow keeps it)", bool),
+        "l2_fallback": Param(False, "where the line search along the H¹ direction finds no decrease of E, search "
+                             "along the plain (L²) shape gradient before stopping on the line-search floor", bool),
         "start_choice": Param("auto", "'auto': on a signed distance whose refined grid fits (N ≤ 128), the flow runs "
                               "from three genus-0 starts — φ < 0, the carved hull (carved_start, hold_carved, "
                               "carve_margin = 0.1) and the carved hull read at φ < ¼ voxel (start_level = 0.25) — "

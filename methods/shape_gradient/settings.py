@@ -114,6 +114,9 @@ class FlowSettings:
     hold_carved, carve_margin : bool, float
         The flow's inward moves stay within ``carve_margin`` voxels of the union of the outside samples' empty
         balls (carve.py).
+    l2_fallback : bool
+        Where the H¹ direction's line search finds no decrease, search along the plain (L²) gradient before
+        stopping on the line-search floor.
     parameters : Mapping
         The parameters as the run reports them (``info['parameters']``): every parameter with ``'auto'``
         decided, plus the values derived from them.
@@ -153,6 +156,7 @@ class FlowSettings:
     keep_tips: bool = False
     hold_carved: bool = False
     carve_margin: float = 0.25
+    l2_fallback: bool = False
 
     @classmethod
     def resolve(cls, config: Mapping[str, Any], *, h: float, clean: bool, noise: float, presmooth: float,
@@ -218,7 +222,8 @@ class FlowSettings:
             stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),
             snapshots=tuple(c["snapshots"]), presmooth=c["presmooth_used"], start_smooth=c["start_smooth_used"],
             parameters=_reported(c), keep_tips=bool(c.get("keep_tips", False)),
-            hold_carved=bool(c["hold_carved"]), carve_margin=float(c["carve_margin"]))
+            hold_carved=bool(c["hold_carved"]), carve_margin=float(c["carve_margin"]),
+            l2_fallback=bool(c.get("l2_fallback", False)))
 
     def reported_parameters(self) -> dict[str, Any]:
         """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""

@@ -33,12 +33,13 @@ PRESETS: dict[str, dict[str, Any]] = {
               "curvature": "paper", "polish": "off", "init": "sphere", "remesh_every": 0, "guard": False,
               "extend_tips": False,
               "coarse_to_fine": False, "beta": 1.0,
-              "projection": "off", "max_iter": 100, "tol": 0.0, "move_tol": 0.0},
+              "projection": "off", "max_iter": 100, "tol": 0.0, "move_tol": 0.0, "l2_fallback": False},
     # the paper's experiment (the same Γ0, β, iteration count and fixed connectivity) run by the suite's
     # corrected flow: the full gradient, H¹ preconditioning, capped backtracking, relaxation, the guard and,
-    # on clean volumes, the crease polish and final projection.
+    # on clean volumes, the crease polish and final projection — as they were when its rows were measured: no
+    # plain-gradient step past the line-search floor, which came later (its rows stay comparable)
     "paper+fixes": {"init": "sphere", "remesh_every": 0, "coarse_to_fine": False, "beta": 1.0,
-                    "max_iter": 100, "tol": 0.0, "move_tol": 0.0},
+                    "max_iter": 100, "tol": 0.0, "move_tol": 0.0, "l2_fallback": False},
 }
 
 _AUTO_PRESMOOTH_SIGMA = 1.0   # presmooth='auto': σ (voxels) used on noisy volumes ...
@@ -219,8 +220,9 @@ class ShapeGradient(Method):
                               "twice as fine, that no outside sample's empty ball reaches (carved_start.py) — so a "
                               "part thinner than a voxel that every sample misses is in the start (with hold_carved "
                               "the flow keeps it)", bool),
-        "l2_fallback": Param(False, "where the line search along the H¹ direction finds no decrease of E, search "
-                             "along the plain (L²) shape gradient before stopping on the line-search floor", bool),
+        "l2_fallback": Param(True, "where the line search along the H¹ direction finds no decrease of E (under "
+                             "noise: the direction is the pre-smoothed field's), search along the plain (L²) shape "
+                             "gradient before stopping on the line-search floor (docs/NOTES.md)", bool),
         "start_choice": Param("auto", "'auto': on a signed distance whose refined grid fits (N ≤ 128), the flow runs "
                               "from three genus-0 starts — φ < 0, the carved hull (carved_start, hold_carved, "
                               "carve_margin = 0.1) and the carved hull read at φ < ¼ voxel (start_level = 0.25) — "

@@ -156,7 +156,7 @@ class FlowSettings:
     keep_tips: bool = False
     hold_carved: bool = False
     carve_margin: float = 0.25
-    l2_fallback: bool = False
+    l2_fallback: bool = True
 
     @classmethod
     def resolve(cls, config: Mapping[str, Any], *, h: float, clean: bool, noise: float, presmooth: float,
@@ -223,7 +223,7 @@ class FlowSettings:
             snapshots=tuple(c["snapshots"]), presmooth=c["presmooth_used"], start_smooth=c["start_smooth_used"],
             parameters=_reported(c), keep_tips=bool(c.get("keep_tips", False)),
             hold_carved=bool(c["hold_carved"]), carve_margin=float(c["carve_margin"]),
-            l2_fallback=bool(c.get("l2_fallback", False)))
+            l2_fallback=bool(c.get("l2_fallback", True)))
 
     def reported_parameters(self) -> dict[str, Any]:
         """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""

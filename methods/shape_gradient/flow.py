@@ -7,10 +7,9 @@ import time
 
 import numpy as np
 import trimesh
-from scipy.sparse.linalg import cg, splu
 
 from geometry.mesh import signed_volume
-from geometry.operators import MeshOperators, dot, jacobi_cg
+from geometry.operators import MeshOperators, dot
 from phantoms import InputError
 
 from ..base import Reconstruction, ReconstructionFailed
@@ -21,6 +20,7 @@ from .post import post_steps
 from .remesh import remesh
 from .settings import FlowSettings, Stage
 from .signs import SignGuard
+from .sobolev import SobolevSolver
 
 __all__ = ["ShapeGradientFlow", "STOP_REASONS"]
 
@@ -31,16 +31,10 @@ STOP_REASONS = ("converged", "fixed_iterations", "max_iter", "line_search_floor"
 _CONVERGE_PATIENCE = 3     # consecutive iterations with relative energy change < tol
 _FLOOR_MOVE_VOXELS = 1e-4  # the line search gives up when the largest trial move falls below this
 _ARMIJO = 1e-4             # sufficient-decrease constant of the backtracking line search
-_CG_RTOL = 1e-3            # relative residual of the H¹ solve (an inexact solve is still a descent direction)
-_CG_MAXITER = 100
-_DIRECT_MAX_VERTICES = 40_000  # solver='auto': the LU up to this many vertices, multigrid above ...
-_CG_MAX_S_EDGES = 2.0          # ... or CG while s is at most this many squared edge lengths
-_FACTOR_REFRESH = 5            # the direct and multigrid H¹ solvers rebuild their factor every this many iterations
 _OFF_SURFACE_VOXELS = 0.5      # a result whose median |φ| at the vertices exceeds this (voxels) has failed ...
 _OFF_SURFACE_NOISE = 1.0       # ... added in quadrature to this many noise stds (on the true surface of a noisy
 #                                volume the median |φ| is already 0.67 std)
 _FOLD_DEGREES = 60.0       # a trial step that turns any face normal by more than this is rejected
-_AMG_SMOOTH = ("jacobi", {"weighting": "local"})  # row-wise weights: no spectral-radius estimate (docs/NOTES.md)
 
 
 class ShapeGradientFlow:
@@ -97,10 +91,7 @@ class ShapeGradientFlow:
         self.n_rejected_folds = 0
         self.n_l2_fallbacks = 0
         self.curvature_fallbacks = 0
-        self._V_prev = None
-        self._factor = None                      # the H¹ solve's LU factor or multigrid preconditioner
-        self._factor_age = 0
-        self._solver_choice: str | None = None
+        self.sobolev = SobolevSolver(settings.solver)    # the H¹ solve (its factor, warm start, solver choice)
         self._move_prev = self.max_move
         self._grow = True
         self.cg_iterations: list[int] = []
@@ -273,65 +264,14 @@ class ShapeGradientFlow:
         return True
 
     def _velocity(self, geo, G: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """The normal velocity: the H¹ (Sobolev) gradient V = (M + sK)⁻¹ M G, or G itself.
-
-        ``solver='direct'``: a sparse LU of M + sK (SuperLU, COLAMD ordering), refreshed every
-        ``_FACTOR_REFRESH`` iterations and at every remesh — between refreshes the factor of a nearby geometry is
-        used, which is still a symmetric positive-definite smoothing, so V stays a descent direction.
-        ``'amg'``: CG preconditioned by a smoothed-aggregation multigrid (pyamg) of a nearby geometry, refreshed
-        likewise (the LU's fill-in grows too fast past ~50k vertices).  ``'auto'``: :meth:`_auto_solver`.
-        ``'cg'``: Jacobi-preconditioned CG on the current matrix, warm-started (the exact operator every
-        iteration; slow when s is many squared edge lengths).
-        """
-        st, ops = self.settings, self.ops
+        """The normal velocity: the H¹ (Sobolev) gradient V = (M + sK)⁻¹ M G (sobolev.py), or G itself."""
+        st = self.settings
         if st.precondition != "h1" or st.s_world <= 0:
             return G
         t0 = time.perf_counter()
-        s = st.s_world
-        solver = st.solver
-        if solver == "auto":
-            solver = self._auto_solver(geo, s)
-        if solver == "direct":
-            if self._factor is None or self._factor_age >= _FACTOR_REFRESH:
-                # M + sK is symmetric: a symmetric ordering (minimum degree on A + Aᵀ, diagonal pivots) fills
-                # 40 % less than COLAMD (cortex, 34k vertices: the factorisation a fifth faster, a solve twice as fast)
-                self._factor = splu(ops.h1_matrix(geo, s)[0].tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                                options={"SymmetricMode": True})
-                self._factor_age = 0
-            sol = self._factor.solve(b)
-            self._factor_age += 1
-        elif solver == "amg":
-            import pyamg
-
-            A = ops.h1_matrix(geo, s)[0]
-            if self._factor is None or self._factor_age >= _FACTOR_REFRESH:
-                self._factor = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", smooth=_AMG_SMOOTH
-                                                                 ).aspreconditioner(cycle="V")
-                self._factor_age = 0
-            sol, _ = cg(A, b, x0=self._V_prev, rtol=_CG_RTOL, maxiter=_CG_MAXITER, M=self._factor)
-            self._factor_age += 1
-        else:
-            A, diag = ops.h1_matrix(geo, s)
-            sol, ncg, _ = jacobi_cg(A, b, diag, x0=self._V_prev, rtol=_CG_RTOL, maxiter=_CG_MAXITER)
-            self.cg_iterations.append(ncg)
-        Vel = sol if np.isfinite(sol).all() and dot(b, sol) > 0 else G
-        self._V_prev = Vel
+        Vel = self.sobolev.velocity(self.ops, geo, G, b, st.s_world, self.cg_iterations)
         self.timings["preconditioner"] += time.perf_counter() - t0
         return Vel
-
-    def _auto_solver(self, geo, s: float) -> str:
-        """solver='auto': warm-started CG while s is at most ``_CG_MAX_S_EDGES`` squared edge lengths (the system
-        is then well conditioned: a few iterations), else the LU up to ``_DIRECT_MAX_VERTICES`` vertices, else
-        multigrid.  Decided once per mesh."""
-        if self._solver_choice is None:
-            e = self.ops.edges
-            d = geo.vertices[e[:, 0]] - geo.vertices[e[:, 1]]
-            ell2 = float(np.mean(np.einsum("ij,ij->i", d, d)))
-            if s <= _CG_MAX_S_EDGES * ell2:
-                self._solver_choice = "cg"
-            else:
-                self._solver_choice = "direct" if len(geo.vertices) <= _DIRECT_MAX_VERTICES else "amg"
-        return self._solver_choice
 
     # ------------------------------------------------------------------ remeshing and the intersection guard
     def _snapshot(self):
@@ -343,9 +283,7 @@ class ShapeGradientFlow:
         self.ops = ops
         self.state = state if state is not None else evaluate_state(self.field, ops, x, self.alpha, self.beta,
                                                                     self.timings, density=self.density)
-        self._V_prev = None          # the warm start and the factor of the H¹ solve belong to the old mesh
-        self._factor = None
-        self._solver_choice = None
+        self.sobolev.reset()         # the warm start and the factor of the H¹ solve belong to the old mesh
 
     def _remesh_point(self, it: int) -> bool:
         """Remesh and check; False when the sign guard rolled the mesh back (the flow must stop).  The sign

@@ -99,9 +99,13 @@ class CarvedHull:
         b = self.depth(x)
         self._last = (x, b)
         limit = np.maximum(b + self.margin, 0.0)
-        stop = (Vel > 0) & (limit <= 0)
-        self.held += int(stop.sum())
-        return limit, np.where(stop, 0.0, Vel)
+        self.held += int(((Vel > 0) & (limit <= 0)).sum())
+        return limit, self.stopped(Vel, limit)
+
+    @staticmethod
+    def stopped(Vel: np.ndarray, limit: np.ndarray) -> np.ndarray:
+        """``Vel`` with the inward part (Vel > 0) of the vertices whose ``limit`` is 0 set to 0."""
+        return np.where((Vel > 0) & (limit <= 0), 0.0, Vel)
 
     def still(self, x: np.ndarray, shift: np.ndarray | None, limit: np.ndarray) -> np.ndarray | None:
         """The tangential relaxation ``shift`` (V, 3) of ``x`` without the moves of the vertices that may not move

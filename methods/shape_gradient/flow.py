@@ -178,7 +178,7 @@ class ShapeGradientFlow:
         else:
             new, move = self._line_search(geo, direction, shift, vmax, slope, limit)
             if new is None and self.settings.l2_fallback and Vel is not G:
-                Vel2 = G if limit is None else self.carve.hold(state.x, G)[1]
+                Vel2 = G if limit is None else CarvedHull.stopped(G, limit)     # the same limits: same x
                 vmax2, slope2 = float(np.abs(Vel2).max()), dot(b, Vel2)
                 if vmax2 > 0 and slope2 > 0:
                     self.n_l2_fallbacks += 1

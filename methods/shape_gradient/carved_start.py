@@ -26,7 +26,7 @@ from phantoms import Volume
 from .carve import ball_depth
 from .tips import near_samples
 
-__all__ = ["carved_values", "carved_surface", "between_inside", "fine_shape", "FINE_MAX_SAMPLES"]
+__all__ = ["carved_values", "carved_surface", "between_inside", "fine_grid_fits", "FINE_MAX_SAMPLES"]
 
 _FACTOR = 2                 # the fine grid: samples per voxel edge
 _BAND_VOXELS = 1.5          # b is read where 0 ≤ φ₀ < this many voxels
@@ -39,6 +39,11 @@ FINE_MAX_SAMPLES = 2 ** 24
 def fine_shape(shape) -> tuple[int, ...]:
     """The refined grid's shape: (n − 1)·2 + 1 samples per axis (every coarse sample and one between each pair)."""
     return tuple((int(n) - 1) * _FACTOR + 1 for n in shape)
+
+
+def fine_grid_fits(shape) -> bool:
+    """Whether the refined grid of a volume of ``shape`` has at most :data:`FINE_MAX_SAMPLES` samples."""
+    return float(np.prod([float(n) for n in fine_shape(shape)])) <= FINE_MAX_SAMPLES
 
 
 def carved_values(volume: Volume, start_values: np.ndarray, scale: float, shrink: float = 0.0) -> Volume | None:
@@ -57,9 +62,9 @@ def carved_values(volume: Volume, start_values: np.ndarray, scale: float, shrink
         Every ball's radius is less by this much (world units): on a noisy volume a sample's ball is empty only
         with a margin for its noise.
     """
-    shape = fine_shape(volume.shape)
-    if float(np.prod([float(n) for n in shape])) > FINE_MAX_SAMPLES:
+    if not fine_grid_fits(volume.shape):
         return None
+    shape = fine_shape(volume.shape)
     # order-1 zoom to (n − 1)·r + 1 samples puts fine sample i at coarse position i / r exactly: trilinear φ₀
     fine = zoom(np.asarray(start_values, float), [s / n for s, n in zip(shape, volume.shape)], order=1,
                 mode="nearest", grid_mode=False)

@@ -30,9 +30,9 @@ from geometry.closest import point_mesh_distance
 from geometry.raster import grid_winding
 from phantoms import Volume
 
-from .carved_start import FINE_MAX_SAMPLES, fine_shape
+from .carved_start import fine_grid_fits
 
-__all__ = ["data_errors", "data_residual", "agrees_everywhere", "CANDIDATES", "BAND_VOXELS", "PREFER_USUAL",
+__all__ = ["data_errors", "data_residual", "rms", "agrees_everywhere", "CANDIDATES", "BAND_VOXELS", "PREFER_USUAL",
            "AGREE_VOXELS", "AGREE_NOISE_STDS", "start_candidates", "pick"]
 
 #: the band of samples the residual reads: |φ| below this many voxels
@@ -66,9 +66,7 @@ def start_candidates(config: dict, explicit: set, volume: Volume) -> tuple[tuple
     if (config["start_choice"] != "auto" or config["init"] != "genus0" or config["init_mesh"] is not None
             or volume.kind != "sdf" or explicit & set(_START_KEYS)):
         return ()
-    if float(np.prod([float(n) for n in fine_shape(volume.shape)])) > FINE_MAX_SAMPLES:
-        return ()
-    return CANDIDATES
+    return CANDIDATES if fine_grid_fits(volume.shape) else ()
 
 
 def pick(residuals: dict) -> str:
@@ -106,8 +104,12 @@ def data_errors(volume: Volume, vertices: np.ndarray, faces: np.ndarray,
 def data_residual(volume: Volume, vertices: np.ndarray, faces: np.ndarray,
                   band_voxels: float = BAND_VOXELS) -> float:
     """The root mean square of :func:`data_errors`, in voxels; NaN when no sample is in the band."""
-    e = data_errors(volume, vertices, faces, band_voxels)
-    return float(np.sqrt(np.mean(e ** 2))) if len(e) else float("nan")
+    return rms(data_errors(volume, vertices, faces, band_voxels))
+
+
+def rms(errors: np.ndarray) -> float:
+    """The root mean square of ``errors``; NaN when there are none."""
+    return float(np.sqrt(np.mean(errors ** 2))) if len(errors) else float("nan")
 
 
 def agrees_everywhere(errors: np.ndarray, noise_voxels: float) -> bool:

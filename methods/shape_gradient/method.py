@@ -14,7 +14,7 @@ from phantoms import InputError, Volume
 from ..base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
 from .field import estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
 from .carved_start import carved_surface
-from .choose import agrees_everywhere, data_errors, pick, start_candidates
+from .choose import agrees_everywhere, data_errors, pick, rms, start_candidates
 from .flow import ShapeGradientFlow
 from .settings import FlowSettings, edge_length_voxels
 from .start import denoised_topology, initial_surface, parse_snapshots, target_topology, topology_gap
@@ -378,7 +378,7 @@ class ShapeGradient(Method):
                 facts[name] = {"error": str(exc), "seconds": round(time.perf_counter() - t0, 3)}
                 continue
             errors = data_errors(volume, np.asarray(rec.mesh.vertices), np.asarray(rec.mesh.faces))
-            residual = float(np.sqrt(np.mean(errors ** 2))) if len(errors) else float("nan")
+            residual = rms(errors)
             facts[name] = {"residual_voxels": round(residual, 5), "stop_reason": rec.info["stop_reason"],
                            "iterations": rec.info["iterations"], "seconds": round(time.perf_counter() - t0, 3)}
             results[name], residuals[name] = rec, residual

@@ -32,8 +32,9 @@ from phantoms import Volume
 
 from .carved_start import fine_grid_fits
 
-__all__ = ["data_errors", "data_residual", "rms", "agrees_everywhere", "CANDIDATES", "BAND_VOXELS", "PREFER_USUAL",
-           "AGREE_VOXELS", "AGREE_NOISE_STDS", "start_candidates", "pick"]
+__all__ = ["band_samples", "mesh_distances", "data_errors", "data_residual", "rms", "agrees_everywhere",
+           "CANDIDATES", "BAND_VOXELS", "PREFER_USUAL", "AGREE_VOXELS", "agree_limit", "AGREE_NOISE_STDS",
+           "start_candidates", "pick"]
 
 #: the band of samples the residual reads: |φ| below this many voxels
 BAND_VOXELS = 1.5
@@ -85,20 +86,34 @@ def pick(residuals: dict) -> str:
     return usual
 
 
-def data_errors(volume: Volume, vertices: np.ndarray, faces: np.ndarray,
-                band_voxels: float = BAND_VOXELS) -> np.ndarray:
-    """d_Γ(q) − φ(q) in voxels at the samples q with |φ(q)| < ``band_voxels`` voxels, d_Γ the signed distance
-    to the closed mesh (negative inside: its winding number at q is not 0, as the fidelity metrics read it)."""
+def band_samples(volume: Volume, band_voxels: float = BAND_VOXELS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The samples q with |φ(q)| < ``band_voxels`` voxels: (flat indices into the grid, positions (Q, 3), φ(q) in
+    voxels) — the samples that say where the surface is (each lies |φ(q)| from it)."""
     h = volume.h
     phi = np.asarray(volume.values, float).reshape(-1) / h
     sel = np.flatnonzero(np.abs(phi) < band_voxels)
+    origin, spacing = np.asarray(volume.origin, float), np.asarray(volume.spacing, float) * np.ones(3)
+    points = origin + np.stack(np.unravel_index(sel, volume.shape), axis=1) * spacing
+    return sel, points, phi[sel]
+
+
+def mesh_distances(volume: Volume, sel: np.ndarray, points: np.ndarray, vertices: np.ndarray,
+                   faces: np.ndarray) -> np.ndarray:
+    """d_Γ at the grid samples ``sel`` (flat indices, positions ``points``) in voxels: the signed distance to the
+    closed mesh, negative inside (its winding number at the sample is not 0, as the fidelity metrics read it)."""
     if not len(sel):
         return np.zeros(0)
     origin, spacing = np.asarray(volume.origin, float), np.asarray(volume.spacing, float) * np.ones(3)
-    points = origin + np.stack(np.unravel_index(sel, volume.shape), axis=1) * spacing
     inside = grid_winding(vertices, faces, origin, spacing, volume.shape).reshape(-1)[sel] != 0
-    unsigned = point_mesh_distance(points, vertices, faces) / h
-    return np.where(inside, -unsigned, unsigned) - phi[sel]
+    unsigned = point_mesh_distance(points, vertices, faces) / volume.h
+    return np.where(inside, -unsigned, unsigned)
+
+
+def data_errors(volume: Volume, vertices: np.ndarray, faces: np.ndarray,
+                band_voxels: float = BAND_VOXELS) -> np.ndarray:
+    """d_Γ(q) − φ(q) in voxels at the :func:`band_samples` q, d_Γ as :func:`mesh_distances` reads it."""
+    sel, points, phi = band_samples(volume, band_voxels)
+    return mesh_distances(volume, sel, points, vertices, faces) - phi
 
 
 def data_residual(volume: Volume, vertices: np.ndarray, faces: np.ndarray,
@@ -114,4 +129,11 @@ def rms(errors: np.ndarray) -> float:
 
 def agrees_everywhere(errors: np.ndarray, noise_voxels: float) -> bool:
     """Whether no sample is off by more than :data:`AGREE_VOXELS` + :data:`AGREE_NOISE_STDS` noise stds."""
-    return bool(len(errors)) and float(np.abs(errors).max()) <= AGREE_VOXELS + AGREE_NOISE_STDS * noise_voxels
+    return bool(len(errors)) and float(np.abs(errors).max()) <= agree_limit(noise_voxels)
+
+
+def agree_limit(noise_voxels: float) -> float:
+    """How far (voxels) a sample may be off the mesh and still agree: :data:`AGREE_VOXELS` plus
+    :data:`AGREE_NOISE_STDS` × the noise std (voxels) — three stds leave about one sample in 400 of a right
+    mesh past it by noise alone."""
+    return AGREE_VOXELS + AGREE_NOISE_STDS * float(noise_voxels)

@@ -358,18 +358,18 @@ class ShapeGradientFlow:
 
     # ------------------------------------------------------------------ the result
     def _finish(self):
-        """(final geometry, info['polish'], info['projection'], info['tips']): the last iterate after the
-        post-steps (post.py)."""
+        """(final geometry, info['polish'], info['projection'], info['tips'], info['reach']): the last iterate
+        after the post-steps (post.py)."""
         st, h = self.settings, self.h
         guard = st.guard
         if guard and not self._checked():
             self._guard(self.iteration)
         energy = (lambda xe: evaluate_state(self.field, self.ops, xe, self.alpha, self.beta, density=self.density).E)
-        x, polish, projection, tips = post_steps(self.field, self.ops, self.state.x, h, st, guard=guard,
-                                                 energy=energy, timings=self.timings)
+        x, polish, projection, tips, reach = post_steps(self.field, self.ops, self.state.x, h, st, guard=guard,
+                                                        energy=energy, timings=self.timings, noise=self.noise)
         if polish.get("used") and polish["energy"] is None:           # nothing polished: the flow's last energy
             polish["energy"] = float(self.state.E)
-        return self.ops.geometry(x), polish, projection, tips
+        return self.ops.geometry(x), polish, projection, tips, reach
 
     def _check_result(self, geo) -> dict:
         """Volume and distance of the final mesh to φ = 0; a collapsed or off-surface result is a failure."""
@@ -399,7 +399,7 @@ class ShapeGradientFlow:
         if self._polished is None:
             self._polished = self._finish()
         t0 = time.perf_counter()
-        final_geo, polish_info, projection_info, tips_info = self._polished
+        final_geo, polish_info, projection_info, tips_info, reach_info = self._polished
         checks = self._check_result(final_geo)
         H_final, K_final = self.ops.curvature(final_geo, linear=self.linear)
         self.timings["curvature"] += time.perf_counter() - t0
@@ -432,6 +432,7 @@ class ShapeGradientFlow:
             "polish": polish_info,
             "projection": projection_info,
             "tips": tips_info,
+            "reach": reach_info,
             "carved_held": None if self.carve is None else int(self.carve.held),
             "remeshes": [list(r) for r in self.remeshes],
             "stages": [dict(r) for r in self.stage_starts],

@@ -1,4 +1,5 @@
-"""The post-steps of the final mesh: crease polish, Newton projection onto φ = 0, tip extension.
+"""The post-steps of the final mesh: crease polish, Newton projection onto φ = 0, tip extension, reach to the
+samples.
 
 Each is a geometric step on the flow's last iterate (nothing here changes where the flow went).  With the guard on,
 a step that makes faces meet keeps those faces' vertices back (the projection; the tip extension halves their moves
@@ -18,6 +19,7 @@ from geometry.operators import MeshOperators
 from .guard import count_intersections
 from .polish import crease_polish, newton_project
 from .settings import FlowSettings
+from .reach import reach_samples
 from .tips import extend_tips
 
 __all__ = ["post_steps", "keep_back"]
@@ -54,10 +56,13 @@ def keep_back(ops: MeshOperators, xq: np.ndarray, x: np.ndarray, *, local: bool 
 
 
 def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSettings, *, guard: bool,
-               energy: Callable[[np.ndarray], float], timings: dict) -> tuple[np.ndarray, dict, dict, dict]:
-    """(vertices, info['polish'], info['projection'], info['tips']) after the post-steps the settings ask for,
-    in this order: the polish (clean volumes) and the projection put vertices on φ = 0, the tip extension then
-    moves sharply convex parts out to the samples' empty balls (tips.py)."""
+               energy: Callable[[np.ndarray], float], timings: dict, noise: float = 0.0
+               ) -> tuple[np.ndarray, dict, dict, dict, dict]:
+    """(vertices, info['polish'], info['projection'], info['tips'], info['reach']) after the post-steps the
+    settings ask for, in this order: the polish (clean volumes) and the projection put vertices on φ = 0, the tip
+    extension then moves sharply convex parts out to the samples' empty balls (tips.py), and the reach moves the
+    mesh to the samples that say the surface is nearer than it (reach.py; a signed distance, ``noise`` its
+    estimated noise std in world units)."""
     polish = {"used": st.polish}
     if polish["used"]:
         t0 = time.perf_counter()
@@ -84,7 +89,17 @@ def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSetti
         tips.update(stats)
         x, tips = _kept(ops, xt, x, h, guard, tips, local=True, halve=_TIP_HALVINGS)
         timings["tips"] = timings.get("tips", 0.0) + time.perf_counter() - t0
-    return x, polish, projection, tips
+    volume = getattr(field, "volume", None)
+    reach = {"used": st.reach_samples and volume is not None and volume.kind == "sdf"}
+    if reach["used"]:
+        t0 = time.perf_counter()
+        keep = ((lambda xq, x0: keep_back(ops, xq, x0, local=True, halve=_TIP_HALVINGS)) if guard
+                else (lambda xq, x0: (xq, 0, True)))
+        x, stats = reach_samples(volume, x, ops.faces, ops.geometry(x).vertex_normals,
+                                 float(noise) / h if np.isfinite(noise) else 0.0, keep)
+        reach.update(stats)
+        timings["reach"] = timings.get("reach", 0.0) + time.perf_counter() - t0
+    return x, polish, projection, tips, reach
 
 
 def _kept(ops, xq, x, h, guard, info, *, local, halve=0):

@@ -117,6 +117,8 @@ class FlowSettings:
     l2_fallback : bool
         Where the H¹ direction's line search finds no decrease, search along the plain (L²) gradient before
         stopping on the line-search floor.
+    reach_samples : bool
+        The final mesh moves to the surface the band samples' distances say is nearer than it (reach.py).
     parameters : Mapping
         The parameters as the run reports them (``info['parameters']``): every parameter with ``'auto'``
         decided, plus the values derived from them.
@@ -157,6 +159,7 @@ class FlowSettings:
     hold_carved: bool = False
     carve_margin: float = 0.25
     l2_fallback: bool = True
+    reach_samples: bool = False
 
     @classmethod
     def resolve(cls, config: Mapping[str, Any], *, h: float, clean: bool, noise: float, presmooth: float,
@@ -223,7 +226,7 @@ class FlowSettings:
             snapshots=tuple(c["snapshots"]), presmooth=c["presmooth_used"], start_smooth=c["start_smooth_used"],
             parameters=_reported(c), keep_tips=bool(c.get("keep_tips", False)),
             hold_carved=bool(c["hold_carved"]), carve_margin=float(c["carve_margin"]),
-            l2_fallback=bool(c.get("l2_fallback", True)))
+            l2_fallback=bool(c.get("l2_fallback", True)), reach_samples=bool(c.get("reach_samples", False)))
 
     def reported_parameters(self) -> dict[str, Any]:
         """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from _shape_gradient_common import far_limb_volume
 
 from geometry.operators import MeshOperators
 from methods.shape_gradient import ShapeGradient
@@ -109,3 +110,21 @@ def test_the_method_runs_the_step_when_asked_and_the_paper_presets_leave_it_off(
     assert not ShapeGradient(max_iter=5).reconstruct(vol).info["reach"]["used"]         # off by default
     assert not ShapeGradient(preset="paper", max_iter=2, guard=False).reconstruct(vol).info["reach"]["used"]
     assert not ShapeGradient(preset="paper+fixes", max_iter=2, guard=False).reconstruct(vol).info["reach"]["used"]
+
+
+def test_the_start_choice_scores_each_flow_before_the_reach():
+    """A limb every sample misses: the usual start loses it, and the reach alone would bring its stump 3 voxels
+    out — enough to hide the loss from a score read after it.  The choice reads each flow's result before the
+    reach (``before_reach``), so the usual result still disagrees, the carved starts run and the limb is kept."""
+    vol, tip = far_limb_volume()
+    rec = ShapeGradient(reach_samples=True).reconstruct(vol)
+    choice = rec.info["start_choice"]
+    assert len(choice["candidates"]) == 3 and choice["chosen"] != "usual"
+    assert choice["candidates"]["usual"]["largest_error_voxels"] > 4.0
+    assert abs(tip - rec.mesh.vertices[:, 0].max()) / vol.h < 1.0
+    flow = ShapeGradient(reach_samples=True, start_choice="off").prepare(vol)
+    flow.run()
+    usual = flow.result()
+    assert usual.info["reach"]["moved"] > 0
+    assert not np.array_equal(flow.before_reach, usual.mesh.vertices)
+    assert (usual.mesh.vertices[:, 0].max() - flow.before_reach[:, 0].max()) / vol.h > 1.0   # the stump came out

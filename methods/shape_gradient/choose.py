@@ -16,6 +16,9 @@ The other starts cost two more flows, so they are tried only where the usual sta
 sample by more than :func:`agrees_everywhere` allows — half a voxel plus three noise stds: where it agrees with
 every sample, no part of the data is missing from it (a lost limb leaves samples voxels away from Γ).
 
+A candidate is scored on the flow's result before the reach to the samples (reach.py, when it is on): the reach
+mends single spots, which would hide from the score a start that lost more.
+
 The candidates are flowed one after the other with the same parameters except the start's (:data:`CANDIDATES`);
 a candidate whose flow fails is left out (its error recorded); when the usual start's flow fails (a collapse, a
 result off the surface), the carved ones are still tried, and its error is the method's only if they fail too.

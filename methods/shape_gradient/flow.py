@@ -16,7 +16,7 @@ from ..base import Reconstruction, ReconstructionFailed
 from .carve import CarvedHull, remesh_keep
 from .energy import evaluate_state, gradient_from_state, no_fold
 from .guard import count_intersections, repair_intersections
-from .post import post_steps
+from .post import post_steps, reach_step
 from .remesh import remesh
 from .settings import FlowSettings, Stage
 from .signs import SignGuard
@@ -97,6 +97,7 @@ class ShapeGradientFlow:
         self.cg_iterations: list[int] = []
         self.moves: list[float] = []
         self._polished = None
+        self.before_reach = None      # the final vertices before the reach to the samples (set by result())
         self.guard = settings.guard
         self.signs = None                            # the sign guard (signs.py), on clean volumes
         self.carve = CarvedHull.of(field, settings, self.state, self.h)   # hold_carved (carve.py), or None
@@ -359,16 +360,19 @@ class ShapeGradientFlow:
     # ------------------------------------------------------------------ the result
     def _finish(self):
         """(final geometry, info['polish'], info['projection'], info['tips'], info['reach']): the last iterate
-        after the post-steps (post.py)."""
+        after the post-steps (post.py); :attr:`before_reach` keeps the vertices before the reach to the samples
+        (what the start choice scores: the reach mends single spots, the start decides the rest)."""
         st, h = self.settings, self.h
         guard = st.guard
         if guard and not self._checked():
             self._guard(self.iteration)
         energy = (lambda xe: evaluate_state(self.field, self.ops, xe, self.alpha, self.beta, density=self.density).E)
-        x, polish, projection, tips, reach = post_steps(self.field, self.ops, self.state.x, h, st, guard=guard,
-                                                        energy=energy, timings=self.timings, noise=self.noise)
+        x, polish, projection, tips = post_steps(self.field, self.ops, self.state.x, h, st, guard=guard,
+                                                 energy=energy, timings=self.timings)
         if polish.get("used") and polish["energy"] is None:           # nothing polished: the flow's last energy
             polish["energy"] = float(self.state.E)
+        self.before_reach = x
+        x, reach = reach_step(self.field, self.ops, x, h, st, guard=guard, timings=self.timings, noise=self.noise)
         return self.ops.geometry(x), polish, projection, tips, reach
 
     def _check_result(self, geo) -> dict:

@@ -386,7 +386,7 @@ class ShapeGradient(Method):
                 first_error = exc if k == 0 else first_error
                 facts[name] = {"error": str(exc), "seconds": round(time.perf_counter() - t0, 3)}
                 continue
-            errors = data_errors(volume, np.asarray(rec.mesh.vertices), np.asarray(rec.mesh.faces))
+            errors = data_errors(volume, flow.before_reach, np.asarray(rec.mesh.faces))      # the flow's own result
             residual = rms(errors)
             facts[name] = {"residual_voxels": round(residual, 5), "stop_reason": rec.info["stop_reason"],
                            "iterations": rec.info["iterations"], "seconds": round(time.perf_counter() - t0, 3)}

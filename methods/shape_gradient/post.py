@@ -22,7 +22,7 @@ from .settings import FlowSettings
 from .reach import reach_samples
 from .tips import extend_tips
 
-__all__ = ["post_steps", "keep_back"]
+__all__ = ["post_steps", "reach_step", "keep_back"]
 
 _PROJECTION_STEPS = 3          # final Newton projection onto φ = 0: steps ...
 _PROJECTION_MAX_VOXELS = 0.5   # ... each capped at this many voxels
@@ -56,13 +56,11 @@ def keep_back(ops: MeshOperators, xq: np.ndarray, x: np.ndarray, *, local: bool 
 
 
 def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSettings, *, guard: bool,
-               energy: Callable[[np.ndarray], float], timings: dict, noise: float = 0.0
-               ) -> tuple[np.ndarray, dict, dict, dict, dict]:
-    """(vertices, info['polish'], info['projection'], info['tips'], info['reach']) after the post-steps the
-    settings ask for, in this order: the polish (clean volumes) and the projection put vertices on φ = 0, the tip
-    extension then moves sharply convex parts out to the samples' empty balls (tips.py), and the reach moves the
-    mesh to the samples that say the surface is nearer than it (reach.py; a signed distance, ``noise`` its
-    estimated noise std in world units)."""
+               energy: Callable[[np.ndarray], float], timings: dict) -> tuple[np.ndarray, dict, dict, dict]:
+    """(vertices, info['polish'], info['projection'], info['tips']) after the post-steps the settings ask for,
+    in this order: the polish (clean volumes) and the projection put vertices on φ = 0, the tip extension then
+    moves sharply convex parts out to the samples' empty balls (tips.py).  The reach to the samples comes after
+    them (:func:`reach_step`)."""
     polish = {"used": st.polish}
     if polish["used"]:
         t0 = time.perf_counter()
@@ -89,6 +87,13 @@ def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSetti
         tips.update(stats)
         x, tips = _kept(ops, xt, x, h, guard, tips, local=True, halve=_TIP_HALVINGS)
         timings["tips"] = timings.get("tips", 0.0) + time.perf_counter() - t0
+    return x, polish, projection, tips
+
+
+def reach_step(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSettings, *, guard: bool,
+               timings: dict, noise: float) -> tuple[np.ndarray, dict]:
+    """(vertices, info['reach']) after the reach to the samples (reach.py), where the settings ask for it and the
+    field samples a signed distance; ``noise`` is the volume's estimated noise std (world units)."""
     volume = getattr(field, "volume", None)
     reach = {"used": st.reach_samples and volume is not None and volume.kind == "sdf"}
     if reach["used"]:
@@ -99,7 +104,7 @@ def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSetti
                                  float(noise) / h if np.isfinite(noise) else 0.0, keep)
         reach.update(stats)
         timings["reach"] = timings.get("reach", 0.0) + time.perf_counter() - t0
-    return x, polish, projection, tips, reach
+    return x, reach
 
 
 def _kept(ops, xq, x, h, guard, info, *, local, halve=0):

@@ -10,14 +10,19 @@ import numpy as np
 from geometry.trilinear import trilinear_channels
 from phantoms import Sample, Volume
 
-__all__ = ["GridSampler", "FLOAT32_ABOVE_BYTES", "stack_dtype", "as_field", "estimate_noise", "smoothed_field",
-           "start_smoothing", "noise_after_smoothing"]
+__all__ = ["GridSampler", "FLOAT32_ABOVE_BYTES", "stack_dtype", "as_field", "estimate_noise", "CLEAN_NOISE_VOXELS",
+           "smoothed_field", "start_smoothing", "noise_after_smoothing"]
 
 _NOISE: "weakref.WeakKeyDictionary[Volume, float]" = weakref.WeakKeyDictionary()
 
 #: per volume, the channel grids of its pre-smoothed versions {(σ, presmooth_phi): {order: (N, C)}}, so that
 #: repeated runs on one volume filter and differentiate it once (freed with the volume)
 _SMOOTHED: "weakref.WeakKeyDictionary[Volume, dict]" = weakref.WeakKeyDictionary()
+
+
+#: a volume whose estimated noise std is below this many voxels is clean (its samples read as they are: no
+#: pre-smoothing; the polish, the projection and the sign guard on)
+CLEAN_NOISE_VOXELS = 0.05
 
 
 def estimate_noise(volume: Volume) -> float:

@@ -12,7 +12,7 @@ from geometry.sphere import PAPER_SPHERE_RADIUS, PAPER_SPHERE_VERTICES
 from phantoms import InputError, Volume
 
 from ..base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
-from .field import estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
+from .field import CLEAN_NOISE_VOXELS, estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
 from .carved_start import carved_surface
 from .choose import agrees_everywhere, data_errors, pick, rms, start_candidates
 from .flow import ShapeGradientFlow
@@ -45,8 +45,7 @@ PRESETS: dict[str, dict[str, Any]] = {
                     "reach_samples": False},
 }
 
-_AUTO_PRESMOOTH_SIGMA = 1.0   # presmooth='auto': σ (voxels) used on noisy volumes ...
-_AUTO_PRESMOOTH_NOISE = 0.05  # ... i.e. when the estimated noise is at least this many voxels
+_AUTO_PRESMOOTH_SIGMA = 1.0   # presmooth='auto': σ (voxels) used on noisy volumes (field.CLEAN_NOISE_VOXELS)
 _PINHOLE_FLOOR_VOXELS = 0.25  # close_pinholes: a pinhole's sample is below max(noise std of the start's values, this)
 
 
@@ -319,7 +318,7 @@ class ShapeGradient(Method):
         if not topology["compatible"] and cfg["strict_topology"]:
             raise InputError(f"method 'shape_gradient' (strict_topology): {topology['message']}")
         noise = estimate_noise(volume)
-        clean = noise < _AUTO_PRESMOOTH_NOISE * volume.h
+        clean = noise < CLEAN_NOISE_VOXELS * volume.h
         # a clean volume's raw reading is reliable; under noise one reading can look compatible by chance
         if (not topology["compatible"] or not clean) and cfg["init_mesh"] is None:
             _refuse_far_topology(denoised_topology(volume, noise), cfg["max_topology_gap"])

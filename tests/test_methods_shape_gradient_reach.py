@@ -128,3 +128,21 @@ def test_the_start_choice_scores_each_flow_before_the_reach():
     assert usual.info["reach"]["moved"] > 0
     assert not np.array_equal(flow.before_reach, usual.mesh.vertices)
     assert (usual.mesh.vertices[:, 0].max() - flow.before_reach[:, 0].max()) / vol.h > 1.0   # the stump came out
+
+
+def test_on_noisy_volumes_a_lone_sample_does_not_pull(ball):
+    """One sample 1.2 voxels outside made to read 0.1 voxel — the surface a voxel out, where the mesh is right: on
+    a clean volume it pulls its vertex out; read as a noisy volume (``lone=False``) a sample with no flagged
+    neighbour does not."""
+    vol, x, f = ball
+    values = np.array(vol.values)
+    i, j, k = np.unravel_index(np.argmin(np.abs(values - 1.2 * vol.h)), values.shape)
+    values[i, j, k] = 0.1 * vol.h
+    odd = type(vol)(values, vol.origin, vol.spacing)
+    ops = MeshOperators(f, len(x))
+    keep = lambda xq, x0: keep_back(ops, xq, x0, local=True, halve=3)      # noqa: E731
+    _, lone = reach_samples(odd, x, f, ops.geometry(x).vertex_normals, 0.0, keep, lone=True)
+    out, alone = reach_samples(odd, x, f, ops.geometry(x).vertex_normals, 0.0, keep, lone=False)
+    assert lone["flagged"] == 1 and lone["moved"] == 1
+    assert alone["flagged"] == 0 and alone["moved"] == 0
+    np.testing.assert_array_equal(out, x)

@@ -16,6 +16,7 @@ import numpy as np
 from geometry.arrays import unique_ints
 from geometry.operators import MeshOperators
 
+from .field import CLEAN_NOISE_VOXELS
 from .guard import count_intersections
 from .polish import crease_polish, newton_project
 from .settings import FlowSettings
@@ -100,8 +101,9 @@ def reach_step(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSetti
         t0 = time.perf_counter()
         keep = ((lambda xq, x0: keep_back(ops, xq, x0, local=True, halve=_TIP_HALVINGS)) if guard
                 else (lambda xq, x0: (xq, 0, True)))
-        x, stats = reach_samples(volume, x, ops.faces, ops.geometry(x).vertex_normals,
-                                 float(noise) / h if np.isfinite(noise) else 0.0, keep)
+        noise_voxels = float(noise) / h if np.isfinite(noise) else 0.0
+        x, stats = reach_samples(volume, x, ops.faces, ops.geometry(x).vertex_normals, noise_voxels, keep,
+                                 lone=noise_voxels < CLEAN_NOISE_VOXELS)
         reach.update(stats)
         timings["reach"] = timings.get("reach", 0.0) + time.perf_counter() - t0
     return x, reach

@@ -16,8 +16,10 @@ Only samples on the same side of the mesh as φ says (a sample the mesh puts on 
 off by more than ``choose.agree_limit`` (half a voxel plus three noise stds), and at most
 :data:`REACH_MAX_VOXELS` from the mesh, which is also how far a vertex may move in all: a detail the mesh missed,
 not a body it lost (two balls of which the start kept one stay one ball, flagged by the suite's checks, not a ball
-with spikes reaching for the other).  A mesh that agrees with every
-sample does not move.  Distances are read as φ/g with the tip extension's scale g (1 for a distance volume).
+with spikes reaching for the other).  On a noisy volume a sample counts only with another one among its 26
+neighbours (``lone=False``): a missed detail is seen by a few samples, while where the mesh is off by a few tenths of
+a voxel (common under noise) noise alone lifts single samples past the limit, each of which would pull a vertex a
+voxel off.  A mesh that agrees with every sample does not move.  Distances are read as φ/g with the tip extension's scale g (1 for a distance volume).
 """
 
 from __future__ import annotations
@@ -38,10 +40,11 @@ REACH_MAX_VOXELS = 3.0
 
 
 def reach_samples(volume, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, noise_voxels: float,
-                  keep: callable, rounds: int = REACH_ROUNDS) -> tuple[np.ndarray, dict]:
+                  keep: callable, rounds: int = REACH_ROUNDS, lone: bool = True) -> tuple[np.ndarray, dict]:
     """The vertices (V, 3) after the moves (see the module docstring), and counts for ``info['reach']``:
     ``flagged`` (samples off by more than the limit, first round), ``moved`` (vertices moved), ``rounds`` run,
-    ``max_move_voxels``, ``kept_back``.  ``keep(xq, x)`` → (xq, kept back, ok) puts back the moves that made faces
+    ``max_move_voxels``, ``kept_back``.  ``lone``: a flagged sample with no flagged neighbour counts (clean
+    volumes) or not (noisy ones).  ``keep(xq, x)`` → (xq, kept back, ok) puts back the moves that made faces
     meet; a round it cannot repair ends the step (its moves undone)."""
     h = volume.h
     x = np.asarray(vertices, float).copy()
@@ -59,6 +62,8 @@ def reach_samples(volume, vertices: np.ndarray, faces: np.ndarray, normals: np.n
         d = mesh_distances(volume, sel, points, x, f)
         off = ((np.sign(d) == np.sign(phi)) & (np.abs(d) - np.abs(phi) > stats["limit_voxels"])
                & (np.abs(d) <= REACH_MAX_VOXELS))
+        if not lone and off.any():
+            off[off] = _has_flagged_neighbour(sel[off], volume.shape)
         if r == 0:
             stats["flagged"] = int(off.sum())
         if not off.any():
@@ -104,3 +109,16 @@ def _unit_gradient(volume, sel: np.ndarray) -> np.ndarray:
                       / ((up[:, axis] - down[:, axis]) * spacing[axis]))
     norm = np.linalg.norm(g, axis=1, keepdims=True)
     return np.where(norm > 0, g / np.where(norm > 0, norm, 1.0), 0.0)
+
+
+_NEIGHBOURS = np.stack(np.meshgrid(*[np.arange(-1, 2)] * 3, indexing="ij"), -1).reshape(-1, 3)
+_NEIGHBOURS = _NEIGHBOURS[np.any(_NEIGHBOURS != 0, axis=1)]          # the 26 around a sample
+
+
+def _has_flagged_neighbour(flat: np.ndarray, shape) -> np.ndarray:
+    """For each of the grid samples ``flat`` (flat indices), whether another of them is among its 26 neighbours."""
+    ijk = np.stack(np.unravel_index(flat, shape), axis=1)
+    around = ijk[:, None, :] + _NEIGHBOURS
+    on_grid = ((around >= 0) & (around < np.asarray(shape))).all(-1)
+    idx = np.ravel_multi_index(tuple(np.clip(around, 0, np.asarray(shape) - 1).transpose(2, 0, 1)), shape)
+    return (np.isin(idx, flat) & on_grid).any(axis=1)

@@ -103,11 +103,11 @@ def test_a_round_the_guard_cannot_repair_is_undone(ball):
     assert stats["rounds"] == 1 and stats["moved"] == 0
 
 
-def test_the_method_runs_the_step_when_asked_and_the_paper_presets_leave_it_off():
+def test_the_method_runs_the_step_by_default_and_the_paper_presets_leave_it_off():
     vol = get_phantom("sphere").volume(n=24)
-    r = ShapeGradient(max_iter=5, reach_samples=True).reconstruct(vol)
+    r = ShapeGradient(max_iter=5).reconstruct(vol)
     assert r.info["reach"]["used"] and r.info["reach"]["moved"] == 0
-    assert not ShapeGradient(max_iter=5).reconstruct(vol).info["reach"]["used"]         # off by default
+    assert not ShapeGradient(max_iter=5, reach_samples=False).reconstruct(vol).info["reach"]["used"]
     assert not ShapeGradient(preset="paper", max_iter=2, guard=False).reconstruct(vol).info["reach"]["used"]
     assert not ShapeGradient(preset="paper+fixes", max_iter=2, guard=False).reconstruct(vol).info["reach"]["used"]
 
@@ -117,12 +117,12 @@ def test_the_start_choice_scores_each_flow_before_the_reach():
     out — enough to hide the loss from a score read after it.  The choice reads each flow's result before the
     reach (``before_reach``), so the usual result still disagrees, the carved starts run and the limb is kept."""
     vol, tip = far_limb_volume()
-    rec = ShapeGradient(reach_samples=True).reconstruct(vol)
+    rec = ShapeGradient().reconstruct(vol)
     choice = rec.info["start_choice"]
     assert len(choice["candidates"]) == 3 and choice["chosen"] != "usual"
     assert choice["candidates"]["usual"]["largest_error_voxels"] > 4.0
     assert abs(tip - rec.mesh.vertices[:, 0].max()) / vol.h < 1.0
-    flow = ShapeGradient(reach_samples=True, start_choice="off").prepare(vol)
+    flow = ShapeGradient(start_choice="off").prepare(vol)
     flow.run()
     usual = flow.result()
     assert usual.info["reach"]["moved"] > 0

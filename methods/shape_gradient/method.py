@@ -207,12 +207,12 @@ class ShapeGradient(Method):
                              "(mean curvature above tip_curvature per voxel) move outwards along their normal, up "
                              "to a voxel, until they touch the empty ball |x − q| < φ(q)/|∇φ(q)| of an outside "
                              "sample q; halved, then kept back, where faces would meet", bool),
-        "reach_samples": Param(False, "last post-step on a signed distance (reach.py): where a sample q in the band "
+        "reach_samples": Param(True, "last post-step on a signed distance (reach.py): where a sample q in the band "
                                "|φ| < 1.5 voxels is farther from the mesh than |φ(q)| by more than half a voxel plus "
                                "three noise stds (a crevice, a limb's stump, a tip the zero set rounds off), the "
                                "mesh's closest point moves towards q until it lies |φ(q)| from it; 3 rounds, kept "
-                               "back where faces would meet. Off by default: better on the development shapes, it "
-                               "failed the rule declared for a fresh set (docs/NOTES.md)", bool),
+                               "back where faces would meet; on a noisy volume only samples with a flagged neighbour "
+                               "pull. The start choice scores each flow before it (docs/NOTES.md)", bool),
         "keep_tips": Param(False, "the remesher keeps the vertices of sharply convex parts (mean curvature above "
                            "tip_curvature per voxel) where they are: its collapses otherwise shorten a thin limb's "
                            "tip by a voxel or more per remesh (better on the development shapes with thin limbs, worse "

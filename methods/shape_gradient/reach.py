@@ -19,7 +19,8 @@ not a body it lost (two balls of which the start kept one stay one ball, flagged
 with spikes reaching for the other).  On a noisy volume a sample counts only with another one among its 26
 neighbours (``lone=False``): a missed detail is seen by a few samples, while where the mesh is off by a few tenths of
 a voxel (common under noise) noise alone lifts single samples past the limit, each of which would pull a vertex a
-voxel off.  A mesh that agrees with every sample does not move.  Distances are read as φ/g with the tip extension's scale g (1 for a distance volume).
+voxel off.  A mesh that agrees with every sample does not move.  Distances are read as φ/g with the tip
+extension's scale g (1 for a distance volume).
 """
 
 from __future__ import annotations

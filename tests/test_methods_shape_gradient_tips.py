@@ -81,3 +81,14 @@ def test_the_flow_reports_it_and_the_paper_preset_has_it_off():
     assert tips["used"] and tips["moved"] > 0 and tips["kept_back"] >= 0 and "rejected" not in tips
     assert r.info["parameters"]["extend_tips"] is True
     assert ShapeGradient(preset="paper").config["extend_tips"] is False
+
+
+def test_sample_gradients_are_exact_on_a_linear_field_and_clamped_at_the_grid_faces():
+    """Central differences of a linear φ = a·p + c are a exactly, at inner and (clamped) boundary indices."""
+    from methods.shape_gradient.tips import sample_gradients
+    spacing = np.array([0.1, 0.2, 0.05])
+    ijk = np.stack(np.meshgrid(*[np.arange(n) for n in (6, 7, 8)], indexing="ij"), -1)
+    a = np.array([1.5, -2.0, 0.25])
+    v = (ijk * spacing) @ a + 3.0
+    idx = np.array([[2, 3, 4], [0, 0, 0], [5, 6, 7]])
+    np.testing.assert_allclose(sample_gradients(v, idx, spacing), np.tile(a, (3, 1)), rtol=1e-12)

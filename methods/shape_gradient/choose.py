@@ -137,6 +137,6 @@ def agrees_everywhere(errors: np.ndarray, noise_voxels: float) -> bool:
 
 def agree_limit(noise_voxels: float) -> float:
     """How far (voxels) a sample may be off the mesh and still agree: :data:`AGREE_VOXELS` plus
-    :data:`AGREE_NOISE_STDS` × the noise std (voxels) — three stds leave about one sample in 400 of a right
-    mesh past it by noise alone."""
+    :data:`AGREE_NOISE_STDS` × the noise std (voxels): a right mesh's samples stay within it unless the mesh is
+    itself a few tenths of a voxel off there."""
     return AGREE_VOXELS + AGREE_NOISE_STDS * float(noise_voxels)

@@ -210,7 +210,7 @@ class ShapeGradient(Method):
         "reach_samples": Param(True, "last post-step on a signed distance (reach.py): where a sample q in the band "
                                "|φ| < 1.5 voxels is farther from the mesh than |φ(q)| by more than half a voxel plus "
                                "three noise stds (a crevice, a limb's stump, a tip the zero set rounds off), the "
-                               "mesh's closest point moves towards q until it lies |φ(q)| from it; 3 rounds, kept "
+                               "mesh vertex nearest q's foot point q − φ∇φ/|∇φ| moves there; 3 rounds, kept "
                                "back where faces would meet; on a noisy volume only samples with a flagged neighbour "
                                "pull. The start choice scores each flow before it (docs/NOTES.md)", bool),
         "keep_tips": Param(False, "the remesher keeps the vertices of sharply convex parts (mean curvature above "

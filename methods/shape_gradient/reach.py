@@ -7,9 +7,10 @@ between lips, between an ear and the head), or the stump of a limb thinner than 
 grow, or a tip the trilinear zero set rounds off.  φ = 0 does not show such a part, so the flow, which follows the
 zero set, has no force towards it; the samples' spheres do (the observation Reach for the Spheres builds its
 surface from, here on both sides of the surface).  Where that sphere touches the surface is the sample's foot
-point q − φ(q) ∇φ/|∇φ| (∇φ by central differences of the samples; the exact closest point of a distance); the
-mesh vertex nearest it (of the closest face, largest barycentric weight) moves there — the largest move wins
-where several samples pick one vertex; a few rounds, each reading the moved mesh again.
+point q − φ(q) ∇φ/|∇φ| (∇φ by central differences of the raw samples, ``tips.sample_gradients``; the exact
+closest point of a distance); the mesh vertex nearest it (of the closest face, largest barycentric weight) moves
+there — the largest move wins where several samples pick one vertex; a few rounds, each reading the moved mesh
+again.
 
 Only samples on the same side of the mesh as φ says (a sample the mesh puts on the wrong side is a different error
 — a filled gap — that moving one closest point does not mend), in the band |φ| < ``choose.BAND_VOXELS`` voxels,
@@ -29,7 +30,7 @@ import numpy as np
 import trimesh
 
 from .choose import agree_limit, band_samples, mesh_distances
-from .tips import distance_scale
+from .tips import distance_scale, sample_gradients
 
 __all__ = ["reach_samples", "REACH_ROUNDS", "REACH_MAX_VOXELS"]
 
@@ -56,7 +57,6 @@ def reach_samples(volume, vertices: np.ndarray, faces: np.ndarray, normals: np.n
     if not len(sel):
         return x, stats
     phi = phi / distance_scale(volume, x, normals, h)
-    grad = _unit_gradient(volume, sel)
     moved = np.zeros(len(x), bool)
     x0 = x.copy()
     for r in range(rounds):
@@ -69,7 +69,10 @@ def reach_samples(volume, vertices: np.ndarray, faces: np.ndarray, normals: np.n
             stats["flagged"] = int(off.sum())
         if not off.any():
             break
-        foot = points[off] - (phi[off] * h)[:, None] * grad[off]                  # where q's sphere touches Γ
+        grad = sample_gradients(volume.values, np.stack(np.unravel_index(sel[off], volume.shape), axis=1),
+                                np.asarray(volume.spacing, float) * np.ones(3))
+        grad /= np.maximum(np.linalg.norm(grad, axis=1, keepdims=True), 1e-300)
+        foot = points[off] - (phi[off] * h)[:, None] * grad                       # where q's sphere touches Γ
         mesh = trimesh.Trimesh(x, f, process=False)
         near, _, face = trimesh.proximity.closest_point(mesh, foot)
         bary = trimesh.triangles.points_to_barycentric(mesh.triangles[face], near)
@@ -92,24 +95,6 @@ def reach_samples(volume, vertices: np.ndarray, faces: np.ndarray, normals: np.n
     stats["moved"] = int(moved.sum())
     stats["max_move_voxels"] = float(np.linalg.norm(x - x0, axis=1).max() / h) if len(x) else 0.0
     return x, stats
-
-
-def _unit_gradient(volume, sel: np.ndarray) -> np.ndarray:
-    """∇φ/|∇φ| (Q, 3) at the grid samples ``sel`` (flat indices), by central differences of the samples
-    (one-sided at the grid's faces); 0 where the differences vanish."""
-    v = volume.values
-    shape = np.asarray(v.shape)
-    idx = np.stack(np.unravel_index(sel, v.shape), axis=1)
-    spacing = np.asarray(volume.spacing, float) * np.ones(3)
-    g = np.zeros((len(sel), 3))
-    for axis in range(3):
-        up, down = idx.copy(), idx.copy()
-        up[:, axis] = np.minimum(up[:, axis] + 1, shape[axis] - 1)
-        down[:, axis] = np.maximum(down[:, axis] - 1, 0)
-        g[:, axis] = ((np.asarray(v[tuple(up.T)], float) - np.asarray(v[tuple(down.T)], float))
-                      / ((up[:, axis] - down[:, axis]) * spacing[axis]))
-    norm = np.linalg.norm(g, axis=1, keepdims=True)
-    return np.where(norm > 0, g / np.where(norm > 0, norm, 1.0), 0.0)
 
 
 _NEIGHBOURS = np.stack(np.meshgrid(*[np.arange(-1, 2)] * 3, indexing="ij"), -1).reshape(-1, 3)

@@ -21,7 +21,7 @@ import numpy as np
 
 from geometry.operators import MeshOperators
 
-__all__ = ["extend_tips", "tip_vertices", "near_samples", "distance_scale"]
+__all__ = ["extend_tips", "tip_vertices", "near_samples", "distance_scale", "sample_gradients"]
 
 _BLOCK = 16384        # vertices per block: (block, 64) arrays of the nearby samples
 _OFFSETS = np.stack(np.meshgrid(*[np.arange(-1, 3)] * 3, indexing="ij"), -1).reshape(-1, 3)   # the 4×4×4
@@ -87,16 +87,23 @@ def extend_tips(field, ops: MeshOperators, x: np.ndarray, h: float, *, min_curva
 
 def _gradient_scale(v, origin: np.ndarray, spacing: np.ndarray, points: np.ndarray) -> float:
     """The median |∇φ| by central differences of the samples at the grid samples nearest ``points``."""
+    idx = np.rint((points - origin) / spacing).astype(np.int64)
+    g = sample_gradients(v, idx, spacing)
+    return float(np.median(np.linalg.norm(g, axis=1))) if len(g) else 1.0
+
+
+def sample_gradients(v, idx: np.ndarray, spacing: np.ndarray) -> np.ndarray:
+    """∇φ (P, 3) by central differences of the samples ``v`` at the grid indices ``idx`` (P, 3), each clamped to
+    the samples that have both neighbours — the raw samples' gradient, not a pre-smoothed field's."""
     shape = np.asarray(v.shape)
-    idx = np.clip(np.rint((points - origin) / spacing).astype(np.int64), 1, shape - 2)
-    g2 = np.zeros(len(idx))
+    idx = np.clip(np.asarray(idx, np.int64), 1, shape - 2)
+    g = np.zeros((len(idx), 3))
     for axis in range(3):
         up, down = idx.copy(), idx.copy()
         up[:, axis] += 1
         down[:, axis] -= 1
-        diff = (np.asarray(v[tuple(up.T)], float) - np.asarray(v[tuple(down.T)], float)) / (2.0 * spacing[axis])
-        g2 += diff * diff
-    return float(np.median(np.sqrt(g2))) if len(g2) else 1.0
+        g[:, axis] = (np.asarray(v[tuple(up.T)], float) - np.asarray(v[tuple(down.T)], float)) / (2.0 * spacing[axis])
+    return g
 
 
 def tip_vertices(ops: MeshOperators, geo, h: float, min_curvature: float) -> np.ndarray:

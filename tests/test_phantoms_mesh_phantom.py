@@ -116,6 +116,28 @@ def test_non_watertight_mesh_is_rejected(tmp_path):
         get_phantom(f"mesh:{tmp_path / 'missing.ply'}")
 
 
+def test_self_intersecting_mesh_is_rejected(tmp_path):
+    """Two closed, outward unit spheres whose centres are one radius apart: a point inside the first just outside
+    the second has the second's sheet nearest, whose outward normal points at it — the pseudonormal sign reads
+    *outside* where the winding number says inside.  Such a mesh is no truth; apart, the same spheres are one."""
+    from phantoms.mesh.index import TriangleIndex
+
+    v, f = _icosphere(3, 1.0)
+    two_v, two_f = np.vstack([v, v + [1.0, 0, 0]]), np.vstack([f, f + len(v)])
+    p = np.array([[-0.2, 0.0, 0.0]])           # 0.8 inside the first sphere, 0.2 outside the second
+    index = TriangleIndex(two_v, two_f)
+    x, _, face, _, feat = index.closest(p)
+    assert winding_number(two_v, two_f, p)[0] > 0.5 and index.sign(p, x, face, feat)[0] > 0
+    with pytest.raises(InputError, match=r"crosses itself: \d+ faces intersect"):
+        MeshPhantom(two_v, two_f)
+    path = tmp_path / "overlap.obj"
+    trimesh.Trimesh(two_v, two_f, process=False).export(path)
+    with pytest.raises(InputError, match=r"overlap\.obj: mesh crosses itself.*self-union"):
+        get_phantom(f"mesh:{path}")
+    apart = MeshPhantom(np.vstack([v, v + [3.0, 0, 0]]), two_f)
+    assert apart.n_components == 2
+
+
 def test_paper_variant_does_not_exist_for_meshes():
     v, f = _icosphere(1, 1.0)
     ph = MeshPhantom(v, f)

@@ -103,6 +103,10 @@ def test_truth_that_is_open_or_elsewhere_is_refused(tmp_path):
     open_box.export(str(tmp_path / "open.obj"))
     with pytest.raises(InputError, match="truth mesh: .*not watertight"):
         get_phantom(f"volume:{nii}?truth={tmp_path / 'open.obj'}")
+    overlap = trimesh.util.concatenate([box, box.copy().apply_translation((1, 0, 0))])   # closed, crosses itself
+    overlap.export(str(tmp_path / "overlap.obj"))
+    with pytest.raises(InputError, match="truth mesh: .*overlap.obj: mesh crosses itself"):
+        get_phantom(f"volume:{nii}?truth={tmp_path / 'overlap.obj'}")
     box.export(str(tmp_path / "far.obj"))                    # centred on 0: the boxes are at x = 14 ... 25
     with pytest.raises(InputError, match="the truth surface far.obj lies outside the volume"):   # named: a dataset
         get_phantom(f"volume:{nii}?truth={tmp_path / 'far.obj'}")                           # has many truths

@@ -12,8 +12,9 @@ offers the same interface as the analytic phantoms (``phantoms/analytic.py``):
 * ``sample_surface(n, seed)`` – seeded, area-uniform points on the mesh with their (face) normals.
 
 Validation
-    The mesh must be watertight (every edge in exactly two faces) and consistently oriented
-    (:mod:`geometry.topology`); an inward-oriented mesh is flipped (outward normals enclose a positive
+    The mesh must be watertight (every edge in exactly two faces), consistently oriented
+    (:mod:`geometry.topology`) and must not cross itself (:mod:`geometry.intersections`: a self-intersecting
+    mesh has no well-defined inside); an inward-oriented mesh is flipped (outward normals enclose a positive
     volume).
 
 Curvature
@@ -38,6 +39,7 @@ import numpy as np
 
 from geometry.closest import FACE
 from geometry.errors import InputError
+from geometry.intersections import self_intersection_pairs
 from geometry.mesh import sample_surface, signed_volume
 from geometry.topology import connected_components, directed_edge_repeats, edge_face_counts, euler_characteristic, genus
 
@@ -128,6 +130,21 @@ def _check_closed(f: np.ndarray, nv: int) -> None:
                          "traversed twice in the same direction; fix the face winding first")
 
 
+def _check_embedded(v: np.ndarray, f: np.ndarray) -> None:
+    """No face crosses or touches a face it shares no vertex with.  Where a mesh crosses itself (interpenetrating
+    thighs of a posed body, a leg through a shell) the solid is ambiguous: the closest sheet to a point inside the
+    body may be an inner one whose outward normal points into the body, so the signed distance reads *outside*
+    there, and the inner sheets are surface the metrics would compare against — no ground truth for anyone."""
+    pairs = self_intersection_pairs(v, f)
+    if len(pairs):
+        n_faces = len(np.unique(pairs))
+        where = np.round(v[f[pairs[0, 0]]].mean(axis=0), 3).tolist()
+        raise InputError(
+            f"mesh crosses itself: {n_faces} faces intersect faces they share no vertex with (the first near "
+            f"{where}); where parts overlap the inside is ambiguous and the signed distance's sign is wrong — "
+            "resolve the overlaps first (a self-union, e.g. a mesh boolean union)")
+
+
 class MeshPhantom(Phantom):
     """A phantom whose true surface is a closed triangle mesh (see the module docstring).
 
@@ -153,7 +170,8 @@ class MeshPhantom(Phantom):
     Raises
     ------
     InputError
-        A mesh that is not closed and consistently oriented, or has zero extent or zero enclosed volume.
+        A mesh that is not closed and consistently oriented, crosses itself, or has zero extent or zero enclosed
+        volume.
     """
 
     name = "mesh"
@@ -177,6 +195,7 @@ class MeshPhantom(Phantom):
         self.source = source
         self.crease_angle_deg = float(crease_angle_deg)
         _check_closed(f, len(v))
+        _check_embedded(v, f)
 
         if normalize:
             centre, radius = _bounding_sphere(v)

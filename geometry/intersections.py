@@ -24,7 +24,7 @@ from scipy.spatial import cKDTree
 from . import broadphase
 from .arrays import unique_ints
 
-__all__ = ["self_intersection_pairs", "intersecting_faces"]
+__all__ = ["self_intersection_pairs", "intersecting_faces", "crossing_pairs"]
 
 
 def _dot(a, b):
@@ -251,3 +251,19 @@ def self_intersection_pairs(vertices: np.ndarray, faces: np.ndarray, chunk: int 
 def intersecting_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Sorted indices of the faces that intersect some non-adjacent face (see :func:`self_intersection_pairs`)."""
     return unique_ints(self_intersection_pairs(vertices, faces))
+
+
+def crossing_pairs(vertices: np.ndarray, faces: np.ndarray, shrink: float = 1e-3) -> np.ndarray:
+    """The pairs of :func:`self_intersection_pairs` that still intersect when each triangle is shrunk towards its
+    centroid by the relative amount ``shrink``: parts that cross, not faces that only touch (at an edge, a vertex,
+    or by rounding — a mesh written in single precision can make non-adjacent faces meet).  What a closed mesh
+    needs to bound one solid: a touch encloses no region on the wrong side, a crossing does."""
+    v = np.asarray(vertices, float)
+    f = np.asarray(faces, dtype=np.int64)
+    pairs = self_intersection_pairs(v, f)
+    if not len(pairs):
+        return pairs
+    tri = v[f]
+    centre = tri.mean(axis=1, keepdims=True)
+    small = centre + (1.0 - shrink) * (tri - centre)
+    return pairs[_triangles_intersect(small[pairs[:, 0]], small[pairs[:, 1]])]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from geometry.intersections import intersecting_faces, self_intersection_pairs
+from geometry.intersections import crossing_pairs, intersecting_faces, self_intersection_pairs
 
 
 def icosphere(sub: int, radius: float = 1.0) -> trimesh.Trimesh:
@@ -65,3 +65,17 @@ def test_intersecting_faces_are_the_faces_of_the_pairs():
     faces = intersecting_faces(both.vertices, both.faces)
     assert len(faces) > 0 and np.array_equal(faces, np.unique(self_intersection_pairs(both.vertices, both.faces)))
     assert len(intersecting_faces(a.vertices, a.faces)) == 0
+
+
+@pytest.mark.parametrize("t2, crosses", [
+    ([[0.2, 0.2, -1], [0.2, 0.2, 1], [2, 2, 0.5]], True),         # piercing
+    ([[0.2, 0.2, 0], [3, 0.1, 1], [3, 0.5, 2]], False),           # a vertex touching the face interior
+    ([[0.2, 0.2, -1e-9], [3, 0.1, 1], [3, 0.5, 2]], False),       # ... and past it by rounding
+    ([[0.2, 0.2, -0.05], [3, 0.1, 1], [3, 0.5, 2]], True),        # ... and through it by a few % of its size
+    ([[1, 0, 0], [2, 0, 0.5], [2, 0, -0.5]], False),              # corners meeting
+    ([[0.2, 0.2, 0.0], [2, 0.2, 0.0], [0.2, 2, 0.0]], True),      # coplanar, overlapping
+])
+def test_crossing_pairs_leave_out_faces_that_only_touch(t2, crosses):
+    v, f = _two_triangles([[0, 0, 0], [1, 0, 0], [0, 1, 0]], t2)
+    assert len(self_intersection_pairs(v, f)) == 1 or not crosses
+    assert len(crossing_pairs(v, f)) == int(crosses)

@@ -39,7 +39,7 @@ import numpy as np
 
 from geometry.closest import FACE
 from geometry.errors import InputError
-from geometry.intersections import self_intersection_pairs
+from geometry.intersections import crossing_pairs
 from geometry.mesh import sample_surface, signed_volume
 from geometry.topology import connected_components, directed_edge_repeats, edge_face_counts, euler_characteristic, genus
 
@@ -131,16 +131,18 @@ def _check_closed(f: np.ndarray, nv: int) -> None:
 
 
 def _check_embedded(v: np.ndarray, f: np.ndarray) -> None:
-    """No face crosses or touches a face it shares no vertex with.  Where a mesh crosses itself (interpenetrating
-    thighs of a posed body, a leg through a shell) the solid is ambiguous: the closest sheet to a point inside the
-    body may be an inner one whose outward normal points into the body, so the signed distance reads *outside*
-    there, and the inner sheets are surface the metrics would compare against — no ground truth for anyone."""
-    pairs = self_intersection_pairs(v, f)
+    """No face crosses a face it shares no vertex with (:func:`geometry.intersections.crossing_pairs`; faces
+    that only touch — by rounding, in a mesh written in single precision — enclose nothing on the wrong side).
+    Where a mesh crosses itself (interpenetrating thighs of a posed body, a leg through a shell) the solid is
+    ambiguous: the closest sheet to a point inside the body may be an inner one whose outward normal points into
+    the body, so the signed distance reads *outside* there, and the inner sheets are surface the metrics would
+    compare against — no ground truth for anyone."""
+    pairs = crossing_pairs(v, f)
     if len(pairs):
         n_faces = len(np.unique(pairs))
         where = np.round(v[f[pairs[0, 0]]].mean(axis=0), 3).tolist()
         raise InputError(
-            f"mesh crosses itself: {n_faces} faces intersect faces they share no vertex with (the first near "
+            f"mesh crosses itself: {n_faces} faces cross faces they share no vertex with (the first near "
             f"{where}); where parts overlap the inside is ambiguous and the signed distance's sign is wrong — "
             "resolve the overlaps first (a self-union, e.g. a mesh boolean union)")
 

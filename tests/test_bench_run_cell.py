@@ -252,3 +252,14 @@ def test_a_hook_that_raises_fails_the_cell_naming_where(sphere_cell):
     assert warm.row.status == "failed" and warm.row.error.startswith("warm-up: RuntimeError")
     skip = run_cell(_hook_cell(sphere_cell, "bad_hooks", hook="skip_type")).row.to_dict()
     assert skip["status"] == "failed" and "skip_reason returned 3" in skip["error"]
+
+
+def test_the_row_records_the_phantoms_shape_kind(sphere_cell, monkeypatch):
+    """``shape_kind`` is the phantom's class attribute as it is (None where a phantom declares none): the report's
+    recommendation table groups inputs by it."""
+    from phantoms import get_phantom
+
+    declared = getattr(get_phantom("sphere"), "shape_kind", None)
+    assert run_cell(sphere_cell).row.to_dict()["shape_kind"] == declared
+    monkeypatch.setattr(type(get_phantom("sphere")), "shape_kind", "a test kind", raising=False)
+    assert run_cell(sphere_cell).row.to_dict()["shape_kind"] == "a test kind"

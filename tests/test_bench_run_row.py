@@ -34,6 +34,7 @@ _OLD_ID = ["cell_id", "phantom", "variant", "N", "noise", "snr_requested", "snr_
 _OLD_RUNNER = ["iterations", "energy_final", "stop_reason", "wall_s", "peak_mem_mb"]
 _OLD_TAIL = ["flags", "status", "error"]
 _OLD_TEXT = {"cell_id", "phantom", "variant", "noise", "method", "label", "parameters", "source", "stop_reason",
+             "shape_kind",   # (added with the recommendation table: the phantom's kind of shape)
              "flags", "status", "error"}
 _OLD_JSON_ONLY = {"cell_s", "cpu_s", "artifact_error", "method_info", "method_output", "phase_s"}
 

@@ -23,7 +23,7 @@ BEST_DIRECTION: dict[str, Any] = {k: m.best for k, m in METRICS.items() if m.bes
 #: columns that identify a cell or describe its outcome, never shown as metrics
 _ID_COLUMNS = {"cell_id", "phantom", "variant", "N", "noise", "snr_requested", "snr_achieved", "seed", "method",
                "label", "parameters", "status", "error", "stop_reason", "source", "h", "has_truth", "degrade",
-               "input_kind"}
+               "input_kind", "shape_kind"}
 
 #: the note above a table whose phantom has no ground truth (a user volume without ``truth=``)
 NO_TRUTH_NOTE = "no ground truth: data fidelity and mesh quality only"

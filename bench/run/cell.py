@@ -241,12 +241,14 @@ def method_info(info: dict) -> dict:
 
 def _input_volume(cell: Cell, cache_dir: str | None, row: dict, lap):
     """``(truth, clean volume, the volume the method gets)``: the phantom's volume, degraded and noised as the
-    cell says; the row gets N, h, whether there is a truth, the input kind and the achieved SNR."""
+    cell says; the row gets N, h, whether there is a truth, the phantom's shape kind, the input kind and the
+    achieved SNR."""
     ph, vol = build_volume(cell, cache_dir)
     if not cell.n:
         row["N"] = int(max(vol.shape))           # a user volume on its native grid
     truth = ph.ground_truth()
     row["h"], row["has_truth"], row["input_kind"] = float(vol.h), truth is not None, vol.kind
+    row["shape_kind"] = getattr(ph, "shape_kind", None)      # (a phantom that declares none: None)
     clean = vol
     lap("volume")
     if cell.degrade:

@@ -64,6 +64,10 @@ class ResultRow:
         Grid spacing of the volume the method got.
     has_truth : bool or None
         Whether the phantom has a true surface.
+    shape_kind : str or None
+        The phantom's kind of shape (its ``shape_kind``: ``smooth solid``, ``thin shell`` ...), what the report's
+        recommendation table groups inputs by; None for a user volume or a phantom that declares none (and in
+        the rows of a suite version that did not record it).
     method_info : dict or None
         The method's info as plain values (json only; :func:`bench.run.cell.method_info`).
     phi_gradient : float or None
@@ -107,6 +111,7 @@ class ResultRow:
     phase_s: dict | None = _column("json")
     h: float | None = _column("input", "float")
     has_truth: bool | None = _column("input", "bool")
+    shape_kind: str | None = _column("input", "string")
     method_info: dict | None = _column("json")
     phi_gradient: float | None = _column("input")
     stop_reason: str | None = _column("runner", "string")     # (the metrics come before it in the fields' order)

@@ -1,5 +1,5 @@
 """bench/report/pairwise.py and the boards that use it: every pair tested on the inputs both methods have,
-Holm's correction, usable meshes first, and the recommendation sentence generated from the numbers."""
+Holm's correction, usable meshes first, and the one verdict generated from the numbers."""
 
 from __future__ import annotations
 
@@ -46,9 +46,12 @@ def test_a_pair_is_tested_on_the_inputs_both_have_even_when_a_third_method_share
     assert (ba["wins"], ba["losses"], ba["better"]) == (0, 20, "A")
     ac = board["pairwise"]["pairs"][("A", "C")]
     assert ac["n"] == 6 and ac["losses"] == 6       # C is better where it ran, but 6 inputs give p ≥ 0.03 before Holm
-    # A and B are a core that ran everywhere: their test over all 20 inputs
-    assert board["core"]["labels"] == ["A", "B"] and board["core"]["n_blocks"] == 20
-    assert board["core"]["significance"]["p"] < 0.05
+    # the verdict rests on every pair's shared inputs: A beats B over all 20, C is not told apart from A on its 6
+    v = board["verdict"]
+    assert v["best"] == "A" and v["beats"] == ["B"] and v["as_good"] == ["C"]
+    assert [r["label"] for r in board["rows"]] == ["A", "C", "B"]        # the verdict's order, not C's mean rank
+    assert "Use A on hausdorff_h (better than B (20–0 of 20" in board["recommendation"]
+    assert "C is as good (not told apart" in board["recommendation"]
 
 
 def test_the_recommendation_names_who_is_beaten_and_who_is_not_told_apart():
@@ -58,15 +61,19 @@ def test_the_recommendation_names_who_is_beaten_and_who_is_not_told_apart():
             "C": alternating}
     board = leaderboards(_rows(vals))[0]
     text = board["recommendation"]
-    assert text.startswith("On these 12 inputs, A has the best mean rank on hausdorff_h")
-    assert "significantly better than B (12–0 of 12" in text and "not distinguishable from C" in text
+    assert text.startswith("On these 12 inputs (an invalid or unusable mesh loses to a usable one): Use A on "
+                           "hausdorff_h (better than B (12–0 of 12")
+    # C alternates around A: as good, and where — the inputs where C is at least as good (its 0.85 × A ones)
+    assert "C is as good (not told apart, p = " in text
+    assert "at least as good on every input of p0, p10, p2, p4, p6, p8)" in text
     assert "Holm" in text
     # nothing separates two methods that alternate: the sentence says so
     two = leaderboards(_rows({"A": vals["A"], "C": alternating}))[0]["recommendation"]
-    assert two.startswith("No significant difference on hausdorff_h") and "significantly" not in two[5:]
+    assert "No method is clearly better on hausdorff_h (no pair differs significantly" in two
+    assert "Use" not in two
 
 
-def test_a_method_in_pieces_wins_the_raw_board_and_ranks_last_on_the_usable_board():
+def test_a_method_in_pieces_leads_the_raw_values_and_loses_the_verdict_which_says_why():
     base = np.linspace(1.0, 2.0, 12)
     rows = _rows({"pieces": {i: v * 0.5 for i, v in enumerate(base)},
                   "one": {i: v for i, v in enumerate(base)}, "other": {i: v * 1.3 for i, v in enumerate(base)}})
@@ -74,15 +81,17 @@ def test_a_method_in_pieces_wins_the_raw_board_and_ranks_last_on_the_usable_boar
         if r["label"] == "pieces":
             r["flags"] = "topology_mismatch"                           # e.g. 3–18 components of a one-piece shape
     board = leaderboards(rows)[0]
-    assert board["rows"][0]["label"] == "pieces" and board["rows"][0]["usable_pct"] == 0.0
-    usable = board["usable_board"]
-    assert [r["label"] for r in usable["rows"]] == ["one", "other", "pieces"]
-    assert usable["rows"][0]["usable_pct"] == 100.0 and usable["rows"][2]["hausdorff_h"] == 3.0
-    assert "pieces has the best mean rank" in board["recommendation"]
-    assert usable["recommendation"].startswith("Among usable meshes on these 12 inputs (unusable ones rank "
-                                               "last), one has the best mean rank")
-    assert "significantly better than other" in usable["recommendation"]
-    assert "pieces (12–0 of 12" in usable["recommendation"]
+    assert [r["label"] for r in board["rows"]] == ["one", "other", "pieces"]
+    assert board["rows"][0]["usable_pct"] == 100.0 and board["rows"][2]["hausdorff_h"] == 3.0
+    text = board["recommendation"]
+    assert text.startswith("On these 12 inputs (an invalid or unusable mesh loses to a usable one): Use one")
+    assert "pieces (12–0 of 12" in text and "other (12–0 of 12" in text
+    raw = board["raw_board"]
+    assert raw["rows"][0]["label"] == "pieces" and raw["rows"][0]["usable_pct"] == 0.0
+    # the raw ranking is not a second verdict: the board says why it differs
+    assert board["tests_differ"][0] == ("Ranking the raw values, usable or not, pieces would come first (0 % of "
+                                        "its 12 meshes usable): the verdict counts a mesh that cannot be used as "
+                                        "a loss")
 
 
 def test_an_invalid_cell_loses_to_a_valid_one_and_two_invalid_cells_tie():

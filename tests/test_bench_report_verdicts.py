@@ -84,3 +84,60 @@ def test_each_degradation_gets_its_own_board_first_and_volume_error_ranks_by_its
     assert [r["label"] for r in first["rows"]] == ["B", "A"] and first["n_blocks"] == 12
     assert dict(first["keys"])["volume_err_pct"] and first["rows"][0]["volume_err_pct"] == 1.0
     assert [r["label"] for r in boards[1]["rows"]] == ["A", "B"]      # the undegraded cells are not mixed in
+
+
+def _disagreeing_board() -> dict:
+    """Six methods on 16 inputs: B < C < D < E by a constant factor everywhere; A is the best on 12 inputs by a
+    little and the worst on 4 by a lot, F the reverse.  Mean ranks put A 2.5 ahead of F (CD 1.88: Nemenyi
+    separates them); the signed-rank test weighs the four large differences and does not."""
+    n = 16
+    base = np.linspace(1.0, 2.0, n)
+    odd = {1, 6, 10, 13}
+    vals = {"A": [b * (3.0 if i in odd else 1.0) for i, b in enumerate(base)],
+            **{lab: list(base * f) for lab, f in zip("BCDE", (1.1, 1.2, 1.3, 1.4))},
+            "F": [b * (0.5 if i in odd else 1.5) for i, b in enumerate(base)]}
+    return leaderboards(_rows(vals))[0]
+
+
+def test_where_nemenyi_and_the_pairwise_test_disagree_the_board_renders_one_verdict():
+    from jinja2 import Environment, FileSystemLoader, select_autoescape
+
+    from bench.report.page import TEMPLATE_DIR
+    from bench.report.pairwise import pairwise_html
+    from bench.report.verdicts import board_html, cd_figure
+
+    b = _disagreeing_board()
+    sig, pairs, v = b["significance"], b["pairwise"]["pairs"], b["verdict"]
+    # the construction: Nemenyi separates A from F, the pairwise test does not
+    assert sig["p"] < 0.05 and sig["mean_ranks"]["F"] - sig["mean_ranks"]["A"] >= sig["cd"]
+    assert pairs[("A", "F")]["better"] is None and not any({"A", "F"} <= set(c) for c in sig["cliques"])
+    # one verdict: the sentence, the rows' order and the diagram's bars all from the pairwise test
+    assert v["best"] == "B" and b["rows"][0]["label"] == "B"
+    assert set(v["beats"]) == {"C", "D", "E"} and set(v["as_good"]) == {"A", "F"}
+    text = b["recommendation"]
+    assert "Use B on hausdorff_h (better than " in text
+    for lab in v["beats"]:
+        assert f"{lab} (16–0 of 16" in text and f"{lab} is as good" not in text
+    for lab in v["as_good"]:
+        assert f"{lab} is as good (not told apart" in text
+    fig = cd_figure(b, {})
+    bars = [set(t["text"].removeprefix("not told apart: ").split(", ")) for t in fig["data"] if t["mode"] != "markers"]
+    labels = [r["label"] for r in b["rows"]]
+    for i, x in enumerate(labels):
+        for y in labels[i + 1:]:
+            joined = any({x, y} <= bar for bar in bars)
+            assert joined == (pairs[(x, y)]["better"] is None), (x, y)
+    assert "use B" in fig["layout"]["title"]["text"]
+    # the check that disagrees is named, with both numbers, and the verdict says which test it follows
+    why = "; ".join(b["tests_differ"])
+    assert "Friedman + Nemenyi over the 16 inputs every method has would separate" in why
+    assert "A from F (rank gap 2.50 ≥ CD 1.88; pairwise p = 1)" in why
+    assert "the verdict follows the pairwise test" in why
+    # rendered: one verdict sentence, the why, the raw board marked as not the verdict
+    b["html"], b["pairwise_html"] = board_html(b, {}), pairwise_html(b["pairwise"], labels)
+    b["raw_board"]["html"], b["chart"] = board_html(b["raw_board"], {}), 1
+    env = Environment(loader=FileSystemLoader(str(TEMPLATE_DIR)), autoescape=select_autoescape(["html"]))
+    page = env.get_template("board.html").render(b=b, verdict_charts=[fig])
+    assert page.count('class="verdict"') == 1 and page.count("Use B") == 1 and "clearly better" not in page
+    assert "Why other views differ: Friedman + Nemenyi" in page and "not the verdict" in page
+    assert b["raw_board"]["recommendation"] not in page

@@ -157,7 +157,8 @@ def group_tables(df, metrics=None, by=None) -> list[GroupTable]:
 def leaderboard_tables(df) -> list[GroupTable]:
     """The report's leaderboards (:func:`bench.report.verdicts.leaderboards`) as tables: one row per method, its
     mean rank per key metric (1 = best; the unique best in bold), wins / ties / losses on the board's first
-    metric and its median time; ``cells`` = the share of its cells valid and unflagged."""
+    metric and its median time; ``cells`` = the share of its cells valid and unflagged, and usable.  Each board's
+    verdict (and why other views differ) is its note; its raw twin follows, marked as not the verdict."""
     import pandas as pd
 
     from .verdicts import leaderboards
@@ -166,19 +167,28 @@ def leaderboard_tables(df) -> list[GroupTable]:
         raise InputError("the run has no finished cells: no leaderboard to make")
     out = []
     boards = leaderboards(complete_inputs(df).to_dict("records"))
-    for b in [x for board in boards for x in (board, board.get("usable_board")) if x is not None]:
-        recs = []
-        for r in b["rows"]:
-            rec = {"method": r["label"], "cells": f"{r['valid_pct']:.0f} % of {r['cells']}, "
-                                                  f"{r['usable_pct']:.0f} % usable"}
-            rec.update({f"rank {m}": r[m] for m, _ in b["keys"]})
-            rec.update(wins=float(r["wins"]), ties=float(r["ties"]), losses=float(r["losses"]), median_s=r["median_s"])
-            recs.append(rec)
-        frame = pd.DataFrame(recs)
-        best = {c: (best_mask(frame[c], "min") if c.startswith("rank ") else np.zeros(len(frame), bool))
-                for c in frame.columns if c not in ("method", "cells")}
-        title = f"{b['title']}: {b['n_inputs']} inputs, {b['n_blocks']} with every method; {b['significance']['note']}"
-        out.append(GroupTable(title, {}, frame, best, note=b["recommendation"]))
+    for board in boards:
+        for b in (board, board.get("raw_board")):
+            if b is None:
+                continue
+            recs = []
+            for r in b["rows"]:
+                rec = {"method": r["label"], "cells": f"{r['valid_pct']:.0f} % of {r['cells']}, "
+                                                      f"{r['usable_pct']:.0f} % usable"}
+                rec.update({f"rank {m}": r[m] for m, _ in b["keys"]})
+                rec.update(wins=float(r["wins"]), ties=float(r["ties"]), losses=float(r["losses"]),
+                           median_s=r["median_s"])
+                recs.append(rec)
+            frame = pd.DataFrame(recs)
+            best = {c: (best_mask(frame[c], "min") if c.startswith("rank ") else np.zeros(len(frame), bool))
+                    for c in frame.columns if c not in ("method", "cells")}
+            title = f"{b['title']}: {b['n_inputs']} inputs, {b['n_blocks']} with every method"
+            if b is board:
+                note = b["recommendation"] + "".join(f" {t[0].upper()}{t[1:]}." for t in b["tests_differ"])
+                note += f" Check, not the verdict: {b['significance']['note']}."
+            else:
+                note = "The raw values, usable or not: not the verdict (see the board above)."
+            out.append(GroupTable(title, {}, frame, best, note=note))
     return out
 
 

@@ -20,6 +20,7 @@ from .colours import method_colour
 from .cost_section import cost_section
 from .interactive import VIEW_FACES, pareto_figure, plotly_js, robustness_figures, viewer_payload
 from .pairwise import pairwise_html
+from .recommend import RULE, recommendation_html, recommendation_table
 from .paper import gallery_tables, paper_layout, paper_tables
 from .tables import BEST_DIRECTION, complete_inputs, summary_tables
 from .verdicts import board_html, cd_figure, leaderboards
@@ -144,16 +145,12 @@ def _interactive(df, arts: Artifacts, config: dict, shown: list[str] | None = No
     extent = float(((config.get("grid") or {}).get("extent")) or 2.5)
     boards = leaderboards(rows) if rows else []
     colours = {str(lab): method_colour(lab) for lab in {r.get("label") for r in rows}}
-    # a board too small for its own test shows the test over all inputs of the methods run on every one
-    verdict_charts = [cd_figure(b, colours) or (cd_figure({"title": f"{b['title']}, methods run on every input",
-                                                           "metric": b["metric"],
-                                                           "significance": b["core"]["significance"]},
-                                                          colours) if b.get("core") else None) for b in boards]
-    for b, fig in zip(boards, verdict_charts):
+    verdict_charts = [cd_figure(b, colours) for b in boards]
+    for b in boards:
         b["html"] = board_html(b, colours)
         b["pairwise_html"] = pairwise_html(b["pairwise"], [r["label"] for r in b["rows"]])
-        if b.get("usable_board"):
-            b["usable_board"]["html"] = board_html(b["usable_board"], colours)
+        if b.get("raw_board"):
+            b["raw_board"]["html"] = board_html(b["raw_board"], colours)
         b["chart"] = None
     charts = [f for f in verdict_charts if f is not None]
     k = 0
@@ -173,7 +170,9 @@ def _interactive(df, arts: Artifacts, config: dict, shown: list[str] | None = No
     meshes["note"] = (f"3-D meshes are embedded for the first {MAX_VIEWER_MESHES} of the {len(wanted)} table rows; "
                       "the others: the cell's arrays in cells/<cell_id>.npz (or --save-meshes)"
                       if len(wanted) > MAX_VIEWER_MESHES else "")
+    recommend = recommendation_html(recommendation_table(rows)) if rows else ""
     return {"plotly_js": plotly_js(), "meshes_json": _json_in_html(meshes), "charts": charts[n_verdict:],
+            "recommend_html": recommend, "recommend_rule": RULE,
             "verdict_charts": charts[:n_verdict], "chart_offset": n_verdict, "boards": boards,
             "charts_json": _json_in_html(charts), "page_js": (TEMPLATE_DIR / "report.js").read_text("utf-8"),
             "view_faces": VIEW_FACES}

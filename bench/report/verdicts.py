@@ -13,19 +13,23 @@ Boards (:func:`leaderboards`)
     and mean distance, SDF agreement, roughness) and one for truth-free cells (SDF agreement, |φ| on the mesh,
     roughness).  A method's row: its mean rank per key metric, wins / ties / losses against the best on the
     board's first metric (win: alone at the best value; tie: the best value shared), the share of its cells that
-    are valid and unflagged, its median time.  Only blocks every listed method has enter.
+    are valid and unflagged, and usable, its median time.  Mean ranks use only the blocks every method has.
 
-Significance (:func:`significance`)
+The verdict (:func:`bench.report.pairwise.verdict`)
+    A board answers "which method gives a mesh I can use, closest to the truth?": it ranks an invalid or unusable
+    result (:func:`bench.metrics.flags.is_usable`) last, and its verdict comes from one test, the Wilcoxon
+    signed-rank test of every pair on the inputs both have, Holm-corrected (:mod:`bench.report.pairwise` says
+    why this test).  The board's sentence, the order of its rows (the recommended method first, then the methods
+    no other beats, then the rest, each by mean rank) and the bars of its diagram (methods the pairwise test
+    cannot tell apart) all come from it.  Its twin ``raw_board`` ranks the raw values, usable or not ("which is
+    closest to the truth?"); where its leader differs, the sentence says so and why.
+
+A check (:func:`significance`)
     On the board's first metric: with three or more methods the Friedman test over methods × blocks and the
     Nemenyi post-hoc critical difference CD = q_α √(k(k + 1) / 6N) (Demšar 2006; q_α from the studentized range
-    distribution, scipy.stats), with two methods the Wilcoxon signed-rank test; α = 0.05.  Methods whose mean
-    ranks differ by less than CD (two methods: p ≥ α) are joined by a bar: this run cannot tell them apart.
-    With fewer than :data:`MIN_BLOCKS` blocks no test is run and no bar is drawn.  The methods run on every
-    input of a board are tested over all of them (``core``) when they are fewer than the board's methods.
-
-Beyond the shared set (:mod:`bench.report.pairwise`)
-    Every pair is tested on the inputs both have (``pairwise``); each board has a twin that ranks unusable
-    results last (``usable_board``, :func:`bench.metrics.flags.is_usable`) and a generated ``recommendation``.
+    distribution, scipy.stats), with two methods the Wilcoxon signed-rank test; α = 0.05; fewer than
+    :data:`MIN_BLOCKS` blocks: no test.  It is not the verdict: where it separates a pair the pairwise test does
+    not (or the reverse), the board says so in words (``tests_differ``), naming both numbers.
 """
 
 from __future__ import annotations
@@ -39,10 +43,10 @@ from bench.metrics.flags import is_usable
 from bench.metrics.registry import METRICS
 from bench.metrics.tolerances import same_within_tolerance
 
-from .pairwise import pairwise, recommendation, signed_rank_test
+from .pairwise import not_told_apart, pairwise, recommendation, signed_rank_test, verdict
 
 __all__ = ["BLOCK_KEYS", "TRUTH_KEYS", "DEGRADED_KEYS", "FREE_KEYS", "MIN_BLOCKS", "ALPHA", "block_ranks",
-           "leaderboards", "significance", "cd_figure", "board_html"]
+           "leaderboards", "board", "significance", "tests_differ", "cd_figure", "board_html"]
 
 BLOCK_KEYS = ("phantom", "variant", "N", "degrade", "noise", "snr_requested", "seed")
 #: key metrics of the board with ground truth: (column, what it measures)
@@ -166,8 +170,8 @@ def significance(ranks: np.ndarray, labels: list[str], values: np.ndarray | None
             out["cliques"] = cliques
     out["note"] = (f"{out['test']} on {n} shared cells, α = {ALPHA}: p = {out['p']:.3g}"
                    + (f", CD = {out['cd']:.2f} ranks" if out["cd"] else "")
-                   + ("; methods joined by a bar cannot be told apart" if out["cliques"] else
-                      "; every difference is significant"))
+                   + ("; it cannot tell apart " + "; ".join(" ~ ".join(c) for c in out["cliques"])
+                      if out["cliques"] else "; every difference is significant"))
     return out
 
 
@@ -192,30 +196,10 @@ def _per_label(rows: list[dict], metric: str, labels: list[str]) -> dict[str, di
     return out
 
 
-def _core(rows: list[dict], labels: list[str], keys, n_inputs: int) -> dict | None:
-    """The methods run on every input of the board, tested over all those inputs — when they are fewer than
-    the board's methods (the board's own test only sees the inputs every method has)."""
-    have = {lab: {_input(r) for r in rows if str(r.get("label")) == lab} for lab in labels}
-    core = [lab for lab in labels if len(have[lab]) == n_inputs]
-    if not 2 <= len(core) < len(labels):
-        return None
-    first = keys[0][0]
-    labs, ranks = block_ranks(rows, first, core)
-    values = None
-    if len(core) == 2:
-        blocks = _blocks(rows, core)
-        values = np.array([[_sign(first) * _value(b[lab], first) for lab in core] for _, b in sorted(blocks.items())])
-    sig = significance(ranks, labs, values)
-    order = sorted(core, key=lambda lab: sig["mean_ranks"][lab])
-    out = {"labels": core, "n_blocks": int(len(ranks)), "significance": sig}
-    out["recommendation"] = recommendation({"rows": [{"label": lab} for lab in order], "metric": first,
-                                            "keys": keys, "n_inputs": n_inputs,
-                                            "pairwise": pairwise(_per_label(rows, first, core), first)})
-    return out
-
-
-def _board(rows: list[dict], keys, title: str, usable: bool = False) -> dict | None:
-    """One board over ``rows``; ``usable``: an unusable cell (:func:`bench.metrics.flags.is_usable`) ranks last."""
+def board(rows: list[dict], keys, title: str, usable: bool = True) -> dict | None:
+    """One board over ``rows`` on the key metrics ``keys`` ((column, title) pairs; the first decides the verdict);
+    ``usable``: an invalid or unusable cell (:func:`bench.metrics.flags.is_usable`) ranks last and loses every
+    pair to a usable one (the board's verdict); False: the raw values of every valid cell."""
     keys = [(m, t) for m, t in keys if any(np.isfinite(_num(r.get(m))) for r in rows)]
     labels = list(dict.fromkeys(str(r.get("label")) for r in rows))
     if not keys or len(labels) < 1:
@@ -244,19 +228,63 @@ def _board(rows: list[dict], keys, title: str, usable: bool = False) -> dict | N
         rec["wins"], rec["ties"], rec["losses"] = _wtl(ranks0, i) if len(ranks0) else (0, 0, 0)
         table.append(rec)
     pw = pairwise(per_label, first)
-    # no input every method has: order by the share of pairwise comparisons won
+    # by mean rank; with no input every method has, by the share of pairwise comparisons won
     score = {lab: sum(pw["pairs"][(lab, o)]["wins"] - pw["pairs"][(lab, o)]["losses"] for o in labels if o != lab)
              for lab in labels}
     table.sort(key=lambda r: (r[first] if len(ranks0) else 0.0, -score[r["label"]], r["label"]))
+    by_rank = [r["label"] for r in table]
+    v = verdict(pw, by_rank)
+    beaten = {a for a in labels for b in labels if b != a and pw["pairs"][(a, b)]["better"] == b}
+    table.sort(key=lambda r: (r["label"] != v["best"], r["label"] in beaten, by_rank.index(r["label"])))
+    v = verdict(pw, [r["label"] for r in table])
+    v["groups"] = not_told_apart(pw, by_rank)      # the diagram's bars, in the order of its axis
     values = None
     if len(labels) == 2:
         blocks = _blocks(rows, labels)
         values = np.array([[_sign(first) * _value(b[lab], first) for lab in labels] for _, b in sorted(blocks.items())])
-    board = {"title": title, "keys": keys, "rows": table, "n_blocks": int(len(ranks0)), "n_inputs": n_inputs,
-             "significance": significance(ranks0, labels, values), "metric": first, "usable": usable,
-             "pairwise": pw, "core": _core(rows, labels, keys, n_inputs)}
-    board["recommendation"] = recommendation(board)
-    return board
+    out = {"title": title, "keys": keys, "rows": table, "n_blocks": int(len(ranks0)), "n_inputs": n_inputs,
+           "significance": significance(ranks0, labels, values), "metric": first, "usable": usable,
+           "pairwise": pw, "verdict": v}
+    out["recommendation"] = recommendation(out)
+    out["tests_differ"] = tests_differ(out)
+    return out
+
+
+def tests_differ(board: dict) -> list[str]:
+    """Sentences naming each pair the Friedman + Nemenyi check (:func:`significance`) separates and the pairwise
+    test does not, or the reverse — with both numbers and why the verdict follows the pairwise test."""
+    sig, pairs = board["significance"], board["pairwise"]["pairs"]
+    if sig["test"] is None or not sig["test"].startswith("Friedman"):
+        return []
+    mean, cd = sig["mean_ranks"], sig["cd"]
+    labels = sorted(mean, key=lambda lab: mean[lab])
+    only_nemenyi, only_pairwise = [], []
+    for i, a in enumerate(labels):
+        for b in labels[i + 1:]:
+            gap = mean[b] - mean[a]
+            nem = sig["p"] < ALPHA and gap >= cd
+            rec = pairs[(a, b)]
+            pw_ = rec["better"] is not None
+            p = "not tested" if math.isnan(rec["p"]) else f"p = {rec['p_holm']:.2g}"
+            if nem and not pw_:
+                only_nemenyi.append(f"{a} from {b} (rank gap {gap:.2f} ≥ CD {cd:.2f}; pairwise {p})")
+            elif pw_ and not nem:
+                only_pairwise.append(f"{rec['better']} from {b if rec['better'] == a else a} ({p}; rank gap "
+                                     f"{gap:.2f}" + (f" < CD {cd:.2f})" if sig["p"] < ALPHA else
+                                                      f", Friedman p = {sig['p']:.2g} ≥ {ALPHA})"))
+    out = []
+    n = sig["n_blocks"]
+    if only_nemenyi:
+        out.append(f"Friedman + Nemenyi over the {n} inputs every method has would separate "
+                   + "; ".join(only_nemenyi) + " — the pairwise test does not")
+    if only_pairwise:
+        out.append("The pairwise test separates " + "; ".join(only_pairwise)
+                   + f" — Friedman + Nemenyi over the {n} inputs every method has does not")
+    if out:
+        out.append("the verdict follows the pairwise test: it compares each pair on every input the two share, "
+                   "weighs the size of each difference, and its answer for A and B does not depend on the other "
+                   "methods on the board, as a mean-rank difference does")
+    return out
 
 
 def _degrade(r: dict) -> str:
@@ -269,7 +297,8 @@ KIND_TITLES = {"mask": "a mask", "intensity": "an intensity image", "sdf": "a si
 
 
 def leaderboards(rows: list[dict]) -> list[dict]:
-    """The boards of a run (see the module docstring): with ground truth, and truth-free (cells without).
+    """The boards of a run (see the module docstring), each with its raw twin: with ground truth, and truth-free
+    (cells without).
 
     A run with degraded inputs (``degrade``) gets one board per degradation first, each answering "from this
     input, which method?" on :data:`DEGRADED_KEYS`; the undegraded cells follow as usual.  A cell a method
@@ -281,7 +310,7 @@ def leaderboards(rows: list[dict]) -> list[dict]:
         sub = [r for r in rows if _degrade(r) == d and not _no_truth(r)]
         kinds = sorted({str(r.get("input_kind")) for r in sub if r.get("input_kind") not in (None, "")})
         kind = " / ".join(KIND_TITLES.get(k, k) for k in kinds) or "a degraded volume"
-        b = _with_usable(sub, DEGRADED_KEYS, f"From {kind}: {d}") if sub else None
+        b = _with_raw(sub, DEGRADED_KEYS, f"From {kind}: {d}") if sub else None
         if b is not None:
             b["degrade"] = d
             boards.append(b)
@@ -292,17 +321,25 @@ def leaderboards(rows: list[dict]) -> list[dict]:
     for sub, keys, title in ((truth, TRUTH_KEYS, truth_title),
                              (free, FREE_KEYS, "Cells without ground truth (data fidelity only)")):
         if sub:
-            b = _with_usable(sub, keys, title)
+            b = _with_raw(sub, keys, title)
             if b is not None:
                 boards.append(b)
     return boards
 
 
-def _with_usable(rows: list[dict], keys, title: str) -> dict | None:
-    """The raw board with its twin (``usable_board``) that ranks unusable results last."""
-    b = _board(rows, keys, title)
-    if b is not None:
-        b["usable_board"] = _board(rows, keys, f"{title}: usable meshes first", usable=True)
+def _with_raw(rows: list[dict], keys, title: str) -> dict | None:
+    """The board (usable meshes first) with its twin over the raw values (``raw_board``); where the twin's leader
+    differs, a sentence in ``tests_differ`` says which and how many of its meshes were usable."""
+    b = board(rows, keys, title)
+    if b is None:
+        return None
+    raw = board(rows, keys, f"{title}: closest to the truth, usable or not", usable=False)
+    b["raw_board"] = raw
+    if raw is not None and raw["rows"] and b["rows"] and raw["rows"][0]["label"] != b["rows"][0]["label"]:
+        top = raw["rows"][0]
+        b["tests_differ"] = [f"Ranking the raw values, usable or not, {top['label']} would come first "
+                             f"({top['usable_pct']:.0f} % of its {top['cells']} meshes usable): the verdict "
+                             "counts a mesh that cannot be used as a loss", *b["tests_differ"]]
     return b
 
 
@@ -314,13 +351,14 @@ def _no_truth(r: dict) -> bool:
 
 
 def cd_figure(board: dict, colours: dict[str, str]) -> dict | None:
-    """A plotly figure of the critical-difference diagram of a board (mean ranks on an axis, cliques as bars);
-    None without a test."""
-    sig = board["significance"]
-    if sig["test"] is None:
+    """A plotly figure of the board's diagram: each method's mean rank on the board's first metric (over the
+    inputs every method has) on an axis, and bars joining the methods the board's verdict — the pairwise test —
+    cannot tell apart (``board["verdict"]["groups"]``); None without a mean rank or a tested pair."""
+    if not board["n_blocks"] or not any(not math.isnan(p["p"]) for p in board["pairwise"]["pairs"].values()):
         return None
-    mean = sig["mean_ranks"]
+    mean = {r["label"]: r[board["metric"]] for r in board["rows"]}
     order = sorted(mean, key=lambda lab: mean[lab])
+    groups = board["verdict"]["groups"]
     k = len(order)
     data = [{"type": "scatter", "mode": "markers", "x": [mean[lab]], "y": [0], "name": lab,
              "hovertemplate": f"{lab}: mean rank %{{x:.2f}}<extra></extra>",
@@ -329,22 +367,22 @@ def cd_figure(board: dict, colours: dict[str, str]) -> dict | None:
     labels = [{"x": mean[lab], "y": 0, "text": lab, "showarrow": True, "arrowhead": 0, "arrowwidth": 1,
                "arrowcolor": "#999", "ax": 0, "ay": -(18 + 18 * (i % 4)), "font": {"size": 11},
                "bgcolor": "rgba(255,255,255,0.85)"} for i, lab in enumerate(order)]
-    for j, clique in enumerate(sig["cliques"]):
-        xs = [mean[lab] for lab in clique]
-        data.append({"type": "scatter", "mode": "lines", "x": [min(xs) - 0.03, max(xs) + 0.03],
-                     "y": [-0.3 - 0.25 * j] * 2, "line": {"width": 6, "color": "#333"}, "hoverinfo": "text",
-                     "showlegend": False,
-                     "text": "not distinguishable: " + ", ".join(clique)})
-    shapes = []
-    if sig["cd"]:
-        shapes.append({"type": "line", "x0": 1, "x1": 1 + sig["cd"], "y0": 0.6, "y1": 0.6, "line": {"width": 3}})
+    # a bar per group, its members marked on it: a method inside the bar's span without a mark is not in it
+    for j, group in enumerate(groups):
+        xs = sorted(mean[lab] for lab in group)
+        data.append({"type": "scatter", "mode": "lines+markers", "x": xs, "y": [-0.3 - 0.25 * j] * len(xs),
+                     "line": {"width": 3, "color": "#555"}, "marker": {"size": 9, "symbol": "line-ns-open",
+                                                                        "line": {"width": 3, "color": "#222"}},
+                     "hoverinfo": "text", "showlegend": False, "text": "not told apart: " + ", ".join(group)})
+    best = board["verdict"]["best"]
+    title = (f"{board['title']}: mean rank on {board['metric']} over the {board['n_blocks']} inputs every method "
+             f"has; bars: not told apart by the pairwise test"
+             + (f"; use {best}" if best else "; no method clearly better"))
     return {"data": data, "layout": {
-        "title": {"text": f"{board['title']}: mean rank on {board['metric']} ({sig['note']})", "font": {"size": 12}},
+        "title": {"text": title, "font": {"size": 12}},
         "xaxis": {"title": "mean rank (1 = best)", "range": [0.5, k + 0.5], "dtick": 1},
-        "yaxis": {"visible": False, "range": [-0.4 - 0.25 * max(1, len(sig["cliques"])), 1.0]},
-        "height": 280 + 20 * len(sig["cliques"]), "margin": {"t": 60, "b": 40}, "shapes": shapes,
-        "annotations": labels + ([{"x": 1 + sig["cd"] / 2, "y": 0.75, "text": f"CD = {sig['cd']:.2f}",
-                                   "showarrow": False}] if sig["cd"] else [])}}
+        "yaxis": {"visible": False, "range": [-0.4 - 0.25 * max(1, len(groups)), 1.0]},
+        "height": 280 + 20 * len(groups), "margin": {"t": 60, "b": 40}, "annotations": labels}}
 
 
 def _fmt(v, digits: str = ".2f") -> str:

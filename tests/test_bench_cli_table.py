@@ -169,9 +169,10 @@ def test_the_leaderboard_exports_with_its_ranks_and_compiles(run, capsys, tmp_pa
 
     board = leaderboards(read_results(run).to_dict("records"))[0]
     md = _table([str(run), "--leaderboard"], capsys)
-    raw, usable = md.split("### ")[1:3]                      # the board, then its usable-meshes-first twin
-    assert board["recommendation"].split(",")[0] in raw and "usable meshes first" in usable
-    rows = [ln for ln in raw.splitlines() if ln.startswith("| ") and not ln.startswith("| method")]
+    first, primary, raw = md.split("### ")[1:4]          # the recommendation, the board, then its raw twin
+    assert first.startswith("Which method, for which shape and input")
+    assert board["recommendation"] in primary and "not the verdict" in raw and "usable or not" in raw
+    rows = [ln for ln in primary.splitlines() if ln.startswith("| ") and not ln.startswith("| method")]
     assert len(rows) == len(board["rows"]) == 2
     for r, line in zip(board["rows"], rows):
         cells = [c.strip().strip("*") for c in line.strip("|").split("|")]
@@ -264,3 +265,29 @@ def test_a_record_whose_checksum_was_deleted_is_refused_by_table(tmp_path, capsy
     assert main(["table", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{path.name} has no seal" in err[0] and "--accept-unsealed" in err[0]
+
+
+def test_the_recommendation_table_prints_alone_in_each_format_and_compiles(run, capsys, tmp_path):
+    """``--recommend``: the report's first section (shape kind × input, each cell a verdict and what it rests on)."""
+    md = _table([str(run), "--recommend"], capsys)
+    lines = md.splitlines()
+    assert lines[0] == "### Which method, for which shape and input"
+    head = next(ln for ln in lines if ln.startswith("| shape kind"))
+    assert head == "| shape kind \\ input | noisy φ | clean φ |"
+    # the quick grid's phantoms declare a kind (or, before they did, are unclassified); 4 inputs per cell: no test
+    row = next(ln for ln in lines if ln.startswith("| ") and ln != head)
+    assert row.count("no method is clearly better on hausdorff_h (no pair shares the 6 inputs a test needs)") == 2
+    assert "rests on 4 inputs (sphere, ellipsoid), 8 results" in row
+    csv = _table([str(run), "--recommend", "--format", "csv"], capsys)
+    frame = pd.read_csv(__import__("io").StringIO(csv))
+    # clean cells run once (no seed to vary), noisy ones per seed
+    assert dict(zip(frame["input"], frame["n_results"])) == {"noisy φ": 8, "clean φ": 4}
+    tex = _table([str(run), "--recommend", "--format", "latex"], capsys)
+    assert r"\toprule" in tex and r"$\varphi$" in tex
+    if not shutil.which("pdflatex"):
+        pytest.skip("pdflatex is not installed; parsed only")
+    doc = tmp_path / "r.tex"
+    doc.write_text("\\documentclass{article}\n\\usepackage{booktabs}\n\\begin{document}\n" + tex + "\\end{document}\n")
+    res = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", doc.name], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stdout[-2000:]

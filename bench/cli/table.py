@@ -10,13 +10,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from geometry.errors import InputError
 from geometry.files import atomic_write, check_writable
 
 HELP = """\
 Print the run's summary tables: one per group of cells (default: phantom x noise, and variant / N when the run
 varies them), methods as rows, metrics as columns, each value the mean over the group's ok cells (its seeds);
 `cells` = ok cells / cells. The best value of a column is bold where it is unique. markdown: GitHub pipe tables;
-latex: booktabs tables (\\usepackage{booktabs}), units in the header; csv: the means at full precision."""
+latex: booktabs tables (\\usepackage{booktabs}), units in the header; csv: the means at full precision.
+--recommend: the report's first section, which method to use per shape kind x input, each cell one verdict of
+the pairwise tests with what it rests on (csv: one line per cell)."""
 
 
 def _names(values) -> list[str] | None:
@@ -37,13 +40,17 @@ def register(subparsers) -> None:
     p.add_argument("--by", metavar="K[,K...]",
                    help=f"one table per value of these ({', '.join(GROUP_KEYS)}; default phantom,noise)")
     p.add_argument("--leaderboard", action="store_true",
-                   help="the leaderboards instead (mean rank per key metric, wins / ties / losses, the test's note)")
+                   help="the leaderboards instead (mean rank per key metric, wins / ties / losses, each board's "
+                        "verdict), after the recommendation table in markdown")
+    p.add_argument("--recommend", action="store_true",
+                   help="only the recommendation per shape kind x input (the report's first section)")
     p.add_argument("-o", "--output", metavar="FILE", help="write to FILE instead of stdout")
     p.set_defaults(func=_cmd_table)
 
 
 def _cmd_table(args) -> int:
     from ..report.export import group_tables, leaderboard_tables, to_csv, to_latex, to_markdown
+    from ..report.tables import complete_inputs
     from ..run.results import read_results
 
     if args.output:
@@ -53,8 +60,21 @@ def _cmd_table(args) -> int:
     by = _names([args.by]) if args.by is not None else None
     refuse_damaged(args.run, check_run_folder(args.run, arrays=False))   # the sealed records are the truth
     df = read_results(Path(args.run))
-    tables = leaderboard_tables(df) if args.leaderboard else group_tables(df, metrics=_names(args.metric), by=by)
-    text = {"markdown": to_markdown, "latex": to_latex, "csv": to_csv}[args.format](tables)
+    if args.recommend or args.leaderboard:
+        from ..report import recommend as rec
+
+        if not len(df):
+            raise InputError("the run has no finished cells: no recommendation to make")
+        table = rec.recommendation_table(complete_inputs(df).to_dict("records"))
+        first = {"markdown": rec.recommendation_markdown, "latex": rec.recommendation_latex,
+                 "csv": rec.recommendation_csv}[args.format](table)
+    if args.recommend:
+        text = first
+    else:
+        tables = leaderboard_tables(df) if args.leaderboard else group_tables(df, metrics=_names(args.metric), by=by)
+        text = {"markdown": to_markdown, "latex": to_latex, "csv": to_csv}[args.format](tables)
+        if args.leaderboard and args.format == "markdown":
+            text = first + "\n" + text
     if args.output:
         print(f"wrote {atomic_write(args.output, text)}")
     else:

@@ -234,8 +234,8 @@ def to_markdown(tables: list[GroupTable]) -> str:
 # ---------------------------------------------------------------------------------------------- LaTeX
 _LATEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",
           "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}", "°": r"$^\circ$", "²": r"$^2$",
-          "³": r"$^3$", "α": r"$\alpha$", "−": "-", "–": "--", "—": "---", "×": r"$\times$", "<": r"\textless{}",
-          ">": r"\textgreater{}", "|": r"\textbar{}"}
+          "³": r"$^3$", "α": r"$\alpha$", "φ": r"$\varphi$", "−": "-", "–": "--", "—": "---", "×": r"$\times$",
+          "<": r"\textless{}", ">": r"\textgreater{}", "|": r"\textbar{}"}
 
 
 def latex_text(text: str) -> str:

@@ -38,7 +38,8 @@ from .tables import phantom_label
 from .verdicts import BLOCK_KEYS, board
 
 __all__ = ["INPUTS", "SHAPE_KINDS", "YOUR_DATA", "UNCLASSIFIED", "input_class", "shape_class",
-           "recommendation_table", "recommendation_html", "recommendation_markdown"]
+           "recommendation_table", "recommendation_html", "recommendation_markdown", "recommendation_latex",
+           "recommendation_csv", "RULE"]
 
 #: the columns, in this order (others, e.g. a degradation this module does not know, follow)
 INPUTS = ("mask", "partial volume", "thick slices", "noisy φ", "clean φ")
@@ -190,3 +191,35 @@ def recommendation_markdown(table: dict) -> str:
             cells.append("not run" if c is None else f"**{_md(c['text'])}** — rests on {_md(c['basis'])}")
         lines.append(f"| {_md(s)} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def recommendation_latex(table: dict) -> str:
+    """The table as one LaTeX ``table`` float (booktabs rules, wrapped text columns), the rule in its caption."""
+    from .export import latex_text
+
+    width = f"{0.85 / max(1, len(table['inputs'])):.2f}"
+    cols = "p{0.12\\linewidth}" + "".join(f"p{{{width}\\linewidth}}" for _ in table["inputs"])
+    lines = ["\\begin{table}[htbp]", "\\centering", "\\footnotesize", f"\\begin{{tabular}}{{{cols}}}", "\\toprule",
+             " & ".join(["shape kind / input", *map(latex_text, table["inputs"])]) + " \\\\", "\\midrule"]
+    for s in table["shapes"]:
+        cells = []
+        for i in table["inputs"]:
+            c = table["cells"].get((s, i))
+            cells.append("not run" if c is None else
+                         f"\\textbf{{{latex_text(c['text'])}}} (rests on {latex_text(c['basis'])})")
+        lines.append(" & ".join([latex_text(s), *cells]) + " \\\\")
+    lines += ["\\bottomrule", "\\end{tabular}", f"\\caption{{{latex_text(RULE)}}}",
+              "\\label{tab:levelset-bench-recommend}", "\\end{table}"]
+    return "\n".join(lines) + "\n"
+
+
+def recommendation_csv(table: dict) -> str:
+    """The table in long form: one line per (shape kind, input) with its verdict, best method and basis."""
+    import pandas as pd
+
+    recs = [{"shape_kind": s, "input": i, "verdict": c["text"], "best": c["best"] or "",
+             "as_good": ";".join(c.get("as_good") or []), "n_inputs": c.get("n_inputs"),
+             "n_results": c.get("n_results"), "phantoms": ";".join(c.get("phantoms") or []),
+             "not_usable": ";".join(f"{k}={v}" for k, v in sorted((c.get("not_usable") or {}).items()))}
+            for s in table["shapes"] for i in table["inputs"] if (c := table["cells"].get((s, i))) is not None]
+    return pd.DataFrame(recs).to_csv(index=False)

@@ -276,7 +276,8 @@ def test_the_recommendation_table_prints_alone_in_each_format_and_compiles(run, 
     assert head == "| shape kind \\ input | noisy φ | clean φ |"
     # the quick grid's phantoms declare a kind (or, before they did, are unclassified); 4 inputs per cell: no test
     row = next(ln for ln in lines if ln.startswith("| ") and ln != head)
-    assert row.count("no method is clearly better on hausdorff_h (no pair shares the 6 inputs a test needs)") == 2
+    assert row.count("no method is clearly better on hausdorff_h (no pair shares enough inputs for a test: 6 are "
+                     "needed)") == 2
     assert "rests on 4 inputs (sphere, ellipsoid), 8 results" in row
     csv = _table([str(run), "--recommend", "--format", "csv"], capsys)
     frame = pd.read_csv(__import__("io").StringIO(csv))

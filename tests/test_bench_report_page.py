@@ -75,3 +75,42 @@ def test_after_preload_writing_the_report_imports_none_of_the_heavy_libraries(ru
             "print(sorted(m for m in set(sys.modules) - before if m.split('.')[0] in heavy))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == "[]"
+
+
+def test_the_page_opens_with_the_recommendation_table(run_dir):
+    """The first section after the title: which method per shape kind × input, before the counts and the nav."""
+    from bench.report import write_report
+
+    page = write_report(run_dir).read_text()
+    body = page[page.index("<body>"):]
+    assert body.index('<section id="recommend">') < body.index('<p class="counts">') < body.index("<nav>")
+    first = body[body.index("</h1>"):body.index('<section id="recommend">')]
+    assert "<table" not in first and "<h2" not in first                   # nothing before it but warnings
+    table = body[body.index('<table class="recommend">'):body.index("</table>")]
+    assert "clean φ" in table and "no method is clearly better on hausdorff_h" in table
+    assert "rests on 1 input (sphere), 2 results" in table
+
+
+def test_a_run_from_before_the_shape_kind_column_still_renders(damaged):
+    """An older suite's run folder: no ``shape_kind`` in results.csv nor in the cells' records, no parquet."""
+    import csv
+
+    from bench.report import write_report
+
+    path = damaged / "results.csv"
+    rows = list(csv.DictReader(path.open()))
+    assert "shape_kind" in rows[0]
+    cols = [c for c in rows[0] if c != "shape_kind"]
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, cols, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    (damaged / "results.parquet").unlink()
+    for cell in (damaged / "cells").glob("*.json"):
+        rec = json.loads(cell.read_text())
+        rec["row"].pop("shape_kind", None)
+        cell.write_text(json.dumps(rec))
+    page = write_report(damaged).read_text()
+    table = page[page.index('<table class="recommend">'):]
+    assert "<th>unclassified</th>" in table[:table.index("</table>")]
+    assert "marching_cubes" in page and "mc_taubin" in page

@@ -213,7 +213,7 @@ def verdict(pw: dict, order: list[str]) -> dict[str, Any]:
     if not winners:
         tested = [p for (a, b), p in pairs.items() if a < b and not math.isnan(p["p"])]
         if not tested:
-            why = f"no pair shares the {MIN_PAIRED} inputs a test needs"
+            why = f"no pair shares enough inputs for a test: {MIN_PAIRED} are needed"
         elif any(p["better"] for p in tested):
             why = "every method that beats another is itself beaten by a third"
         else:

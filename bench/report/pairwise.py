@@ -254,7 +254,7 @@ def recommendation(board: dict) -> str:
         return f"{where}: no method has a value on {board['metric']}."
     v = board.get("verdict") or verdict(pw, [r["label"] for r in rows])
     text = v["text"]
-    return f"{where}: {text[0].upper()}{text[1:]} ({TEST_NAME})."
+    return f"{where}: {text[0].upper()}{text[1:]}" + (f" ({TEST_NAME})." if len(rows) > 1 else ".")
 
 
 def pairwise_html(pw: dict, order: list[str]) -> str:

@@ -2,6 +2,8 @@
 
 Sections (``templates/report.html``), one module each:
 
+0. first, which method to use per shape kind × input (:mod:`.recommend`), then the leaderboards, one verdict per
+   board (:mod:`.verdicts`, :mod:`.pairwise`; a board's section: ``templates/board.html``);
 1. a summary table per phantom × noise setting (× variant × N): methods as rows, metrics as columns, the best
    value per column marked (:mod:`.tables`; which is best comes from :mod:`bench.metrics.registry`);
 2. per phantom, the paper's picture tables: the columns the run config's ``report`` section names (e.g.

@@ -15,7 +15,10 @@ A degradation is written as steps joined by ``+`` (order does not matter), each 
   fraction before it is read as a mask or an intensity (the partial-volume fraction is the box-filtered
   indicator, so the total spread is σ² + 1/12 voxel² per axis);
 * ``label_noise@p`` — after ``mask``: each boundary voxel (one of its six neighbours has the other label) flips
-  with probability p, seeded.
+  with probability p, seeded;
+* ``downsample@K`` — with ``mask`` or ``partial_volume``, for a phantom that is a fine segmentation (the real tier,
+  :mod:`phantoms.real_tier`): its voxels averaged over K × K × K blocks (times ``thick_slices@K`` along z, which
+  there means 1 × 1 × K blocks) — the segmentation at a coarser resolution, scored against its own fine surface.
 
 Exactly one of ``mask`` and ``partial_volume`` ends a degradation unless it is ``thick_slices`` alone (the exact
 φ on the thick grid).  A method receives a :class:`~phantoms.volume.Volume` whose ``kind`` says what it is
@@ -41,13 +44,15 @@ from .masks import mask_sdf_values
 from .volume import Volume, check_memory
 
 __all__ = ["Degradation", "parse_degradation", "degrade", "partial_volume_fraction", "flip_boundary",
-           "thick_grid", "DEGRADATION_STEPS", "PV_SAMPLES"]
+           "thick_grid", "image_input", "DEGRADATION_STEPS", "PV_SAMPLES"]
 
 #: sub-samples per axis of a boundary voxel of the partial-volume image
 PV_SAMPLES = 4
 #: the steps a degradation is made of
-DEGRADATION_STEPS = ("mask", "partial_volume", "thick_slices", "blur", "label_noise")
-_VALUED = {"thick_slices", "blur", "label_noise"}
+DEGRADATION_STEPS = ("mask", "partial_volume", "thick_slices", "blur", "label_noise", "downsample")
+_VALUED = {"thick_slices", "blur", "label_noise", "downsample"}
+_INTEGER = {"thick_slices": "the slice spacing is K times the in-plane spacing",
+            "downsample": "K x K x K fine voxels make one coarse voxel"}
 
 
 @dataclass(frozen=True)
@@ -59,6 +64,7 @@ class Degradation:
     thick_slices: int = 1
     blur: float = 0.0
     label_noise: float = 0.0
+    downsample: int = 1
 
     @property
     def is_none(self) -> bool:
@@ -72,12 +78,14 @@ class Degradation:
     @property
     def needs_subvoxel_truth(self) -> bool:
         """Whether it needs the exact φ between the voxel centres (not available from a user's image)."""
-        return self.partial_volume or self.blur > 0 or self.thick_slices > 1
+        return self.partial_volume or self.blur > 0 or self.thick_slices > 1 or self.downsample > 1
 
     def __str__(self) -> str:
         if self.is_none:
             return "none"
         parts = []
+        if self.downsample > 1:
+            parts.append(f"downsample@{self.downsample}")
         if self.thick_slices > 1:
             parts.append(f"thick_slices@{self.thick_slices}")
         if self.blur > 0:
@@ -98,10 +106,9 @@ def _step_value(name: str, value: str, where: str):
         raise InputError(f"{where}: {name}@{value}: {value!r} is not a number") from None
     if not math.isfinite(x):
         raise InputError(f"{where}: {name}@{value}: must be finite")
-    if name == "thick_slices":
+    if name in _INTEGER:
         if x != int(x) or x < 1:
-            raise InputError(f"{where}: thick_slices@{value}: K must be an integer >= 1 (the slice spacing is K "
-                             "times the in-plane spacing)")
+            raise InputError(f"{where}: {name}@{value}: K must be an integer >= 1 ({_INTEGER[name]})")
         return int(x)
     if name == "blur" and x < 0:
         raise InputError(f"{where}: blur@{value}: sigma must be >= 0 (voxels)")
@@ -132,7 +139,7 @@ def parse_degradation(text) -> Degradation:
         name, at, value = part.strip().partition("@")
         if name not in DEGRADATION_STEPS:
             raise InputError(f"{where}: unknown step {name!r}; valid steps: {', '.join(DEGRADATION_STEPS)} "
-                             "(joined by +, a value after @: thick_slices@3, blur@1, label_noise@0.1)")
+                             "(joined by +, a value after @: thick_slices@3, blur@1, label_noise@0.1, downsample@2)")
         if name in fields:
             raise InputError(f"{where}: {name} is given twice")
         if name in _VALUED and not at:
@@ -148,6 +155,9 @@ def parse_degradation(text) -> Degradation:
         raise InputError(f"{where}: label_noise flips mask voxels; add +mask")
     if d.blur and not (d.mask or d.partial_volume):
         raise InputError(f"{where}: blur acts on the image a scanner reads; add +mask or +partial_volume")
+    if d.downsample > 1 and not (d.mask or d.partial_volume):
+        raise InputError(f"{where}: downsample coarsens a segmentation into the image a scanner reads; add +mask or "
+                         "+partial_volume")
     return d
 
 
@@ -292,11 +302,12 @@ def degrade(phantom, degradation, n: int, extent: float = DEFAULT_EXTENT, seed: 
     ----------
     phantom : Phantom
         A phantom with an exact φ (analytic or mesh); a user's volume (``volume:``) takes only ``mask`` and
-        ``label_noise`` (its voxels are all there is).
+        ``label_noise`` (its voxels are all there is); a fine segmentation (``coarse_input``, the real tier) makes
+        its own coarse input.
     degradation : Degradation or str
         What to do (:func:`parse_degradation`).
     n, extent : int, float
-        The grid (N³ over [−extent, extent]³ before ``thick_slices``).
+        The grid (N³ over [−extent, extent]³ before ``thick_slices``); a fine segmentation's own grid ignores them.
     seed : int
         Seed of ``label_noise``.
     clean : Volume, optional
@@ -310,6 +321,12 @@ def degrade(phantom, degradation, n: int, extent: float = DEFAULT_EXTENT, seed: 
     d = parse_degradation(degradation)
     if d.is_none:
         raise InputError("degrade: no degradation given")
+    if getattr(phantom, "coarse_input", None) is not None:  # a fine segmentation: its own grid, coarsened
+        return phantom.coarse_input(d, seed)
+    if d.downsample > 1:
+        raise InputError(f"degradation {d}: downsample@K coarsens a fine segmentation (the real tier, "
+                         f"docs/PHANTOMS.md); phantom {getattr(phantom, 'name', phantom)!r} is not one — for an "
+                         "exact phantom a coarser grid is a smaller N")
     if getattr(phantom, "level_set", None) is not None:     # a user's volume: only its voxels are known
         if d.needs_subvoxel_truth:
             raise InputError(f"degradation {d}: a user volume has no sub-voxel truth (partial_volume, blur and "
@@ -325,13 +342,23 @@ def degrade(phantom, degradation, n: int, extent: float = DEFAULT_EXTENT, seed: 
         return Volume(phi, origin, spacing)
     if d.partial_volume or d.blur:
         image = partial_volume_fraction(phantom, phi, origin, spacing)
-        if d.blur:
-            h = float(np.min(spacing))
-            image = ndimage.gaussian_filter(image, sigma=[d.blur * h / s for s in spacing], mode="nearest")
-        if d.mask:
-            image = (image > 0.5).astype(np.float64)
     else:
         image = (phi < 0).astype(np.float64)
+    return image_input(image, d, origin, spacing, seed)
+
+
+def image_input(fraction: np.ndarray, degradation, origin, spacing, seed: int = 0) -> Volume:
+    """The volume a method gets from an inside-fraction image (1 inside, 0 outside, between on the boundary):
+    ``blur``, then ``mask`` (more than half inside), then ``label_noise`` as the degradation says, with its level
+    set (module docstring) — kind ``mask`` or ``intensity``, raw the image, level 0.5."""
+    d = parse_degradation(degradation)
+    origin, spacing = np.asarray(origin, float), np.broadcast_to(np.asarray(spacing, float), (3,))
+    image = np.asarray(fraction, np.float64)
+    if d.blur:
+        h = float(np.min(spacing))
+        image = ndimage.gaussian_filter(image, sigma=[d.blur * h / s for s in spacing], mode="nearest")
+    if d.mask:
+        image = (image > 0.5).astype(np.float64)
     if d.label_noise:
         image = flip_boundary(image > 0.5, d.label_noise, seed).astype(np.float64)
     values = _level_set_of(image, d.kind, origin, spacing)

@@ -18,6 +18,7 @@ from .analytic import Cylinder, Ellipsoid, FusedSpheres, Sphere, Torus
 from .base import Phantom
 from .field import FIELD_PREFIX, FieldPhantom, parse_field_spec
 from .real import REAL_SHAPES, get_mesh_file_phantom, get_real_phantom, get_volume_phantom
+from .real_tier import FINE_SHAPES, get_fine_phantom
 from .user import VOLUME_PREFIX, parse_spec
 
 __all__ = ["FIELD_PREFIX", "check_phantom_files", "PHANTOMS", "REAL_PHANTOMS", "MESH_PREFIX", "VOLUME_PREFIX",
@@ -28,9 +29,10 @@ PHANTOMS: dict[str, type[Phantom]] = {
     cls.name: cls for cls in (Sphere, Ellipsoid, FusedSpheres, Cylinder, Torus)
 }
 
-#: named real shapes (data shipped inside installed packages, loaded on first use: ``phantoms/real.py``);
-#: any closed mesh file is a phantom as ``mesh:PATH``.  PHANTOMS keeps the analytic classes only.
-REAL_PHANTOMS: tuple[str, ...] = tuple(REAL_SHAPES)
+#: named real shapes (data shipped inside installed packages, loaded on first use: ``phantoms/real.py``), then the
+#: real tier's fine segmentations (``phantoms/real_tier.py``); any closed mesh file is a phantom as ``mesh:PATH``.
+#: PHANTOMS keeps the analytic classes only.
+REAL_PHANTOMS: tuple[str, ...] = tuple(REAL_SHAPES) + tuple(FINE_SHAPES)
 MESH_PREFIX = "mesh:"
 
 
@@ -187,6 +189,8 @@ def get_phantom(name: str, **params) -> Phantom:
         return get_volume_phantom(name, **params)
     if _is_mesh_name(name):
         return get_mesh_file_phantom(name, name[len(MESH_PREFIX):], **params)
+    if name in FINE_SHAPES:
+        return get_fine_phantom(name, **params)
     if name in REAL_PHANTOMS:
         return get_real_phantom(name, **params)
     if name not in PHANTOMS:

@@ -54,6 +54,18 @@ def test_scale_config_is_48_cells_of_the_baselines():
     assert {c.n for c in cells} == {48}
 
 
+def test_real_tier_config_runs_the_fine_segmentations_on_their_own_grid():
+    cfg = load_config(CONFIG_DIR / "real_tier.toml")
+    cfg.validate()
+    cells = expand_grid(cfg)
+    # 2 segmentations x 6 coarse inputs x 7 methods, each at N = 0: the phantom's own grid, not grid.n
+    assert len(cells) == 2 * 6 * 7 and {c.n for c in cells} == {0}
+    assert {c.degrade for c in cells} == {f"{k}+{kind}" for k in ("downsample@2", "downsample@3", "thick_slices@3")
+                                          for kind in ("mask", "partial_volume")}
+    mixed = config_from_dict({"grid": {"phantoms": ["sphere", "mni_wm"], "n": [32, 48]},
+                              "methods": [{"name": "marching_cubes"}]})
+    assert sorted((c.phantom, c.n) for c in expand_grid(mixed)) == [("mni_wm", 0), ("sphere", 32), ("sphere", 48)]
+
 def test_cell_id_names_the_cell_and_hashes_every_parameter():
     cfg = builtin_config("quick")
     cell = expand_grid(cfg)[0]

@@ -34,7 +34,7 @@ def test_mesh_prefix_and_registry(tmp_path):
     assert get_phantom(f"mesh:{path}") is ph                       # cached per process
     assert ph.volume(n=16).is_closed()
     assert list(PHANTOMS) == ["sphere", "ellipsoid", "fused_spheres", "cylinder", "torus"]
-    assert phantom_names()[-3:] == ["bunny", "cortex", "brain_mri"]
+    assert phantom_names()[-5:] == ["bunny", "cortex", "brain_mri", "mni_wm", "mni_gm"]
     assert is_phantom_name("bunny") and is_phantom_name(f"mesh:{path}") and not is_phantom_name("blob")
-    with pytest.raises(InputError, match="valid phantoms: sphere.*brain_mri, or mesh:PATH"):
+    with pytest.raises(InputError, match="valid phantoms: sphere.*brain_mri, mni_wm, mni_gm, or mesh:PATH"):
         get_phantom("blob")

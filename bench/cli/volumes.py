@@ -19,8 +19,9 @@ def _cmd_phantoms(args) -> int:
         print(f"{name:<15} {ph.genus:>5} {str(ph.has_creases).lower():>7} {snr:>9}  {params}")
         print(f"{'':<40}{ph.description}")
     from phantoms.real import REAL_SHAPES  # real shapes: listed from class facts, not loaded
+    from phantoms.real_tier import FINE_SHAPES
 
-    for name, cls in REAL_SHAPES.items():
+    for name, cls in {**REAL_SHAPES, **FINE_SHAPES}.items():
         print(f"{name:<15} {cls.genus:>5} {str(cls.has_creases).lower():>7} {'-':>9}  data: {cls.data}")
         print(f"{'':<40}{cls.description}")
     blank = f"{'':>5} {'':>7} {'-':>9}"

@@ -115,7 +115,12 @@ def input_fingerprint(source: str) -> str | None:
 
 def grid_sizes(source: str, sizes) -> list[int]:
     """The grid sizes N a phantom runs at: a user volume runs on its native grid (N = 0 here; the row gets its
-    largest dimension) unless its spec says ``resample=yes``."""
+    largest dimension) unless its spec says ``resample=yes``; so does a real-tier phantom (its own fine grid,
+    coarsened by its degradations)."""
+    from phantoms.real_tier import FINE_SHAPES
+
+    if source in FINE_SHAPES:
+        return [0]
     if source.startswith(VOLUME_PREFIX) and not parse_spec(source)[1].get("resample"):
         return [0]
     return list(sizes)

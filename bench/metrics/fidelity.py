@@ -29,8 +29,8 @@ from geometry.mesh import scored_mesh
 from geometry.raster import grid_winding
 
 __all__ = [
-    "fidelity_metrics", "mesh_inside", "band_query", "zero_set_gradient", "as_distance", "DISTANCE_LIKE", "BAND_SAMPLES",
-    "MESH_SAMPLES", "FIDELITY_NAMES",
+    "fidelity_metrics", "mesh_inside", "band_query", "zero_set_gradient", "as_distance", "DISTANCE_LIKE",
+    "BAND_SAMPLES", "MESH_SAMPLES", "FIDELITY_NAMES",
 ]
 
 #: at most this many grid samples of the band |φ| < 3h enter the SDF agreement.  Each costs an exact

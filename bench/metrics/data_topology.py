@@ -53,7 +53,8 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from geometry.mesh import scored_mesh
+from geometry.mesh import face_signed_volumes, scored_mesh
+from geometry.topology import component_euler
 
 __all__ = ["MIN_VOXELS", "KINDS", "DATA_TOPOLOGY_NAMES", "digital_topology", "euler_characteristic", "mesh_shells",
            "data_topology_metrics", "compare"]
@@ -177,27 +178,8 @@ def mesh_shells(vertices, faces: np.ndarray | None = None) -> dict:
     if n == 0:
         return {"n": 0, "labels": fl, "volume": np.zeros(0), "closed": np.zeros(0, bool), "euler": np.zeros(0, int),
                 "genus": np.zeros(0, int)}
-    v = m.vertices
-    a, b, c = v[F[:, 0]], v[F[:, 1]], v[F[:, 2]]
-    vol = np.bincount(fl, weights=np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0, minlength=n)
-    # each face's three edges, as undirected keys, with the face's shell: (shell, edge) pairs
-    nv = len(v)
-    e = np.sort(np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
-    key = e[:, 0] * nv + e[:, 1]
-    shell_of_edge = np.repeat(fl, 3)
-    pair_key = shell_of_edge.astype(np.int64) * (nv * nv) + key if nv * nv * n < 2 ** 62 else None
-    if pair_key is None:                                        # pragma: no cover — astronomically large meshes
-        pairs = np.unique(np.stack([shell_of_edge, key], axis=1), axis=0, return_counts=True)
-        uniq_shell, counts = pairs[0][:, 0], pairs[1]
-    else:
-        uk, counts = np.unique(pair_key, return_counts=True)
-        uniq_shell = uk // (nv * nv)
-    n_edges = np.bincount(uniq_shell, minlength=n)
-    open_edges = np.bincount(uniq_shell, weights=(counts != 2), minlength=n)
-    vkey = np.unique(np.repeat(fl, 3).astype(np.int64) * nv + F.reshape(-1))
-    n_verts = np.bincount(vkey // nv, minlength=n)
-    n_faces = np.bincount(fl, minlength=n)
-    euler = n_verts - n_edges + n_faces
+    vol = np.bincount(fl, weights=face_signed_volumes(m.vertices, F), minlength=n)
+    euler, open_edges = component_euler(F, len(m.vertices), fl, n, groups=m.edge_groups)
     closed = open_edges == 0
     genus = np.where(closed, (2 - euler) // 2, 0)
     return {"n": int(n), "labels": fl, "volume": vol, "closed": closed, "euler": euler.astype(int),

@@ -240,3 +240,22 @@ def test_the_columns_and_the_flag_on_a_row_with_and_without_truth():
 def test_evaluate_without_a_volume_leaves_the_columns_nan():
     out = evaluate(trimesh.creation.icosphere(2), None, 0.1, n_samples=500)
     assert all(np.isnan(out[k]) for k in ("data_parts", "mesh_genus", "topology_diffs"))
+
+
+def test_on_the_usable_board_of_cells_without_truth_a_mesh_that_merges_the_datas_parts_ranks_last():
+    """Truth-free rows: 'one_piece' lies best on the data (smallest sdf_rms_h) but is flagged topology_vs_data on
+    every input — it wins the raw board and ranks last on the usable one, usable on 0 % of its cells."""
+    from bench.report.verdicts import leaderboards
+
+    rows = []
+    for i, v in enumerate(np.linspace(0.1, 0.3, 12)):
+        for label, scale, flags in (("one_piece", 0.5, "topology_vs_data"), ("a", 1.0, ""), ("b", 1.4, "")):
+            rows.append({"phantom": f"volume:scan{i}.nii.gz", "variant": "sdf", "N": 48, "noise": "none",
+                         "snr_requested": None, "seed": 0, "label": label, "status": "ok", "flags": flags,
+                         "has_truth": False, "wall_s": 1.0, "sdf_rms_h": v * scale, "phi_mean_h": v * scale,
+                         "sign_err_pct": 0.01, "roughness_deg": 5.0})
+    board = next(b for b in leaderboards(rows) if b.get("usable_board"))     # the truth-free board: the only one
+    assert board["rows"][0]["label"] == "one_piece" and board["rows"][0]["usable_pct"] == 0.0
+    usable = board["usable_board"]
+    assert [r["label"] for r in usable["rows"]] == ["a", "b", "one_piece"]
+    assert usable["rows"][0]["usable_pct"] == 100.0

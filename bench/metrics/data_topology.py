@@ -9,11 +9,11 @@ handles b1 = b0 + b2 − χ (for a solid in space, b1 is the summed genus of its
 topology needs a *pair* of connectivities, one for the inside and the complementary one for the outside, so that
 the inside and its complement do not cross each other: (6, 26) or (26, 6).  Neither alone is how a mesher
 behaves: where two inside voxels touch only along a voxel edge, scikit-image's marching cubes keeps them apart
-and VTK's flying edges and surface nets join them; where they touch only at a corner every built-in mesher keeps
-them apart, while a smooth method (Poisson, the shape gradient) may bridge them.  Such a contact is a
-sub-voxel feature: the grid cannot say whether the object touches there.  So both pairs are computed and a mesh is
-compared with the range they span — (6, 26), the marching-cubes reading with the most parts, the fewest cavities,
-and (26, 6), with the fewest parts and the most cavities; a count inside the range is consistent with the data.
+and VTK's flying edges and surface nets join them; where they touch only at a corner those three keep them
+apart, while a smooth method (Poisson, the shape gradient) may bridge them.  Such a contact is a sub-voxel
+feature: the grid cannot say whether the object touches there.  So both pairs are computed and a mesh is
+compared with the range they span — (6, 26), the reading with the most parts and the fewest cavities, and
+(26, 6), with the fewest parts and the most cavities; a count inside the range is consistent with the data.
 Two parts touching at a voxel edge or corner are thus one part or two, as the mesh has it; two parts a voxel
 apart are two.  The reported columns ``data_parts`` / ``data_cavities`` / ``data_handles`` are the (6, 26)
 reading.

@@ -158,15 +158,16 @@ def test_surface_nets_of_the_mask_is_consistent(make):
 
 
 def test_a_smooth_mesh_of_a_noisy_level_set_is_not_flagged():
-    """The torus's signed distance with noise of σ ≈ 0.6 h: φ < 0 has dozens of speckles and noise tunnels; the
-    clean marching cubes (what a perfect smoother would return) and the noisy one are both consistent."""
+    """The torus's signed distance with noise of σ ≈ 0.6 h: φ < 0 has dozens of speckles and 8–15 handles where the
+    torus has one; the clean marching cubes (what a perfect smoother would return) and the noisy one are both
+    consistent."""
     g = (_grid() - 13.5) * 0.5
     q = np.sqrt(g[0] ** 2 + g[1] ** 2)
     clean = Volume(np.sqrt((q - 4.0) ** 2 + g[2] ** 2) - 1.5, ORIGIN, 0.5)
-    noisy, _ = add_noise(clean, "gaussian", 24.0, seed=1)
+    noisy, _ = add_noise(clean, "gaussian", 21.0, seed=1)
     sigma = np.std(noisy.values - clean.values) / clean.h
     p = digital_topology(noisy.inside_raw)["pairs"][(6, 26)]
-    assert 0.4 < sigma < 1.0 and p["speckles"] > 5 and p["handles"] > 1      # the noise made it speckled
+    assert 0.5 < sigma < 0.7 and p["speckles"] > 20 and p["handles"] > 5     # the noise made it speckled
     assert detail(mc(clean), noisy) == ""
     assert detail(mc(noisy), noisy) == ""
 

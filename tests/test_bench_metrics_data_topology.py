@@ -260,3 +260,17 @@ def test_on_the_usable_board_of_cells_without_truth_a_mesh_that_merges_the_datas
     usable = board["usable_board"]
     assert [r["label"] for r in usable["rows"]] == ["a", "b", "one_piece"]
     assert usable["rows"][0]["usable_pct"] == 100.0
+
+
+def test_one_piece_where_the_data_has_many_parts_is_flagged_merged_with_both_counts():
+    """A label map in 32 blocks of 3³ voxels, 3 voxels apart; the mesh of the blocks dilated together (one slab,
+    as a smooth method started from one sphere returns): merged parts, 32 in data and 1 in mesh."""
+    m = np.zeros((N, N, N), bool)
+    for x in (2, 8, 14, 20):
+        for y in (2, 8, 14, 20):
+            for z in (2, 8):
+                m[x:x + 3, y:y + 3, z:z + 3] = True
+    blob = ndimage.binary_dilation(m, iterations=2)
+    assert ndimage.label(blob)[1] == 1
+    text = detail(mc(blob), mask_volume(m))
+    assert text == "merged parts: 32 in data, 1 in mesh"

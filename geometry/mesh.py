@@ -30,12 +30,18 @@ def signed_volume(vertices, faces) -> float:
     -------
     float
     """
+    return float(face_signed_volumes(vertices, faces).sum())
+
+
+def face_signed_volumes(vertices, faces) -> np.ndarray:
+    """Each face's term v0 · (v1 × v2) / 6 of :func:`signed_volume` (F,): summed over a closed surface (one
+    shell of a mesh, say) they give the volume it encloses, signed by its winding."""
     v = np.asarray(vertices, float)
     f = np.asarray(faces)
     if len(f) == 0:
-        return 0.0
+        return np.zeros(0)
     v0, v1, v2 = (v[f[:, k]] for k in range(3))
-    return float(np.einsum("ij,ij->i", v0, np.cross(v1, v2)).sum()) / 6.0
+    return np.einsum("ij,ij->i", v0, np.cross(v1, v2)) / 6.0
 
 
 def _areas(cross: np.ndarray) -> np.ndarray:

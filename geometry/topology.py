@@ -20,6 +20,7 @@ __all__ = [
     "edges_unique", "face_edge_keys", "face_edges", "edge_face_counts", "edge_groups", "edge_adjacent_face_pairs",
     "directed_edge_repeats",
     "is_closed", "is_manifold", "is_oriented", "euler_characteristic", "genus", "connected_components",
+    "component_euler",
     "is_sphere_like",
 ]
 
@@ -140,6 +141,31 @@ def euler_characteristic(faces, n_vertices: int, n_edges: int | None = None) -> 
     if n_edges is None:
         n_edges = len(edge_face_counts(faces, n_vertices)[0])
     return int(n_vertices - n_edges + len(faces))
+
+
+def component_euler(faces, n_vertices: int, labels: np.ndarray, n: int, groups=None) -> tuple[np.ndarray, np.ndarray]:
+    """Per component of the faces (``labels`` (F,) in [0, n)): its Euler characteristic V − E + F, each vertex and
+    edge counted once per component that uses it, and how many of its edges it does not hold in exactly two of its
+    faces (0: the component is a closed surface).  ``groups``: :func:`edge_groups` of the same faces, when
+    computed already.
+
+    Returns
+    -------
+    euler, open_edges : numpy.ndarray of int, shape (n,)
+    """
+    f = np.asarray(faces, np.int64)
+    labels = np.asarray(labels, np.int64)
+    order, _, start, counts = edge_groups(f, n_vertices) if groups is None else groups
+    n_f = np.bincount(labels, minlength=n)
+    # (edge, component) pairs of the sorted face edges: runs of one edge id, split by component
+    edge_id = np.repeat(np.arange(len(start), dtype=np.int64), counts)
+    pair, per_pair = np.unique(edge_id * n + labels[order % max(len(f), 1)], return_counts=True)
+    owner = pair % n
+    n_e = np.bincount(owner, minlength=n)
+    n_open = np.bincount(owner, weights=per_pair != 2, minlength=n).astype(np.int64)
+    used = unique_ints(np.repeat(labels, 3) * np.int64(n_vertices) + f.reshape(-1))
+    n_v = np.bincount(used // n_vertices, minlength=n)
+    return n_v - n_e + n_f, n_open
 
 
 def genus(euler: int, n_components: int = 1) -> int:

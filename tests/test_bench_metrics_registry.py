@@ -44,7 +44,8 @@ def test_facts_the_report_relies_on():
     assert METRICS["watertight"].dtype == "bool"
     assert {k for k, m in METRICS.items() if m.dtype == "int"} == {
         "euler", "components", "self_intersections", "n_vertices", "n_faces", "iterations", "boundary_edges",
-        "nonmanifold_edges"}
+        "nonmanifold_edges", "data_parts", "data_cavities", "data_handles", "mesh_voids", "mesh_genus",
+        "topology_diffs"}
     assert all(METRICS[f"{k}_h"].best == "min" for k in ("hausdorff", "hausdorff_95", "mean_dist", "rms_dist"))
     assert METRICS["euler"].best == ("target", 2) and METRICS["components"].best == ("target", 1)
     assert METRICS["n_vertices"].best is None and METRICS["wall_s"].best == "min"

@@ -176,3 +176,89 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, args, message):
     assert proc.returncode == 2, proc.stderr
     assert message in proc.stderr and "Traceback" not in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
+
+
+
+def _two_boxes(folder: Path) -> tuple[Path, Path]:
+    """A NIfTI mask of two boxes four voxels apart (the boxes' spacing and origin), and an OBJ with the exact surface
+    of the first box only: a 'pipeline export' that dropped a part."""
+    import nibabel as nib
+
+    from _volumes import voxel_surface
+
+    m = np.zeros((22, 14, 12), bool)
+    m[2:9, 3:11, 3:9] = True
+    m[13:20, 3:11, 3:9] = True
+    aff = np.diag([*BOX_SPACING, 1.0])
+    aff[:3, 3] = BOX_ORIGIN
+    nii = folder / "two_boxes.nii.gz"
+    nib.save(nib.Nifti1Image(m.astype(np.uint8), aff), str(nii))
+    first = m.copy()
+    first[11:] = False
+    v, f = voxel_surface(first, BOX_ORIGIN, BOX_SPACING)
+    obj = folder / "first_box.obj"
+    trimesh.Trimesh(v, f, process=False).export(str(obj))
+    return nii, obj
+
+
+def test_a_dropped_part_of_a_user_volume_is_flagged_and_its_no_truth_table_says_what(tmp_path):
+    """Without ground truth: the export's row carries ``topology_vs_data`` with "dropped parts: 1 of 2 in data", it
+    is not usable, and the no-truth summary table shows the flag's badge and the detail; marching cubes of the same
+    mask is not flagged."""
+    import pandas as pd
+
+    from bench.metrics.flags import is_usable
+    from bench.report.tables import NO_TRUTH_NOTE, summary_tables
+
+    nii, obj = _two_boxes(tmp_path)
+    base = {"phantom": f"volume:{nii}", "n": 0, "variant": "sdf", "extent": 2.5, "noise": "none",
+            "snr_requested": None, "seed": 0, "n_samples": 5000, "imports": []}
+    rows = {}
+    for label, method, params in (("marching_cubes", "marching_cubes", {}),
+                                  ("export", "mesh_file", {"path": str(obj)})):
+        rows[label] = run_cell({**base, "method": method, "label": label, "params": params,
+                                "cell_id": label}).row.to_dict()
+    export, mc = rows["export"], rows["marching_cubes"]
+    assert export["status"] == mc["status"] == "ok", (export["error"], mc["error"])
+    assert "topology_vs_data" in export["flags"].split(";") and not is_usable(export)
+    assert export["topology_vs_data_detail"] == "dropped parts: 1 of 2 in data"
+    assert export["data_parts"] == 2 and export["topology_diffs"] == 1
+    assert "topology_vs_data" not in mc["flags"] and mc["topology_vs_data_detail"] == "" and is_usable(mc)
+    (table,) = summary_tables(pd.DataFrame(list(rows.values())))
+    assert table["note"] == NO_TRUTH_NOTE
+    assert ">topology_vs_data</span>" in table["html"] and "dropped parts: 1 of 2 in data" in table["html"]
+
+
+@pytest.mark.heavy
+def test_a_mesh_that_drops_a_part_of_a_user_volume_is_flagged_in_its_no_truth_table(tmp_path):
+    """The same through ``python -m bench run`` and its report: results.csv holds the flag and its detail, the
+    report's no-truth table shows both."""
+    nii, obj = _two_boxes(tmp_path)
+    cfg = tmp_path / "two_boxes.toml"
+    cfg.write_text(f'''name = "two_boxes"
+[grid]
+phantoms = [{{ volume = "{nii}" }}]
+noise = [{{ kind = "none" }}]
+[[methods]]
+name = "marching_cubes"
+[[methods]]
+name = "mesh_file"
+label = "export"
+params = {{ path = "{obj}" }}
+[metrics]
+n_samples = 5000
+''')
+    out = tmp_path / "run"
+    proc = _bench("run", "--config", str(cfg), "--out", str(out), "--jobs", "1")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    rows = {r["label"]: r for r in _rows(out / "results.csv")}
+    assert rows["export"]["status"] == "ok" and rows["marching_cubes"]["status"] == "ok", rows
+    assert "topology_vs_data" in rows["export"]["flags"].split(";")
+    assert rows["export"]["topology_vs_data_detail"] == "dropped parts: 1 of 2 in data"
+    assert "topology_vs_data" not in rows["marching_cubes"]["flags"] and not rows["marching_cubes"][
+        "topology_vs_data_detail"]
+    assert rows["export"]["data_parts"] == "2" and rows["export"]["topology_diffs"] == "1"
+    page = (out / "index.html").read_text()
+    table = page[page.index("no ground truth: data fidelity and mesh quality only"):]
+    assert 'badge-flag" title="the mesh&#x27;s parts' in table and ">topology_vs_data</span>" in table
+    assert "dropped parts: 1 of 2 in data" in table

@@ -129,6 +129,18 @@ def test_signed_volume_of_a_box_is_its_volume_positive_outward_negative_inward(c
     assert signed_volume(v, np.zeros((0, 3), int)) == 0.0
 
 
+def test_face_signed_volumes_sum_per_shell_to_each_shells_volume(cube):
+    """Two boxes, the second wound inward: the terms of each box's faces sum to +24 and −24."""
+    from geometry.mesh import face_signed_volumes
+
+    v, f = cube
+    both_v = np.vstack([v, v + [5.0, 0, 0]])
+    both_f = np.vstack([f, f[:, ::-1] + len(v)])
+    terms = face_signed_volumes(both_v, both_f)
+    assert terms.shape == (len(both_f),) and terms[:len(f)].sum() == pytest.approx(24.0)
+    assert terms[len(f):].sum() == pytest.approx(-24.0) and face_signed_volumes(v, np.zeros((0, 3), int)).size == 0
+
+
 def test_signed_volume_of_a_fine_sphere_converges_to_four_thirds_pi():
     v, f = fibonacci_sphere(4000, 1.5)
     assert signed_volume(v, f) == pytest.approx(4 / 3 * np.pi * 1.5 ** 3, rel=2e-3)

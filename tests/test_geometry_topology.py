@@ -100,3 +100,18 @@ def test_face_edges_and_keys_agree():
         assert np.array_equal(e, np.sort(f[:, [a, b]], axis=1))
     keys = face_edge_keys(f, nv)
     assert np.array_equal(np.unique(keys), edges[:, 0] * nv + edges[:, 1])
+
+
+def test_component_euler_counts_each_surface_of_a_mesh_apart():
+    """A sphere and a torus side by side: χ 2 and 0, both closed; without one face the sphere has 3 open edges."""
+    from geometry.topology import component_euler
+
+    s = trimesh.creation.icosphere(2)
+    t = trimesh.creation.torus(1.0, 0.3)
+    v = np.vstack([s.vertices, t.vertices + [4.0, 0, 0]])
+    f = np.vstack([s.faces, t.faces + len(s.vertices)])
+    n, labels = connected_components(f, len(v), by="face")
+    euler, open_edges = component_euler(f, len(v), labels, n)
+    assert n == 2 and sorted(euler.tolist()) == [0, 2] and open_edges.tolist() == [0, 0]
+    euler, open_edges = component_euler(f[1:], len(v), labels[1:], n)
+    assert euler[labels[0]] == 1 and open_edges[labels[0]] == 3 and open_edges[labels[-1]] == 0

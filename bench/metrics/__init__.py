@@ -16,7 +16,8 @@ phantom's exact ground truth:
   (``volume.py``);
 * the papers' SDF energy over the grid's points (``sdf_energy.py``);
 * data fidelity against the volume the method was given — SDF agreement, |φ| on the mesh, sign agreement
-  (``fidelity.py``) — truth-free, so also for user scans.
+  (``fidelity.py``) and the topology of its inside set against the mesh's (``data_topology.py``) — truth-free,
+  so also for user scans.
 
 The mesh is evaluated as given except that faces with a repeated vertex index (no area, no real edges)
 and unreferenced vertices are dropped first (``n_vertices`` / ``n_faces`` report the mesh as given).  The
@@ -56,7 +57,8 @@ from .distance import (
     sample_mesh_surface,
 )
 from .features import edge_metrics
-from .fidelity import band_query, fidelity_metrics
+from .data_topology import data_topology_metrics, digital_topology
+from .fidelity import band_query, fidelity_metrics, mesh_inside
 from .registry import METRICS, Metric
 from .sdf_energy import energy_distances, energy_query, sdf_energy
 from .volume import iou
@@ -94,7 +96,7 @@ METRIC_NAMES = list(METRICS)
 
 def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_000, seed: int = 0,
              crease_band: float = 0.1, timings: dict | None = None, vertex_H: dict | None = None,
-             truth_points: np.ndarray | None = None, clean=None) -> dict:
+             truth_points: np.ndarray | None = None, clean=None, details: dict | None = None) -> dict:
     """All the metrics of ``docs/METRICS.md`` of ``mesh`` against the phantom ``truth`` (or the truth-free subset).
 
     Parameters
@@ -129,6 +131,9 @@ def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_0
     clean : phantoms.Volume, optional
         The clean level set S of the grid (before noise or a degradation; the cell runner passes it):
         ``sdf_energy`` reads |S| at its grid points (NaN without it: the noisy φ would score the noise).
+    details : dict, optional
+        Filled with ``"topology_vs_data"``: the differences between the topology of the volume's inside set and
+        the mesh's, ``; ``-joined (empty: none; :mod:`bench.metrics.data_topology`); absent without a volume.
 
     Returns
     -------
@@ -143,7 +148,7 @@ def evaluate(mesh, truth, spacing: float, *, volume=None, n_samples: int = 100_0
         A mesh without faces, non-finite vertices, faces indexing missing vertices, a bad spacing.
     """
     return _evaluate(mesh, truth, spacing, volume=volume, n_samples=n_samples, seed=seed, crease_band=crease_band,
-                     timings=timings, vertex_H=vertex_H, truth_points=truth_points, clean=clean)
+                     timings=timings, vertex_H=vertex_H, truth_points=truth_points, clean=clean, details=details)
 
 
 def _check_inputs(mesh, spacing, n_samples, crease_band):
@@ -223,7 +228,7 @@ def _energy_grid(truth, clean, seed):
 
 
 def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, crease_band=0.1, timings=None,
-              vertex_H=None, truth_points=None, clean=None) -> dict:
+              vertex_H=None, truth_points=None, clean=None, details=None) -> dict:
     """:func:`evaluate`, optionally recording the seconds spent per phase in ``timings``."""
     t = time.perf_counter()
     tm = timings if timings is not None else {}
@@ -256,6 +261,8 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
     S_grid, grid_pts = _energy_grid(truth, clean, seed)
     # truth/band/grid -> recon distances (compiled, GIL released) run in a worker thread while numpy does the rest
     pending = _start(_distances, true_pts, band_pts, scored, grid_pts)
+    data_topology = digital_topology(volume.inside_raw) if volume is not None else None
+    lap("data_topology")
 
     out.update(topology_metrics(scored))
     out.update(quality_metrics(scored))
@@ -277,9 +284,16 @@ def _evaluate(mesh, truth, spacing, *, volume=None, n_samples=100_000, seed=0, c
         lap("distances (wait)")
         if volume is None:
             out.update({k: math.nan for k in FIDELITY_NAMES})
+            lap("fidelity")
         else:
-            out.update(fidelity_metrics(scored, None, volume, pts, band, d_band))
-        lap("fidelity")
+            enclosed = mesh_inside(scored, None, volume)
+            out.update(fidelity_metrics(scored, None, volume, pts, band, d_band, inside=enclosed))
+            lap("fidelity")
+            columns, detail = data_topology_metrics(scored, None, volume, enclosed, data_topology)
+            out.update(columns)
+            if details is not None:
+                details["topology_vs_data"] = detail
+            lap("data_topology")
 
     if truth is None:
         out.update(curvature_metrics(H, K))

@@ -29,8 +29,8 @@ from geometry.mesh import scored_mesh
 from geometry.raster import grid_winding
 
 __all__ = [
-    "fidelity_metrics", "band_query", "zero_set_gradient", "as_distance", "DISTANCE_LIKE", "BAND_SAMPLES",
-    "MESH_SAMPLES", "FIDELITY_NAMES",
+    "fidelity_metrics", "mesh_inside", "band_query", "zero_set_gradient", "as_distance", "DISTANCE_LIKE",
+    "BAND_SAMPLES", "MESH_SAMPLES", "FIDELITY_NAMES",
 ]
 
 #: at most this many grid samples of the band |φ| < 3h enter the SDF agreement.  Each costs an exact
@@ -96,8 +96,15 @@ def band_query(volume, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return band, volume.index_to_world(ijk)
 
 
+def mesh_inside(V, F: np.ndarray | None, volume) -> np.ndarray:
+    """Which grid points of ``volume`` the mesh encloses (bool, the grid's shape): its winding number on the grid
+    (:func:`geometry.raster.grid_winding`) is not zero."""
+    m = scored_mesh(V, F)
+    return grid_winding(m.vertices, m.faces, volume.origin, volume.spacing, volume.shape) != 0
+
+
 def fidelity_metrics(V, F: np.ndarray | None, volume, mesh_samples: np.ndarray, band: np.ndarray,
-                     band_distance: np.ndarray) -> dict:
+                     band_distance: np.ndarray, inside: np.ndarray | None = None) -> dict:
     """The fidelity block (see the module docstring).
 
     Parameters
@@ -107,12 +114,13 @@ def fidelity_metrics(V, F: np.ndarray | None, volume, mesh_samples: np.ndarray, 
     mesh_samples : (S, 3) area-uniform i.i.d. samples on the mesh (the first :data:`MESH_SAMPLES` are read).
     band, band_distance : the band samples' flat grid indices (:func:`band_query`) and their unsigned distances
         to the mesh.
+    inside : (nx, ny, nz) bool array, optional — the grid points the mesh encloses (:func:`mesh_inside`), when
+        computed already.
     """
     h = volume.h
     phi = volume.values
     at_mesh = np.abs(volume.sample(mesh_samples[:MESH_SAMPLES], clamp=True).phi) / h
-    m = scored_mesh(V, F)
-    inside = grid_winding(m.vertices, m.faces, volume.origin, volume.spacing, volume.shape).reshape(-1) != 0
+    inside = (mesh_inside(V, F, volume) if inside is None else np.asarray(inside, bool)).reshape(-1)
     flat = phi.reshape(-1)
     far = np.abs(flat) > 0.5 * h
     n_far = int(far.sum())

@@ -25,8 +25,10 @@ __all__ = ["DEFAULT_METRICS", "GROUP_KEYS", "DIGITS", "GroupTable", "group_table
 
 #: the metrics a table shows unless told otherwise (those the run has)
 DEFAULT_METRICS = ("hausdorff_h", "mean_dist_h", "fscore@h", "roughness_deg", "self_intersections", "wall_s")
-#: ... and for a run without ground truth: the data-fidelity metrics in place of the distances to the truth
-FREE_METRICS = ("sdf_rms_h", "phi_mean_h", "sign_err_pct", "roughness_deg", "self_intersections", "wall_s")
+#: ... and for a run without ground truth: the data-fidelity metrics (and the topology against the data) in place of
+#: the distances to the truth
+FREE_METRICS = ("sdf_rms_h", "phi_mean_h", "sign_err_pct", "topology_diffs", "roughness_deg", "self_intersections",
+                "wall_s")
 #: ``--by`` names → the columns they group on
 GROUP_KEYS = {"phantom": ("phantom",), "variant": ("variant",), "N": ("N",), "noise": ("noise", "snr_requested"),
               "seed": ("seed",), "input": ("input_kind", "degrade")}

@@ -30,7 +30,7 @@ __all__ = ["TEMPLATE_DIR", "write_report", "preload"]
 TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 
 _TEXT_COLUMNS = ("error", "label", "method", "noise", "phantom", "variant", "status", "parameters", "cell_id",
-                 "flags", "shape_kind")
+                 "flags", "shape_kind", "topology_vs_data_detail")
 
 
 def warn(message: str) -> None:

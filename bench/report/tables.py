@@ -23,7 +23,7 @@ BEST_DIRECTION: dict[str, Any] = {k: m.best for k, m in METRICS.items() if m.bes
 #: columns that identify a cell or describe its outcome, never shown as metrics
 _ID_COLUMNS = {"cell_id", "phantom", "variant", "N", "noise", "snr_requested", "snr_achieved", "seed", "method",
                "label", "parameters", "status", "error", "stop_reason", "source", "h", "has_truth", "degrade",
-               "input_kind", "shape_kind"}
+               "input_kind", "shape_kind", "topology_vs_data_detail"}
 
 #: the note above a table whose phantom has no ground truth (a user volume without ``truth=``)
 NO_TRUTH_NOTE = "no ground truth: data fidelity and mesh quality only"
@@ -205,13 +205,16 @@ FLAG_TITLES = {
                       "earlier iterate)"),
     "inside_disagrees": ("no ground truth: more than 2 % of the grid samples with |φ| > h/2 lie on the other side of "
                          "the mesh (sign_err_pct)"),
+    "topology_vs_data": ("the mesh's parts, voids or handles differ from the input's digital topology "
+                         "(topology_vs_data_detail; without a ground truth the mesh is not usable)"),
 }
 
 
-def status_badges(status: str, flags, valid: bool) -> str:
+def status_badges(status: str, flags, valid: bool, details=()) -> str:
     """The status cell: the status text (a red ``invalid`` / grey ``failed`` badge when no seed gave a valid
     result, a neutral ``skipped`` one when the method declined the input) followed by one amber badge per flag,
-    named in text (the report's CSS colours ``.badge``)."""
+    named in text (the report's CSS colours ``.badge``); ``details``: the ``topology_vs_data_detail`` texts of the
+    row's cells, shown after the badges (what differs from the data, in words)."""
     text = html.escape(str(status))
     if not valid and str(status).strip() == "skipped":     # the method declined this input: not a failure
         text = f'<span class="badge badge-skipped" title="the method does not take this input">{text}</span>'
@@ -221,6 +224,8 @@ def status_badges(status: str, flags, valid: bool) -> str:
     for f in flags or ():
         title = html.escape(FLAG_TITLES.get(f, "suspect result"))
         text += f' <span class="badge badge-flag" title="{title}">{html.escape(f)}</span>'
+    if details and "topology_vs_data" in (flags or ()):
+        text += "".join(f' <small class="flag-detail">{html.escape(x)}</small>' for x in details)
     return text
 
 
@@ -246,6 +251,8 @@ def _method_rows(d, idx: np.ndarray, num: dict[str, np.ndarray], metrics: list[s
     labels = d["label"].to_numpy()[idx]
     status = d["status"].to_numpy()[idx]
     flags_col = d["flags"].to_numpy()[idx] if "flags" in d.columns else np.array([""] * len(idx), object)
+    detail_col = (d["topology_vs_data_detail"].to_numpy()
+                  if "topology_vs_data_detail" in d.columns else np.array([""] * len(d), object))
     rows = []
     for label in dict.fromkeys(labels):
         mine = labels == label
@@ -262,12 +269,14 @@ def _method_rows(d, idx: np.ndarray, num: dict[str, np.ndarray], metrics: list[s
                 rec["_ci"][m] = ci_half_width(vals)
         chosen = flags_col[ok] if ok.any() else flags_col[mine]
         flags = sorted({f for v in chosen if isinstance(v, str) for f in v.split(";") if f})
+        told = detail_col[use]
+        details = list(dict.fromkeys(v for v in told if isinstance(v, str) and v.strip()))
         statuses = list(status[mine])
         text = statuses[0] if len(set(statuses)) == 1 else ", ".join(f"{x}×{statuses.count(x)}"
                                                                      for x in sorted(set(statuses)))
         if mine.sum() > 1:
             text += f" (mean of {int(ok.sum())}/{int(mine.sum())} seeds)"
-        rec.update(status=text, _flags=flags, _valid=bool(ok.any()), _unflagged=not flags)
+        rec.update(status=text, _flags=flags, _details=details, _valid=bool(ok.any()), _unflagged=not flags)
         rows.append(rec)
     # validity first: valid unflagged methods, then valid flagged ones, then those without a valid result (only
     # valid ones can be "best")
@@ -317,7 +326,8 @@ def _marked_html(t: list[dict], metrics: list[str], genus: int, truth: bool = Tr
     head = "".join(f"<th>{html.escape(c)}</th>" for c in ["method", "status", *cols])
     body = []
     for i, r in enumerate(t):
-        cells = [html.escape(str(r["method"])), status_badges(r["status"], r["_flags"], r["_valid"])]
+        cells = [html.escape(str(r["method"])),
+                 status_badges(r["status"], r["_flags"], r["_valid"], r.get("_details", ()))]
         for m in cols:
             x = fmt_value(r.get(m, np.nan), m)
             ci = r["_ci"].get(m)

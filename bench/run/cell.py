@@ -295,17 +295,19 @@ def _ended(exc: Exception, stage: str) -> tuple[str, str, str | None]:
 
 def _metrics(rec, truth, vol, energy_grid, invalid: list, cell: Cell, cache_dir: str | None,
              artifacts: dict) -> tuple[dict, dict, dict]:
-    """``(metrics, per-vertex mean curvature, metric phase times)`` of the method's mesh.  An invalid mesh keeps
+    """``(metrics, per-vertex mean curvature, metric phase times)`` of the method's mesh (the metrics with the
+    ``topology_vs_data_detail`` column, :func:`bench.metrics.evaluate`'s ``details``).  An invalid mesh keeps
     what can be computed (no metrics when they fail); a valid one whose metrics fail, or any that runs out of
     memory, fails the cell — its pictures go into ``artifacts`` first, they are still worth keeping."""
     from bench.metrics import evaluate
 
     final_H: dict = {}
     metric_phases: dict = {}
+    details: dict = {}
     try:
         metrics = evaluate(rec.mesh, truth, vol.h, volume=vol, n_samples=cell.n_samples, seed=cell.seed,
                            timings=metric_phases, vertex_H=final_H,
-                           truth_points=truth_samples(cell, truth, cache_dir), clean=energy_grid)
+                           truth_points=truth_samples(cell, truth, cache_dir), clean=energy_grid, details=details)
     except Exception as exc:
         if not invalid or memory_error(exc, "metrics"):
             try:
@@ -314,6 +316,8 @@ def _metrics(rec, truth, vol, energy_grid, invalid: list, cell: Cell, cache_dir:
                 pass
             raise
         metrics = {}
+    if "topology_vs_data" in details:
+        metrics = {**metrics, "topology_vs_data_detail": details["topology_vs_data"]}
     return metrics, final_H, metric_phases
 
 

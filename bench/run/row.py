@@ -2,7 +2,8 @@
 
 The row's schema has one home, here: the typed columns are the dataclass's fields, each marked with its group
 (``id``: the leading columns of results.csv; ``input``: the volume's facts, placed in results.csv as the rows
-first carry them; ``runner``: the method's own column; ``tail``: flags, status, error; ``json``: kept in
+first carry them; ``runner``: the method's own column; ``detail``: what a flag found, in words, placed as the
+rows first carry them; ``tail``: flags, status, error; ``json``: kept in
 ``cells/<cell_id>.json`` only) and, where it is fixed, its kind in the typed table.  The metric columns are the
 metrics registry's (:data:`bench.metrics.registry.METRICS`), held in ``metrics`` and not restated.  The column
 lists :mod:`bench.run.store` writes by (:data:`ID_COLUMNS`, :data:`RUNNER_COLUMNS`, :data:`TAIL_COLUMNS`,
@@ -76,6 +77,9 @@ class ResultRow:
         Why the method stopped (its info).
     artifact_error : str or None
         Why the cell's arrays were not drawn or sent (json only).
+    topology_vs_data_detail : str or None
+        The differences between the input's digital topology and the mesh's, ``; ``-joined (empty: none; the
+        ``topology_vs_data`` flag, :mod:`bench.metrics.data_topology`).
     flags, status, error : str or None
         The result's flags (``;``-separated), ``ok`` / ``invalid`` / ``failed`` / ``timeout`` / ``skipped``, and
         what went wrong.
@@ -116,6 +120,7 @@ class ResultRow:
     phi_gradient: float | None = _column("input")
     stop_reason: str | None = _column("runner", "string")     # (the metrics come before it in the fields' order)
     artifact_error: str | None = _column("json")
+    topology_vs_data_detail: str | None = _column("detail")
     flags: str | None = _column("tail", "string")
     status: str | None = _column("tail", "string")
     error: str | None = _column("tail", "string")

@@ -395,8 +395,8 @@ def board_html(board: dict, colours: dict[str, str]) -> str:
 
     head = ["method", *[f"{t}<br><small>mean rank on {html.escape(m)}</small>" for m, t in board["keys"]],
             f"wins / ties / losses<br><small>on {html.escape(board['metric'])}</small>",
-            "valid &amp; unflagged", "usable<br><small>one piece, truth's genus, no missing part or "
-            "self-intersection</small>", "median time"]
+            "valid &amp; unflagged", "usable<br><small>the truth's parts and genus (without a truth: the data's), no "
+            "missing part or self-intersection</small>", "median time"]
     body = []
     for r in board["rows"]:
         colour = html.escape(colours.get(r["label"], "#444"))

@@ -165,10 +165,8 @@ class MethodSpec:
         return out
 
     def params_for(self, params: dict, phantom: str) -> dict:
-        """The parameters of one phantom's cells: its phantom_params applied, ``{phantom}`` in text filled in with
-        the name a user sees (:func:`phantoms.short_name`: a single file's stem, a glob's or a label's name)."""
-        out = {**params, **self.phantom_params.get(phantom, {})}
-        shown = short_name(phantom)
+        """One phantom's cell parameters: its phantom_params applied, ``{phantom}`` → :func:`phantoms.short_name`."""
+        out, shown = {**params, **self.phantom_params.get(phantom, {})}, short_name(phantom)
         return {k: v.replace("{phantom}", shown) if isinstance(v, str) else v for k, v in out.items()}
 
     def to_dict(self) -> dict:

@@ -83,8 +83,6 @@ def winding_layers(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     Each component lies in one cell of the others (no crossings), so one of its vertices tells: the winding number
     of the whole mesh there (gpytoolbox's fast winding number) less the component's own (exact), rounded.
     """
-    from gpytoolbox import fast_winding_number
-
     v = np.asarray(vertices, float)
     f = np.asarray(faces, np.int64)
     _, labels = connected_components(f, len(v), by="vertex")
@@ -92,6 +90,7 @@ def winding_layers(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     comps = unique_ints(face_label)
     if len(comps) < 2:
         return np.zeros(len(comps), np.int64)
+    from gpytoolbox import fast_winding_number
     first_face = np.searchsorted(np.sort(face_label), comps)
     order = np.argsort(face_label, kind="stable")
     points = v[f[order[first_face], 0]]
@@ -103,7 +102,7 @@ def winding_layers(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 def _nested_components(v: np.ndarray, f: np.ndarray) -> int:
     """How many components have a side whose winding number is outside {0, 1} (see :func:`winding_layers`)."""
     layers = winding_layers(v, f)
-    if not len(layers):
+    if len(layers) < 2:
         return 0
     _, labels = connected_components(f, len(v), by="vertex")
     face_label = labels[f[:, 0]]

@@ -52,7 +52,7 @@ from pathlib import Path
 from typing import Any
 
 from phantoms import (NOISE_KINDS, VARIANTS, InputError, expand_phantoms, get_phantom, is_file_phantom,
-                      is_phantom_name, phantom_names)
+                      is_phantom_name, phantom_names, short_name)
 from phantoms.registry import check_phantom_files
 from phantoms.user import check_truth_frame, spec_from_table
 
@@ -165,9 +165,9 @@ class MethodSpec:
         return out
 
     def params_for(self, params: dict, phantom: str) -> dict:
-        """The parameters of one phantom's cells: its phantom_params applied, ``{phantom}`` in text filled in."""
-        out = {**params, **self.phantom_params.get(phantom, {})}
-        return {k: v.replace("{phantom}", phantom) if isinstance(v, str) else v for k, v in out.items()}
+        """One phantom's cell parameters: its phantom_params applied, ``{phantom}`` → :func:`phantoms.short_name`."""
+        out, shown = {**params, **self.phantom_params.get(phantom, {})}, short_name(phantom)
+        return {k: v.replace("{phantom}", shown) if isinstance(v, str) else v for k, v in out.items()}
 
     def to_dict(self) -> dict:
         d: dict = {"name": self.name, "label": self.label, "params": copy.deepcopy(self.params)}

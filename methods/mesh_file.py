@@ -2,10 +2,12 @@
 ITK-SNAP, your current pipeline) instead of computing one, so the grid scores it like every other method and
 answers "is my current pipeline better than these?".
 
-``path`` names the file; in a grid ``{phantom}`` in it is replaced by each cell's phantom name (e.g.
-``--add-method slicer_export=mesh_file:path=exports/{phantom}.stl``).  The mesh must already be in the
-volume's world coordinates (RAS+ for a user's image) and closed; the suite's validity check then judges it as
-it judges any method's output (outward orientation, on the zero set, inside the box).
+``path`` names the file; in a grid ``{phantom}`` in it is replaced by the name a user sees for each cell's
+phantom — a ``volume:`` / ``mesh:`` file's stem (``volume:scans/ct.nii.gz?level=500`` → ``ct``), a glob's file
+stem, a ``labels=`` phantom's ``STEM_labelL``, a built-in phantom's name (e.g.
+``--add-method slicer_export=mesh_file:path=exports/{phantom}.stl`` reads ``exports/ct.stl``).  The mesh must
+already be in the volume's world coordinates (RAS+ for a user's image) and closed; the suite's validity check then
+judges it as it judges any method's output (outward orientation, on the zero set, inside the box).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ __all__ = ["MeshFile"]
 class MeshFile(Method):
     name = "mesh_file"
     description = "a surface exported by another tool, read from a file (path may hold {phantom})"
-    params = {"path": Param("", "the mesh file (STL, OBJ, PLY, OFF ...); {phantom}: the cell's phantom name",
+    params = {"path": Param("", "the mesh file (STL, OBJ, PLY, OFF ...); {phantom}: the phantom's file stem or name",
                             type=str)}
     relative_cost = 0.1
 

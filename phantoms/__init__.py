@@ -18,7 +18,7 @@ from .io import check_volume_output, load_volume, mask_to_sdf, save_volume
 from .mesh import MeshPhantom
 from .noise import NOISE_KINDS, add_noise, snr_db
 from .registry import (PHANTOMS, REAL_PHANTOMS, VOLUME_PREFIX, expand_phantoms, get_phantom, is_file_phantom,
-                       is_phantom_name, phantom_names, phantom_path)
+                       is_phantom_name, phantom_names, phantom_path, short_name)
 from .user import VolumePhantom
 from .volume import Sample, Volume
 
@@ -27,4 +27,5 @@ __all__ = [
     "get_phantom", "phantom_names", "grid_volume", "add_noise", "snr_db",
     "load_volume", "save_volume", "check_volume_output", "mask_to_sdf", "REAL_PHANTOMS", "is_phantom_name",
     "MeshPhantom", "VolumePhantom", "VOLUME_PREFIX", "expand_phantoms", "is_file_phantom", "phantom_path",
+    "short_name",
 ]

@@ -18,6 +18,12 @@ The grid itself is the run's: with ``extent = 1`` and N points per axis it is th
 ``build_grid((res, res, res))`` (libigl's ``igl::grid`` scaled to [−1, 1]³) for N = res; only the order of
 the points differs (the suite's array axis 0 is x).  The truth (closest points, samples, curvature) is the
 normalised mesh, exactly as for any :class:`~phantoms.mesh.MeshPhantom`.
+
+A mesh whose parts cross or nest is, as for every mesh phantom, first replaced by the boundary of its
+winding-number ≥ ½ solid (:mod:`phantoms.mesh.resolve`).  The papers take the fast winding number's sign too —
+the same solid — but their distance is to every sheet of the raw mesh, inner ones included, so inside an overlap
+their grid values dip towards sheets that are no surface; the suite's grid, samples and metrics all use the
+solid's boundary, so the values, the truth and the zero level set are one surface.
 """
 
 from __future__ import annotations
@@ -83,7 +89,7 @@ class FieldPhantom(MeshPhantom):
     """
 
     truth_note = "ground truth = the input mesh normalised as the papers do (unit bounding box × scale)"
-    _check_crossing = False      # its faces are the inner phantom's, checked there (a similarity keeps them apart)
+    _check_crossing = False      # its faces are the inner phantom's, resolved there (a similarity keeps them apart)
 
     def __init__(self, inner: MeshPhantom, scale: float = 1.0, *, name: str):
         raw = inner.vertices / inner.scale + inner.centre
@@ -91,6 +97,9 @@ class FieldPhantom(MeshPhantom):
                          description=f"{inner.description}; the field's protocol (longest side {scale:g}, centred)",
                          crease_angle_deg=inner.crease_angle_deg, source=inner.source)
         self.field_scale = float(scale)
+        self.resolution = inner.resolution
+        if inner.resolution is not None:
+            self.truth_note = f"{self.truth_note}; {inner.resolution.note()}"
 
     @property
     def params(self) -> dict:

@@ -22,7 +22,8 @@ from .real_tier import FINE_SHAPES, get_fine_phantom
 from .user import VOLUME_PREFIX, parse_spec
 
 __all__ = ["FIELD_PREFIX", "check_phantom_files", "PHANTOMS", "REAL_PHANTOMS", "MESH_PREFIX", "VOLUME_PREFIX",
-           "phantom_names", "is_phantom_name", "get_phantom", "expand_phantoms", "is_file_phantom", "phantom_path"]
+           "phantom_names", "is_phantom_name", "get_phantom", "expand_phantoms", "is_file_phantom", "phantom_path",
+           "short_name"]
 
 #: the analytic phantom classes by name
 PHANTOMS: dict[str, type[Phantom]] = {
@@ -115,6 +116,26 @@ def _stem(path: Path) -> str:
         if name.lower().endswith(suffix):
             return name[: -len(suffix)]
     return path.stem if path.suffix else name
+
+
+def short_name(name: str) -> str:
+    """The name a user sees for a phantom: a ``mesh:`` / ``volume:`` spec's file stem (``volume:ct.nii.gz?level=500``
+    → ``ct``), anything else as it is — a glob's or a ``labels=`` spec's phantoms are already named so
+    (:func:`expand_phantoms`).  What ``{phantom}`` in a method's text parameter becomes (``mesh_file``'s
+    ``path=exports/{phantom}.stl``).
+
+    Parameters
+    ----------
+    name : str
+        A phantom's name in a grid (:func:`expand_phantoms`' first element).
+
+    Returns
+    -------
+    str
+    """
+    if not is_file_phantom(name):
+        return name
+    return _stem(Path(phantom_path(name)).expanduser())
 
 
 def expand_phantoms(specs) -> list[tuple[str, str]]:

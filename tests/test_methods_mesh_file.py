@@ -41,3 +41,34 @@ def test_an_open_or_unreadable_surface_is_one_line(tmp_path):
             get_method("mesh_file", path=str(path)).reconstruct(vol)
         assert words in str(err.value) and "\n" not in str(err.value), str(err.value)
     assert np.isfinite(vol.h)
+
+
+def test_phantom_in_the_path_is_the_name_a_user_sees(tmp_path, monkeypatch):
+    """``{phantom}`` is a single ``volume:`` file's stem (not its whole spec), a glob's file stem, a ``labels=``
+    phantom's ``STEM_labelL``: ``--add-method x=mesh_file:path=exports/{phantom}.stl`` with one volume file reads
+    ``exports/STEM.stl``, and its row is scored."""
+    import csv
+
+    import nibabel as nib
+
+    from _volumes import boxes_mask, voxel_surface
+    from bench.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    m = boxes_mask()
+    nib.save(nib.Nifti1Image(m.astype(np.uint8), np.eye(4)), "seg.nii.gz")
+    (tmp_path / "exports").mkdir()
+    v, f = voxel_surface(m, np.zeros(3), np.ones(3))
+    trimesh.Trimesh(v, f, process=False).export("exports/seg.stl")
+    code = main(["run", "--phantoms", "volume:seg.nii.gz?pad=1", "--method", "x=mesh_file:path=exports/{phantom}.stl",
+                 "--noise", "none", "--n-samples", "2000", "--jobs", "1", "--no-report", "--out", "run"])
+    assert code == 0
+    rows = list(csv.DictReader(open(tmp_path / "run" / "results.csv")))
+    assert [(r["label"], r["status"]) for r in rows] == [("x", "ok")], rows
+    specs = ["volume:seg.nii.gz?pad=1", "volume:*.nii.gz?label=1", "volume:seg.nii.gz?labels=all"]
+    cfg = config_from_dict({"grid": {"phantoms": specs[2:], "n": 16},
+                            "methods": [{"name": "mesh_file", "params": {"path": "exports/{phantom}.stl"}}]})
+    assert {c.params["path"] for c in expand_grid(cfg)} == {"exports/seg_label1.stl"}
+    cfg = config_from_dict({"grid": {"phantoms": specs[1:2], "n": 16},
+                            "methods": [{"name": "mesh_file", "params": {"path": "exports/{phantom}.stl"}}]})
+    assert [c.params["path"] for c in expand_grid(cfg)] == ["exports/seg.stl"]

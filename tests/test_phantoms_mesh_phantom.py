@@ -116,10 +116,11 @@ def test_non_watertight_mesh_is_rejected(tmp_path):
         get_phantom(f"mesh:{tmp_path / 'missing.ply'}")
 
 
-def test_self_intersecting_mesh_is_rejected(tmp_path):
+def test_self_intersecting_mesh_is_resolved_to_its_solid(tmp_path):
     """Two closed, outward unit spheres whose centres are one radius apart: a point inside the first just outside
     the second has the second's sheet nearest, whose outward normal points at it — the pseudonormal sign reads
-    *outside* where the winding number says inside.  Such a mesh is no truth; apart, the same spheres are one."""
+    *outside* where the winding number says inside.  The phantom is the boundary of the winding-number ≥ ½ solid
+    instead (phantoms/mesh/resolve.py), whose sign agrees; apart, the same spheres are one solid as they are."""
     from phantoms.mesh.index import TriangleIndex
 
     v, f = _icosphere(3, 1.0)
@@ -128,14 +129,15 @@ def test_self_intersecting_mesh_is_rejected(tmp_path):
     index = TriangleIndex(two_v, two_f)
     x, _, face, _, feat = index.closest(p)
     assert winding_number(two_v, two_f, p)[0] > 0.5 and index.sign(p, x, face, feat)[0] > 0
-    with pytest.raises(InputError, match=r"crosses itself: \d+ faces cross"):
-        MeshPhantom(two_v, two_f)
+    resolved = MeshPhantom(two_v, two_f, normalize=False)
+    assert resolved.resolution.crossing_faces > 0 and -0.83 < resolved.sdf(p)[0] < -0.77   # 0.8 from the union's
     path = tmp_path / "overlap.obj"
     trimesh.Trimesh(two_v, two_f, process=False).export(path)
-    with pytest.raises(InputError, match=r"overlap\.obj: mesh crosses itself.*self-union"):
-        get_phantom(f"mesh:{path}")
+    ph = get_phantom(f"mesh:{path}")
+    assert ph.n_components == 1 and ph.resolution.faces_out == len(ph.faces)
+    assert "winding-number ≥ ½ solid" in ph.description
     apart = MeshPhantom(np.vstack([v, v + [3.0, 0, 0]]), two_f)
-    assert apart.n_components == 2
+    assert apart.n_components == 2 and apart.resolution is None
 
 
 def test_paper_variant_does_not_exist_for_meshes():

@@ -103,13 +103,31 @@ def test_truth_that_is_open_or_elsewhere_is_refused(tmp_path):
     open_box.export(str(tmp_path / "open.obj"))
     with pytest.raises(InputError, match="truth mesh: .*not watertight"):
         get_phantom(f"volume:{nii}?truth={tmp_path / 'open.obj'}")
-    overlap = trimesh.util.concatenate([box, box.copy().apply_translation((1, 0, 0))])   # closed, crosses itself
-    overlap.export(str(tmp_path / "overlap.obj"))
-    with pytest.raises(InputError, match="truth mesh: .*overlap.obj: mesh crosses itself"):
+    overlap = trimesh.util.concatenate([box, box.copy().apply_translation((1, 0, 0))])   # closed, crosses itself:
+    overlap.export(str(tmp_path / "overlap.obj"))                   # resolved to its solid, then checked where it is
+    with pytest.raises(InputError, match="the truth surface overlap.obj lies outside the volume"):
         get_phantom(f"volume:{nii}?truth={tmp_path / 'overlap.obj'}")
     box.export(str(tmp_path / "far.obj"))                    # centred on 0: the boxes are at x = 14 ... 25
     with pytest.raises(InputError, match="the truth surface far.obj lies outside the volume"):   # named: a dataset
         get_phantom(f"volume:{nii}?truth={tmp_path / 'far.obj'}")                           # has many truths
+
+
+def test_a_truth_that_crosses_itself_is_resolved_and_says_so(tmp_path):
+    """A truth given as the boxes' surface plus the same surface shifted by a third of a voxel (two overlapping
+    copies, as an export of overlapping parts is): resolved to the union's boundary, which lies within a voxel of
+    the volume's zero level set and so is accepted; the truth note and the field route say what changed."""
+    nii, obj = write_boxes(tmp_path)
+    m = trimesh.load(str(obj), process=False)
+    shifted = m.copy().apply_translation(BOX_SPACING * [0.31, 0.23, 0.17])
+    trimesh.util.concatenate([m, shifted]).export(str(tmp_path / "twice.obj"))
+    ph = get_phantom(f"volume:{nii}?truth={tmp_path / 'twice.obj'}")
+    truth = ph.ground_truth()
+    assert truth.resolution is not None and truth.resolution.crossing_faces > 0
+    assert "winding-number ≥ ½ solid" in truth.truth_note
+    assert truth.solid_volume > m.volume and truth.resolution.volume_change < 0
+    field = get_phantom(f"field:mesh:{tmp_path / 'twice.obj'}")
+    assert field.resolution == get_phantom(f"mesh:{tmp_path / 'twice.obj'}").resolution
+    assert "winding-number ≥ ½ solid" in field.truth_note
 
 
 def test_resample_gives_the_grid_n_along_the_longest_axis(tmp_path):

@@ -13,9 +13,11 @@ offers the same interface as the analytic phantoms (``phantoms/analytic.py``):
 
 Validation
     The mesh must be watertight (every edge in exactly two faces), consistently oriented
-    (:mod:`geometry.topology`) and must not cross itself (:mod:`geometry.intersections`: a self-intersecting
-    mesh has no well-defined inside); an inward-oriented mesh is flipped (outward normals enclose a positive
-    volume).
+    (:mod:`geometry.topology`); an inward-oriented mesh is flipped (outward normals enclose a positive
+    volume).  A mesh whose parts cross (:mod:`geometry.intersections`) or nest with the same orientation does not
+    bound one solid as it is — the pseudonormal sign reads *outside* inside the body near an inner sheet — and is
+    replaced by the boundary of its winding-number ≥ ½ solid (:mod:`phantoms.mesh.resolve`); ``resolution``
+    says what changed (None when nothing did), and the description says it too.
 
 Curvature
     H and K at the mesh vertices by the suite's estimator — ``geometry.paraboloid_curvature`` over every
@@ -37,10 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
-from geometry.arrays import unique_ints
 from geometry.closest import FACE
 from geometry.errors import InputError
-from geometry.intersections import crossing_pairs
 from geometry.mesh import sample_surface, signed_volume
 from geometry.topology import connected_components, directed_edge_repeats, edge_face_counts, euler_characteristic, genus
 
@@ -58,6 +58,7 @@ from ..base import (
 from ..volume import Volume, check_memory
 from .grid_sdf import signed_distance_grid
 from .index import TriangleIndex
+from .resolve import Resolution, resolve_if_needed
 from .segments import SegmentIndex
 
 __all__ = ["MeshPhantom", "load_mesh", "TARGET_RADIUS"]
@@ -131,23 +132,6 @@ def _check_closed(f: np.ndarray, nv: int) -> None:
                          "traversed twice in the same direction; fix the face winding first")
 
 
-def _check_embedded(v: np.ndarray, f: np.ndarray) -> None:
-    """No face crosses a face it shares no vertex with (:func:`geometry.intersections.crossing_pairs`; faces
-    that only touch — by rounding, in a mesh written in single precision — enclose nothing on the wrong side).
-    Where a mesh crosses itself (interpenetrating thighs of a posed body, a leg through a shell) the solid is
-    ambiguous: the closest sheet to a point inside the body may be an inner one whose outward normal points into
-    the body, so the signed distance reads *outside* there, and the inner sheets are surface the metrics would
-    compare against — no ground truth for anyone."""
-    pairs = crossing_pairs(v, f)
-    if len(pairs):
-        n_faces = len(unique_ints(pairs))
-        where = np.round(v[f[pairs[0, 0]]].mean(axis=0), 3).tolist()
-        raise InputError(
-            f"mesh crosses itself: {n_faces} faces cross faces they share no vertex with (the first near "
-            f"{where}); where parts overlap the inside is ambiguous and the signed distance's sign is wrong — "
-            "resolve the overlaps first (a self-union, e.g. a mesh boolean union)")
-
-
 class MeshPhantom(Phantom):
     """A phantom whose true surface is a closed triangle mesh (see the module docstring).
 
@@ -173,8 +157,8 @@ class MeshPhantom(Phantom):
     Raises
     ------
     InputError
-        A mesh that is not closed and consistently oriented, crosses itself, or has zero extent or zero enclosed
-        volume.
+        A mesh that is not closed and consistently oriented, crosses itself in a way the resolution to its solid
+        cannot mend, or has zero extent or zero enclosed volume.
     """
 
     name = "mesh"
@@ -186,9 +170,11 @@ class MeshPhantom(Phantom):
     _descent_steps = 50
     _passes = 2
     truth_note = "ground truth = the (normalised) input mesh: exact point-to-triangle distances"
-    #: whether construction checks that no faces cross (off only for a subclass built from a checked phantom's
-    #: faces; not a parameter, so no configuration can skip it)
+    #: whether construction resolves crossing or nested parts (off only for a subclass built from a resolved
+    #: phantom's faces; not a parameter, so no configuration can skip it)
     _check_crossing = True
+    #: what resolving crossing or nested parts changed (None: the mesh bounded one solid as it was)
+    resolution: Resolution | None = None
 
     def __init__(self, vertices, faces, *, name: str | None = None, description: str | None = None,
                  normalize: bool = True, crease_angle_deg: float = 60.0, curvature_radius: float | None = None,
@@ -201,8 +187,17 @@ class MeshPhantom(Phantom):
         self.source = source
         self.crease_angle_deg = float(crease_angle_deg)
         _check_closed(f, len(v))
+        # orientation: outward normals give a positive enclosed volume (for crossing parts: ∫ w dV > 0)
+        enclosed = signed_volume(v, f)
+        if enclosed < 0:
+            f = f[:, ::-1].copy()
+        elif enclosed == 0:
+            raise InputError("mesh encloses zero volume")
         if self._check_crossing:
-            _check_embedded(v, f)
+            v, f, self.resolution = resolve_if_needed(v, f)
+            if self.resolution is not None:
+                self.description = f"{self.description}; {self.resolution.note()}"
+                self.truth_note = f"{self.truth_note}; {self.resolution.note()}"
 
         if normalize:
             centre, radius = _bounding_sphere(v)
@@ -212,12 +207,6 @@ class MeshPhantom(Phantom):
             v = (v - centre) * self.scale
         else:
             self.centre, self.scale = np.zeros(3), 1.0
-        # orientation: outward normals give a positive enclosed volume
-        enclosed = signed_volume(v, f)
-        if enclosed < 0:
-            f = f[:, ::-1].copy()
-        elif enclosed == 0:
-            raise InputError("mesh encloses zero volume")
         self.vertices = v
         self.faces = f
         _, labels = connected_components(f, len(v), by="vertex")
@@ -261,8 +250,11 @@ class MeshPhantom(Phantom):
     # ------------------------------------------------------------------ metadata
     @property
     def params(self) -> dict:
-        return {"source": self.source, "vertices": int(len(self.vertices)), "faces": int(len(self.faces)),
-                "scale": round(float(self.scale), 8)}
+        p = {"source": self.source, "vertices": int(len(self.vertices)), "faces": int(len(self.faces)),
+             "scale": round(float(self.scale), 8)}
+        if self.resolution is not None:
+            p["resolved"] = self.resolution.as_dict()
+        return p
 
     # ------------------------------------------------------------------ exact queries
     @property

@@ -264,3 +264,28 @@ def test_a_record_whose_checksum_was_deleted_is_refused_by_table(tmp_path, capsy
     assert main(["table", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{path.name} has no seal" in err[0] and "--accept-unsealed" in err[0]
+
+
+#: a label map's file name holding a window-title OSC, BEL, a screen-clearing CSI and an HTML tag
+HOSTILE = "volume:/scans/\x1b]0;pwned\x07<img src=x onerror=alert(1)>\x1b[2J.nii.gz?label=1"
+_RAW_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
+@pytest.mark.parametrize("fmt, shown", [("markdown", "\\\\x1b]0;pwned\\\\x07&lt;img src=x onerror=alert(1)&gt;"),
+                                        ("latex", r"\textbackslash{}x1b]0;pwned\textbackslash{}x07"
+                                                  r"\textless{}img src=x onerror=alert(1)\textgreater{}"),
+                                        ("csv", "\\x1b]0;pwned\\x07<img src=x onerror=alert(1)>\\x1b[2J")])
+def test_a_phantom_name_with_control_bytes_or_html_is_shown_escaped(fmt, shown, tmp_path, capsys):
+    from _synthetic_run import write_synthetic_run
+
+    out = tmp_path / "run"
+    write_synthetic_run(out, n_shapes=1, seeds=1, noise=("none",), sealed=True, phantom=HOSTILE)
+    capsys.readouterr()
+    assert main(["table", str(out), "--format", fmt]) == 0
+    text = capsys.readouterr().out
+    assert not _RAW_CONTROL.search(text.replace("\n", "")), repr(text[:300])
+    assert shown in text, text[:600]
+    if fmt == "markdown":                          # a viewer that renders inline HTML shows the tag as text
+        assert "<img" not in text and text.startswith("### \\\\x1b]0;pwned")
+    assert main(["table", str(out), "--format", fmt, "-o", str(tmp_path / "t.txt")]) == 0
+    assert not _RAW_CONTROL.search((tmp_path / "t.txt").read_text().replace("\n", ""))

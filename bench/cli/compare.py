@@ -11,6 +11,8 @@ from pathlib import Path
 
 from geometry.files import atomic_write, check_writable
 
+from ..terminal import printable
+
 HELP = """\
 Compare two run folders cell by cell (before / after a change to a method). Cells are matched on phantom,
 variant, N, noise, SNR, seed and method label (not on the cell id: a changed parameter changes it); each metric
@@ -43,8 +45,8 @@ def _cmd_compare(args) -> int:
     for run in (args.run_a, args.run_b):      # the sealed records are the truth: a table that departs is refused
         refuse_damaged(run, check_run_folder(run, arrays=False))
     cmp = compare_runs(Path(args.run_a), Path(args.run_b))
-    print(format_comparison(cmp))
+    print(printable(format_comparison(cmp)))
     if args.html:
         path = atomic_write(args.html, comparison_html(cmp))
-        print(f"wrote {path}")
+        print(printable(f"wrote {path}"))
     return 1 if args.fail_on_worse and cmp.worse else 0

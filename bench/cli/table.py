@@ -12,6 +12,8 @@ from pathlib import Path
 
 from geometry.files import atomic_write, check_writable
 
+from ..terminal import printable
+
 HELP = """\
 Print the run's summary tables: one per group of cells (default: phantom x noise, and variant / N when the run
 varies them), methods as rows, metrics as columns, each value the mean over the group's ok cells (its seeds);
@@ -54,9 +56,10 @@ def _cmd_table(args) -> int:
     refuse_damaged(args.run, check_run_folder(args.run, arrays=False))   # the sealed records are the truth
     df = read_results(Path(args.run))
     tables = leaderboard_tables(df) if args.leaderboard else group_tables(df, metrics=_names(args.metric), by=by)
-    text = {"markdown": to_markdown, "latex": to_latex, "csv": to_csv}[args.format](tables)
+    # names a user or a plug-in chose (a phantom's file, a method label) reach the terminal or file escaped
+    text = printable({"markdown": to_markdown, "latex": to_latex, "csv": to_csv}[args.format](tables))
     if args.output:
-        print(f"wrote {atomic_write(args.output, text)}")
+        print(printable(f"wrote {atomic_write(args.output, text)}"))
     else:
         print(text, end="")
     return 0

@@ -289,3 +289,22 @@ def test_a_phantom_name_with_control_bytes_or_html_is_shown_escaped(fmt, shown, 
         assert "<img" not in text and text.startswith("### \\\\x1b]0;pwned")
     assert main(["table", str(out), "--format", fmt, "-o", str(tmp_path / "t.txt")]) == 0
     assert not _RAW_CONTROL.search((tmp_path / "t.txt").read_text().replace("\n", ""))
+
+
+def test_table_and_compare_refuse_a_run_whose_mesh_arrays_were_altered(tmp_path, capsys):
+    import numpy as np
+
+    from _synthetic_run import write_synthetic_run
+
+    out = tmp_path / "run"
+    write_synthetic_run(out, n_shapes=1, seeds=1, noise=("none",), sealed=True)
+    npz = sorted((out / "cells").glob("*.npz"))[0]
+    with np.load(npz) as z:
+        arrays = {k: z[k] for k in z.files}
+    np.savez(npz, **{**arrays, "faces": arrays["faces"][::-1]})
+    capsys.readouterr()
+    for argv in (["table", str(out)], ["compare", str(out), str(out)]):
+        assert main(argv) == 2, argv
+        captured = capsys.readouterr()
+        err = captured.err.strip().splitlines()
+        assert captured.out == "" and len(err) == 1 and npz.stem in err[0] and "--resume" in err[0], captured

@@ -2,7 +2,8 @@
 
 The matching and the verdicts are :mod:`bench.report.compare`'s; this room parses the arguments, prints, writes
 the page and picks the exit code: 0, or 1 with ``--fail-on-worse`` when something got worse; 2 on bad input
-(a folder that is not a run, or whose results tables disagree with its sealed cell records: :mod:`bench.run.audit`).
+(a folder that is not a run, or whose results tables disagree with its sealed cell records, or a record or
+``.npz`` altered: :mod:`bench.run.audit`).
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ def _cmd_compare(args) -> int:
     if args.html:
         check_writable(args.html)
     for run in (args.run_a, args.run_b):      # the sealed records are the truth: a table that departs is refused
-        refuse_damaged(run, check_run_folder(run, arrays=False))
+        refuse_damaged(run, check_run_folder(run))
     cmp = compare_runs(Path(args.run_a), Path(args.run_b))
     print(printable(format_comparison(cmp)))
     if args.html:

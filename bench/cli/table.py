@@ -3,7 +3,7 @@ a run's summary tables for a paper or a README.
 
 The tables are :mod:`bench.report.export`'s; this room parses the arguments and writes the text (stdout, or
 ``-o FILE`` atomically); exit 2 on bad input (not a run folder, an unknown metric or grouping, a results table
-that disagrees with the sealed cell records: :mod:`bench.run.audit`).
+that disagrees with the sealed cell records or a record or ``.npz`` altered: :mod:`bench.run.audit`).
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def _cmd_table(args) -> int:
     from ..run.audit import check_run_folder, refuse_damaged
 
     by = _names([args.by]) if args.by is not None else None
-    refuse_damaged(args.run, check_run_folder(args.run, arrays=False))   # the sealed records are the truth
+    refuse_damaged(args.run, check_run_folder(args.run))   # the sealed records (and their arrays) are the truth
     df = read_results(Path(args.run))
     tables = leaderboard_tables(df) if args.leaderboard else group_tables(df, metrics=_names(args.metric), by=by)
     # names a user or a plug-in chose (a phantom's file, a method label) reach the terminal or file escaped

@@ -243,6 +243,24 @@ def test_bad_command_line_exits_2(args, message, tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("phantom, message", [
+    ("volume:{tmp}/empty.nii.gz?labels=all", "the image holds no label (every voxel is 0)"),
+    ("field:sphere", "the field's protocol takes a mesh phantom"),
+    ("field:bunny?scale=1.5&scale=2", "option 'scale' is given twice"),
+])
+def test_a_phantom_that_cannot_run_is_refused_at_dry_run_in_one_line(phantom, message, tmp_path, capsys):
+    import nibabel as nib
+    import numpy as np
+
+    nib.save(nib.Nifti1Image(np.zeros((12, 12, 12), np.int16), np.eye(4)), str(tmp_path / "empty.nii.gz"))
+    assert main(["run", "--quick", "--noise", "none", "--phantoms", phantom.format(tmp=tmp_path),
+                 "--method", "marching_cubes", "--dry-run"]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and message in err[0], captured
+    assert " cells (" not in captured.out
+
+
 @pytest.mark.parametrize("text, message", [
     ("[grid\nphantoms = ", "not valid TOML"),
     ('[grid]\nphantoms = ["sphere"]\n[[methods]]\nname = "marching_cubes"\nparams = { nosuch = 1 }\n', "nosuch"),

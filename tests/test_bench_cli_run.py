@@ -311,3 +311,15 @@ def test_a_run_and_its_resume_show_progress_with_a_time_estimate_when_not_on_a_t
     lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("progress:")]
     assert lines[0] == "progress: 12/20 cells done, 8 to run" and lines[-1] == "progress: 20/20 cells, 0 not ok"
     assert any("left" in ln for ln in lines), lines
+
+
+def test_a_write_error_advises_what_its_cause_needs():
+    import errno
+
+    from bench.cli.run import _write_advice
+    from geometry.files import WriteError
+
+    advice = {code: _write_advice(WriteError("/r/cells/x.json", os.strerror(code)))
+              for code in (errno.ENOSPC, errno.EACCES, errno.EEXIST, errno.ENOTDIR)}
+    assert advice == {errno.ENOSPC: "free space", errno.EACCES: "fix the permissions", errno.EEXIST: "fix that",
+                      errno.ENOTDIR: "fix that"}

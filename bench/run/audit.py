@@ -164,15 +164,22 @@ def check_run_folder(out: str | Path, arrays: bool = True, warn=_warn) -> list[s
     return problems
 
 
-def refuse_damaged(out: str | Path, problems: list[str], escape: str = "") -> None:
+def refuse_damaged(out: str | Path, problems: list[str], escape: str = "", sealing_tried: bool = False) -> None:
     """:class:`InputError`, one line: the run folder's ``problems`` (the first few, and how many more), how to
-    rewrite its tables from the records, and ``escape`` (e.g. ``", or render anyway with --force"``)."""
+    rewrite its tables from the records, and ``escape`` (e.g. ``", or render anyway with --force"``).  An unsealed
+    record adds how to seal a folder written before seals — unless ``sealing_tried`` (``--accept-unsealed`` ran
+    and left it unsealed: it disagrees with the tables, and only ``--resume`` helps)."""
     if not problems:
         return
     shown = "; ".join(problems[:_SHOWN]) + (f"; ... {len(problems) - _SHOWN} more" if len(problems) > _SHOWN else "")
     unsealed = any(UNSEALED in p for p in problems)
-    migrate = (f"; a folder written before seals is sealed once with `python -m bench report {out} "
-               "--accept-unsealed`" if unsealed else "")
+    if unsealed and sealing_tried:
+        migrate = "; --accept-unsealed left unsealed the records that disagree with the results tables"
+    elif unsealed:
+        migrate = (f"; a folder written before seals is sealed once with `python -m bench report {out} "
+                   "--accept-unsealed`")
+    else:
+        migrate = ""
     raise InputError(f"{str(out)!r}: {len(problems)} problem(s) against the sealed cell records: {shown}; "
                      f"rewrite the tables from the records (and recompute any damaged cell) with "
                      f"`python -m bench run --resume --out {out}`{migrate}{escape}")

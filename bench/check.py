@@ -285,9 +285,20 @@ def run_case(method, case: str, volume: Volume, clean: Volume) -> CaseResult:
 
 
 def refuse_importer(method) -> None:
-    """:class:`InputError`, one line, for a method that reads a surface made elsewhere
-    (:attr:`methods.Method.imports_surface`, e.g. ``mesh_file``): the cases give it volumes to reconstruct, which
-    it does not do, so any verdict on it would be about the cases, not the method."""
+    """Refuse a method that reads a surface made elsewhere (:attr:`methods.Method.imports_surface`, e.g.
+    ``mesh_file``): the cases give it volumes to reconstruct, which it does not do, so any verdict on it would be
+    about the cases, not the method.
+
+    Parameters
+    ----------
+    method : methods.Method
+        The method, an instance.
+
+    Raises
+    ------
+    InputError
+        One line, for such a method.
+    """
     if getattr(method, "imports_surface", False):
         raise InputError(f"method {method.name!r} reads a surface made elsewhere from a file instead of "
                          "reconstructing the volume it is given: check-method's cases cannot judge it (a grid run "

@@ -55,7 +55,7 @@ from .metrics.validity import check_mesh
 from .run.values import error_text, plain
 from .terminal import capture_output, flush_std, redirect_output
 
-__all__ = ["CASES", "CaseResult", "check_method", "case_volumes", "HINTS"]
+__all__ = ["CASES", "CaseResult", "check_method", "refuse_importer", "case_volumes", "HINTS"]
 
 CASES = ("sphere", "anisotropic", "noisy", "torus", "no_surface")
 
@@ -284,6 +284,27 @@ def run_case(method, case: str, volume: Volume, clean: Volume) -> CaseResult:
     return res
 
 
+def refuse_importer(method) -> None:
+    """Refuse a method that reads a surface made elsewhere (:attr:`methods.Method.imports_surface`, e.g.
+    ``mesh_file``): the cases give it volumes to reconstruct, which it does not do, so any verdict on it would be
+    about the cases, not the method.
+
+    Parameters
+    ----------
+    method : methods.Method
+        The method, an instance.
+
+    Raises
+    ------
+    InputError
+        One line, for such a method.
+    """
+    if getattr(method, "imports_surface", False):
+        raise InputError(f"method {method.name!r} reads a surface made elsewhere from a file instead of "
+                         "reconstructing the volume it is given: check-method's cases cannot judge it (a grid run "
+                         "checks and scores its surface like any method's)")
+
+
 def check_method(method, n: int = 24, cases=CASES, seed: int = 0, timeout: float | None = None) -> list[CaseResult]:
     """Run a method on each of ``cases`` and judge what it returns against the contract of :class:`methods.Method`.
 
@@ -307,7 +328,13 @@ def check_method(method, n: int = 24, cases=CASES, seed: int = 0, timeout: float
     -------
     list of CaseResult
         One per case, in the order of ``cases``.
+
+    Raises
+    ------
+    InputError
+        A method that reads a surface made elsewhere (:func:`refuse_importer`).
     """
+    refuse_importer(method)
     volumes = case_volumes(n, seed)
     if timeout is None or "fork" not in mp.get_all_start_methods():
         results = []

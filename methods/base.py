@@ -178,6 +178,11 @@ class Method:
         if message:
             raise InputError(message)
 
+    #: True for a method that reads a surface made elsewhere (``mesh_file``) instead of reconstructing the volume
+    #: it is given: a grid scores its surface like any other, but ``check-method``'s cases (volumes to reconstruct)
+    #: cannot judge it
+    imports_surface: ClassVar[bool] = False
+
     #: rough cost of one run relative to marching cubes + scoring at the same N (the runner starts the dearest
     #: cells first, so that two workers finish together); a plug-in may set its own
     relative_cost: ClassVar[float] = 1.0

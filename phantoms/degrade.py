@@ -31,6 +31,7 @@ h·(0.5 − fraction), which keeps the image's sub-voxel position of the 0.5 lev
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numba
@@ -89,14 +90,26 @@ class Degradation:
         if self.thick_slices > 1:
             parts.append(f"thick_slices@{self.thick_slices}")
         if self.blur > 0:
-            parts.append(f"blur@{self.blur:g}")
+            parts.append(f"blur@{_number(self.blur)}")
         if self.partial_volume:
             parts.append("partial_volume")
         if self.mask:
             parts.append("mask")
         if self.label_noise > 0:
-            parts.append(f"label_noise@{self.label_noise:g}")
+            parts.append(f"label_noise@{_number(self.label_noise)}")
         return "+".join(parts)
+
+
+def _number(x: float) -> str:
+    """``x`` as the shortest text that reads back as the same float (``1.23456789``, ``1000000``, ``1e-07``): a
+    degradation's text is its cells' identity and what the run reads back, so no digit is rounded off; no ``+``
+    in an exponent (``1e+16`` → ``1e16``), which would read as a step separator."""
+    text = repr(float(x)).replace("e+", "e")
+    return text[:-2] if text.endswith(".0") else text
+
+
+#: a ``+`` that joins two steps (not one in a number's exponent, ``blur@1e+06``)
+_STEP_SEPARATOR = re.compile(r"(?<![0-9.][eE])\+")
 
 
 def _step_value(name: str, value: str, where: str):
@@ -135,7 +148,7 @@ def parse_degradation(text) -> Degradation:
     if spec in ("", "none"):
         return Degradation()
     fields: dict = {}
-    for part in spec.split("+"):
+    for part in _STEP_SEPARATOR.split(spec):
         name, at, value = part.strip().partition("@")
         if name not in DEGRADATION_STEPS:
             raise InputError(f"{where}: unknown step {name!r}; valid steps: {', '.join(DEGRADATION_STEPS)} "

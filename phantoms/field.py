@@ -44,16 +44,21 @@ _OPTIONS = {"scale"}
 
 
 def parse_field_spec(spec: str) -> tuple[str, float]:
-    """``(inner phantom name, scale)`` of ``field:NAME[?scale=S]``; InputError for a malformed spec."""
+    """``(inner phantom name, scale)`` of ``field:NAME[?scale=S]``; InputError for a malformed spec (an unknown
+    or repeated option, a scale that is not a positive number, no name)."""
     if not spec.startswith(FIELD_PREFIX):
         raise InputError(f"{spec!r} is not a field-protocol phantom ({FIELD_PREFIX}NAME)")
     body = spec[len(FIELD_PREFIX):]
     inner, _, query = body.partition("?")
     scale = 1.0
+    given: set[str] = set()
     for item in filter(None, query.split("&")):
         key, eq, value = item.partition("=")
         if key not in _OPTIONS or not eq:
             raise InputError(f"phantom {spec!r}: unknown option {item!r}; valid: scale=S (1.5: Carrera et al.)")
+        if key in given:                 # which one would count is a guess: refused, as volume: does
+            raise InputError(f"phantom {spec!r}: option {key!r} is given twice")
+        given.add(key)
         try:
             scale = float(value)
         except ValueError:

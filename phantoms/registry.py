@@ -98,11 +98,8 @@ def is_phantom_name(name: str) -> bool:
     -------
     bool
     """
-    if isinstance(name, str) and name.startswith(FIELD_PREFIX):
-        try:
-            inner = parse_field_spec(name)[0]
-        except InputError:
-            return False
+    if isinstance(name, str) and name.startswith(FIELD_PREFIX):   # its options are checked with its files
+        inner = name[len(FIELD_PREFIX):].partition("?")[0]
         return not inner.startswith((FIELD_PREFIX, VOLUME_PREFIX)) and is_phantom_name(inner)
     return name in PHANTOMS or name in REAL_PHANTOMS or is_file_phantom(name)
 
@@ -156,7 +153,8 @@ def expand_phantoms(specs) -> list[tuple[str, str]]:
     Raises
     ------
     InputError
-        An empty glob (naming the pattern), or two phantoms of the same name.
+        An empty glob (naming the pattern), a ``labels=all`` image with no label, or two phantoms of the same
+        name.
     """
     out: list[tuple[str, str]] = []
     for spec in specs:
@@ -173,8 +171,16 @@ def expand_phantoms(specs) -> list[tuple[str, str]]:
             out.append((_stem(Path(m)), f"{prefix}{m}{query}"))
     from .labels import expand_labels
 
-    out = [pair for name, source in out for pair in (expand_labels(name, source) if source.startswith(VOLUME_PREFIX)
-                                                     and "labels=" in source else [(name, source)])]
+    labelled = []
+    for name, source in out:
+        if not (source.startswith(VOLUME_PREFIX) and "labels=" in source):
+            labelled.append((name, source))
+            continue
+        pairs = expand_labels(name, source)
+        if not pairs:                   # labels=all on an image of zeros: no phantom, so no cell, is no run
+            raise InputError(f"phantom {source!r}: the image holds no label (every voxel is 0): no phantom to run")
+        labelled += pairs
+    out = labelled
     seen: dict[str, str] = {}
     for name, source in out:
         if name in seen and seen[name] != source:
@@ -226,15 +232,22 @@ def get_phantom(name: str, **params) -> Phantom:
 _FIELD_CACHE: dict = {}
 
 
+def _field_inner(spec: str) -> str:
+    """The inner phantom's name of ``field:NAME[?scale=S]``, refused in one line unless it names a mesh phantom
+    (an analytic phantom, a ``volume:`` or a nested ``field:`` is not one) — without reading any file."""
+    inner_name = parse_field_spec(spec)[0]
+    if inner_name.startswith((FIELD_PREFIX, VOLUME_PREFIX)) or inner_name in PHANTOMS:
+        raise InputError(f"phantom {spec!r}: the field's protocol takes a mesh phantom (a real shape such as "
+                         f"bunny, or {MESH_PREFIX}PATH); {inner_name!r} is not one")
+    return inner_name
+
+
 def _field_phantom(spec: str, **params) -> FieldPhantom:
     """``field:NAME[?scale=S]``: the mesh of phantom NAME under the field's protocol (:mod:`phantoms.field`);
     cached per process and inner phantom (whose own cache follows its file's version)."""
     from .mesh import MeshPhantom
 
-    inner_name, scale = parse_field_spec(spec)
-    if inner_name.startswith((FIELD_PREFIX, VOLUME_PREFIX)) or inner_name in PHANTOMS:
-        raise InputError(f"phantom {spec!r}: the field's protocol takes a mesh phantom (a real shape such as "
-                         f"bunny, or {MESH_PREFIX}PATH); {inner_name!r} is not one")
+    inner_name, scale = _field_inner(spec), parse_field_spec(spec)[1]
     inner = get_phantom(inner_name, **params)
     if not isinstance(inner, MeshPhantom):
         raise InputError(f"phantom {spec!r}: {inner_name!r} is not a mesh phantom")
@@ -248,7 +261,8 @@ def _field_phantom(spec: str, **params) -> FieldPhantom:
 
 def check_phantom_files(source: str) -> None:
     """Refuse, before any work, a ``mesh:`` / ``volume:`` phantom whose file — or ``truth=`` file — does not
-    exist (a file that exists but cannot be read is a failed row of its cells instead).
+    exist (a file that exists but cannot be read is a failed row of its cells instead), and a ``field:`` phantom
+    whose inner phantom is not a mesh phantom.
 
     Raises
     ------
@@ -258,7 +272,7 @@ def check_phantom_files(source: str) -> None:
     from pathlib import Path
 
     if source.startswith(FIELD_PREFIX):
-        source = parse_field_spec(source)[0]
+        source = _field_inner(source)
     if not is_file_phantom(source):
         return
     path = Path(phantom_path(source)).expanduser()

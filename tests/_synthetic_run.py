@@ -26,9 +26,10 @@ def _mesh(rng, n_sub: int = 2):
 
 
 def write_synthetic_run(out: Path, n_shapes: int = 100, seeds: int = 5, noise=("none", "gaussian"),
-                        sealed: bool = False) -> int:
+                        sealed: bool = False, phantom: str = "shape_{:03d}") -> int:
     """``n_shapes`` × noise settings × ``seeds`` (clean: one) × 5 methods cells; returns the number of cells.
-    ``sealed``: each record carries its checksum, as the runner writes it (bench.run.integrity.seal)."""
+    ``sealed``: each record carries its checksum, as the runner writes it (bench.run.integrity.seal);
+    ``phantom``: the phantoms' names, formatted with the shape's number (the cell ids keep ``shape_NNN``)."""
     rng = np.random.default_rng(0)
     out = Path(out)
     (out / CELLS_DIR).mkdir(parents=True, exist_ok=True)
@@ -40,7 +41,7 @@ def write_synthetic_run(out: Path, n_shapes: int = 100, seeds: int = 5, noise=("
                 for k, method in enumerate(METHODS):
                     cid = f"shape_{s:03d}_sdf_n32_{kind}_s{seed}_{method}"
                     h = 0.3 + 0.2 * k + 0.1 * rng.random() + (0.3 if kind != "none" else 0.0)
-                    row = {"cell_id": cid, "phantom": f"shape_{s:03d}", "variant": "sdf", "N": 32, "noise": kind,
+                    row = {"cell_id": cid, "phantom": phantom.format(s), "variant": "sdf", "N": 32, "noise": kind,
                            "snr_requested": None if kind == "none" else 30.0, "snr_achieved": None,
                            "seed": seed, "method": method, "label": method, "parameters": "{}",
                            "source": f"mesh:/data/shapes/shape_{s:03d}.obj", "h": 0.16, "has_truth": True,

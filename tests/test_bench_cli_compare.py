@@ -118,3 +118,19 @@ def test_a_run_whose_results_table_disagrees_with_its_sealed_records_is_refused(
     err = captured.err.strip().splitlines()
     assert captured.out == "" and len(err) == 1 and err[0].startswith("error: ")
     assert f"{rows[1][0]}: hausdorff_h is 0.0001 in results.csv" in err[0], err[0]
+
+
+def test_a_phantom_name_with_control_bytes_is_shown_escaped_on_the_terminal_and_the_page(tmp_path, capsys):
+    from _synthetic_run import write_synthetic_run
+
+    hostile = "volume:/scans/\x1b]0;pwned\x07<img src=x onerror=alert(1)>\x1b[2J.nii.gz?label=1"
+    a, b = tmp_path / "a", tmp_path / "b"
+    write_synthetic_run(a, n_shapes=1, seeds=1, noise=("none",), sealed=True, phantom=hostile)
+    write_synthetic_run(b, n_shapes=2, seeds=1, noise=("none",), sealed=True, phantom=hostile + "{}")
+    capsys.readouterr()
+    assert main(["compare", str(a), str(b), "--html", str(tmp_path / "c.html")]) == 0
+    out = capsys.readouterr().out
+    page = (tmp_path / "c.html").read_text("utf-8")
+    for text in (out, page):
+        assert not re.search(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]", text.replace("\n", "")), repr(text[:400])
+    assert "\\x1b]0;pwned\\x07" in out and "<img src=x" not in page

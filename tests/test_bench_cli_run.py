@@ -243,6 +243,24 @@ def test_bad_command_line_exits_2(args, message, tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("phantom, message", [
+    ("volume:{tmp}/empty.nii.gz?labels=all", "the image holds no label (every voxel is 0)"),
+    ("field:sphere", "the field's protocol takes a mesh phantom"),
+    ("field:bunny?scale=1.5&scale=2", "option 'scale' is given twice"),
+])
+def test_a_phantom_that_cannot_run_is_refused_at_dry_run_in_one_line(phantom, message, tmp_path, capsys):
+    import nibabel as nib
+    import numpy as np
+
+    nib.save(nib.Nifti1Image(np.zeros((12, 12, 12), np.int16), np.eye(4)), str(tmp_path / "empty.nii.gz"))
+    assert main(["run", "--quick", "--noise", "none", "--phantoms", phantom.format(tmp=tmp_path),
+                 "--method", "marching_cubes", "--dry-run"]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and message in err[0], captured
+    assert " cells (" not in captured.out
+
+
 @pytest.mark.parametrize("text, message", [
     ("[grid\nphantoms = ", "not valid TOML"),
     ('[grid]\nphantoms = ["sphere"]\n[[methods]]\nname = "marching_cubes"\nparams = { nosuch = 1 }\n', "nosuch"),
@@ -293,3 +311,15 @@ def test_a_run_and_its_resume_show_progress_with_a_time_estimate_when_not_on_a_t
     lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("progress:")]
     assert lines[0] == "progress: 12/20 cells done, 8 to run" and lines[-1] == "progress: 20/20 cells, 0 not ok"
     assert any("left" in ln for ln in lines), lines
+
+
+def test_a_write_error_advises_what_its_cause_needs():
+    import errno
+
+    from bench.cli.run import _write_advice
+    from geometry.files import WriteError
+
+    advice = {code: _write_advice(WriteError("/r/cells/x.json", os.strerror(code)))
+              for code in (errno.ENOSPC, errno.EACCES, errno.EEXIST, errno.ENOTDIR)}
+    assert advice == {errno.ENOSPC: "free space", errno.EACCES: "fix the permissions", errno.EEXIST: "fix that",
+                      errno.ENOTDIR: "fix that"}

@@ -292,3 +292,46 @@ def test_the_recommendation_table_prints_alone_in_each_format_and_compiles(run, 
     res = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", doc.name], cwd=tmp_path,
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stdout[-2000:]
+
+#: a label map's file name holding a window-title OSC, BEL, a screen-clearing CSI and an HTML tag
+HOSTILE = "volume:/scans/\x1b]0;pwned\x07<img src=x onerror=alert(1)>\x1b[2J.nii.gz?label=1"
+_RAW_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
+@pytest.mark.parametrize("fmt, shown", [("markdown", "\\\\x1b]0;pwned\\\\x07&lt;img src=x onerror=alert(1)&gt;"),
+                                        ("latex", r"\textbackslash{}x1b]0;pwned\textbackslash{}x07"
+                                                  r"\textless{}img src=x onerror=alert(1)\textgreater{}"),
+                                        ("csv", "\\x1b]0;pwned\\x07<img src=x onerror=alert(1)>\\x1b[2J")])
+def test_a_phantom_name_with_control_bytes_or_html_is_shown_escaped(fmt, shown, tmp_path, capsys):
+    from _synthetic_run import write_synthetic_run
+
+    out = tmp_path / "run"
+    write_synthetic_run(out, n_shapes=1, seeds=1, noise=("none",), sealed=True, phantom=HOSTILE)
+    capsys.readouterr()
+    assert main(["table", str(out), "--format", fmt]) == 0
+    text = capsys.readouterr().out
+    assert not _RAW_CONTROL.search(text.replace("\n", "")), repr(text[:300])
+    assert shown in text, text[:600]
+    if fmt == "markdown":                          # a viewer that renders inline HTML shows the tag as text
+        assert "<img" not in text and text.startswith("### \\\\x1b]0;pwned")
+    assert main(["table", str(out), "--format", fmt, "-o", str(tmp_path / "t.txt")]) == 0
+    assert not _RAW_CONTROL.search((tmp_path / "t.txt").read_text().replace("\n", ""))
+
+
+def test_table_and_compare_refuse_a_run_whose_mesh_arrays_were_altered(tmp_path, capsys):
+    import numpy as np
+
+    from _synthetic_run import write_synthetic_run
+
+    out = tmp_path / "run"
+    write_synthetic_run(out, n_shapes=1, seeds=1, noise=("none",), sealed=True)
+    npz = sorted((out / "cells").glob("*.npz"))[0]
+    with np.load(npz) as z:
+        arrays = {k: z[k] for k in z.files}
+    np.savez(npz, **{**arrays, "faces": arrays["faces"][::-1]})
+    capsys.readouterr()
+    for argv in (["table", str(out)], ["compare", str(out), str(out)]):
+        assert main(argv) == 2, argv
+        captured = capsys.readouterr()
+        err = captured.err.strip().splitlines()
+        assert captured.out == "" and len(err) == 1 and npz.stem in err[0] and "--resume" in err[0], captured

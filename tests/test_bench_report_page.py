@@ -114,3 +114,21 @@ def test_a_run_from_before_the_shape_kind_column_still_renders(damaged):
     table = page[page.index('<table class="recommend">'):]
     assert "<th>unclassified</th>" in table[:table.index("</table>")]
     assert "marching_cubes" in page and "mc_taubin" in page
+
+def test_a_phantom_name_with_control_bytes_reaches_the_page_escaped(tmp_path, capsys):
+    import re
+
+    from _synthetic_run import write_synthetic_run
+    from bench.report.interactive import plotly_js
+
+    out = tmp_path / "run"
+    hostile = "volume:/scans/\x1b]0;pwned\x07<img src=x onerror=alert(1)>\x1b[2J.nii.gz?label=1"
+    write_synthetic_run(out, n_shapes=1, seeds=1, noise=("none",), sealed=True, phantom=hostile)
+    assert main(["report", str(out)]) == 0
+    page = (out / "index.html").read_text("utf-8")
+    js = plotly_js()                                  # embedded as it is (its string literals hold \x01, \x1a)
+    assert page.count(js) == 1
+    rest = page.replace(js, "")
+    assert not re.search(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]", rest.replace("\n", "")), "a raw control byte"
+    assert "\\x1b]0;pwned\\x07&lt;img src=x onerror=alert(1)&gt;" in rest
+    assert "\\u001b" not in rest and "\\u0007" not in rest         # the charts and viewer data say the same

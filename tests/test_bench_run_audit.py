@@ -79,3 +79,19 @@ def test_a_metric_added_after_the_run_is_not_a_damage_but_a_column_the_records_c
     with open(run / "results.csv", "w", newline="") as fh:
         csv.writer(fh).writerows([r[:col] + r[col + 1:] for r in rows])
     assert any("lacks column 'hausdorff_h'" in p for p in check_run_folder(run, arrays=False))
+
+
+def test_an_altered_npz_is_a_problem_and_a_stray_copy_only_a_warning(run):
+    import numpy as np
+
+    first = sorted((run / "cells").glob("*.json"))[0]
+    (run / "cells" / "copy_of_first.json").write_text(first.read_text())        # a stray copy
+    said = []
+    assert check_run_folder(run, warn=said.append) == []
+    assert len(said) == 1 and "copy_of_first.json claims cell" in said[0] and said[0].endswith("ignored)")
+    npz = first.with_suffix(".npz")
+    with np.load(npz) as z:
+        arrays = {k: z[k] for k in z.files}
+    np.savez(npz, **{**arrays, "vertices": arrays["vertices"] * 1.01})         # loads fine, not what was sealed
+    problems = check_run_folder(run, warn=said.append)
+    assert len(problems) == 1 and problems[0].startswith(f"cells/{first.stem}.json has altered arrays")

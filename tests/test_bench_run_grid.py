@@ -132,3 +132,14 @@ def test_degradations_are_an_axis_beside_noise_with_their_own_ids():
     assert "_mask_" in extra[0].cell_id and len({c.cell_id for c in cells}) == len(cells)
     with pytest.raises(InputError, match="grid.degrade: .*unknown step 'maks'"):
         config_from_dict({**base, "grid": {**base["grid"], "degrade": ["maks"]}})
+
+
+def test_a_degradation_runs_as_asked_to_the_last_digit():
+    from phantoms.degrade import parse_degradation
+
+    asked = ["blur@1.23456789+mask", "blur@1e6+partial_volume"]
+    cfg = config_from_dict({"grid": {"phantoms": ["sphere"], "n": 16, "degrade": asked},
+                            "methods": [{"name": "marching_cubes"}]})
+    cells = expand_grid(cfg)
+    assert [parse_degradation(c.degrade) for c in cells] == [parse_degradation(a) for a in asked]
+    assert "blur_1.23456789" in cells[0].cell_id and "blur_1000000" in cells[1].cell_id

@@ -72,3 +72,37 @@ def test_phantom_in_the_path_is_the_name_a_user_sees(tmp_path, monkeypatch):
     cfg = config_from_dict({"grid": {"phantoms": specs[1:2], "n": 16},
                             "methods": [{"name": "mesh_file", "params": {"path": "exports/{phantom}.stl"}}]})
     assert [c.params["path"] for c in expand_grid(cfg)] == ["exports/seg.stl"]
+
+def test_each_unreadable_path_names_its_own_cause(tmp_path):
+    import os
+
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    v = np.array(sphere.vertices)
+    v[0] = np.nan
+    lines = [f"v {a} {b} {c}" for a, b, c in v] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in sphere.faces]
+    (tmp_path / "nan.obj").write_text("\n".join(lines) + "\n")
+    os.mkfifo(tmp_path / "pipe.stl")
+    (tmp_path / "folder.stl").mkdir()
+    vol = get_phantom("sphere").volume(n=16)
+    for path, words in ((tmp_path / "nan.obj", "has 1 vertices with a NaN or infinite coordinate"),
+                        (tmp_path / "pipe.stl", "is a FIFO, not a mesh file"),      # read, it would block
+                        (tmp_path / "folder.stl", "is a folder, not a mesh file"),
+                        ("/dev/zero", "is a device, not a mesh file")):             # read, it would never end
+        with pytest.raises(InputError) as err:
+            get_method("mesh_file", path=str(path)).reconstruct(vol)
+        text = str(err.value)
+        assert words in text and "\n" not in text and "no such mesh file" not in text, text
+        assert "not a closed mesh" not in text, text
+
+
+def test_check_method_says_in_one_line_that_its_cases_cannot_judge_an_importer(capsys):
+    from bench.check import check_method
+    from bench.cli import main
+
+    assert main(["check-method", "mesh_file"]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert captured.out == "" and len(err) == 1 and "reads a surface made elsewhere" in err[0], captured
+    assert "violation" not in captured.err
+    with pytest.raises(InputError, match="check-method's cases cannot judge it"):
+        check_method(get_method("mesh_file", path="x.stl"))

@@ -97,6 +97,19 @@ def test_parse_names_and_canonical_text():
     assert thick_grid(64, 2.5, 3)[0] == (64, 64, 22)
 
 
+@pytest.mark.parametrize("text, value, shown", [
+    ("blur@1e6+partial_volume", 1e6, "blur@1000000+partial_volume"),
+    ("blur@1e+06+partial_volume", 1e6, "blur@1000000+partial_volume"),     # an exponent's + is not a step's
+    ("blur@1.23456789+mask", 1.23456789, "blur@1.23456789+mask"),
+    ("blur@2.5e16+mask", 2.5e16, "blur@2.5e16+mask"), ("blur@1E-7+mask", 1e-7, "blur@1e-07+mask"),
+])
+def test_a_value_is_written_in_full_and_reads_back_as_given(text, value, shown):
+    d = parse_degradation(text)
+    assert d.blur == value and str(d) == shown and parse_degradation(str(d)) == d
+    noisy = parse_degradation("label_noise@0.123456789+mask")
+    assert noisy.label_noise == 0.123456789 and parse_degradation(str(noisy)) == noisy
+
+
 @pytest.mark.parametrize("text, words", [
     ("thick_slices@0+mask", "integer >= 1"), ("thick_slices@2.5+mask", "integer >= 1"),
     ("label_noise@1.5+mask", "in [0, 1]"), ("label_noise@-0.1+mask", "in [0, 1]"),

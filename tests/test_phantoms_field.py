@@ -126,3 +126,7 @@ def test_specs_and_refusals():
         assert "\n" not in str(err.value)
     with pytest.raises(InputError, match="no such mesh file"):
         check_phantom_files("field:mesh:/nonexistent/shape.obj")
+    for spec, msg in [("field:sphere", "takes a mesh phantom"), ("field:bunny?scale=1.5&scale=2", "given twice")]:
+        with pytest.raises(InputError, match=msg):          # before any work: no file read, no volume built
+            check_phantom_files(spec)
+    assert is_phantom_name("field:bunny?scale=1.5&scale=2")     # a phantom's name; its options fail on their own

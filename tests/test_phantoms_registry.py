@@ -38,3 +38,14 @@ def test_mesh_prefix_and_registry(tmp_path):
     assert is_phantom_name("bunny") and is_phantom_name(f"mesh:{path}") and not is_phantom_name("blob")
     with pytest.raises(InputError, match="valid phantoms: sphere.*brain_mri, mni_wm, mni_gm, or mesh:PATH"):
         get_phantom("blob")
+
+
+def test_labels_all_on_an_image_without_a_label_is_refused(tmp_path):
+    import nibabel as nib
+
+    from phantoms import expand_phantoms
+
+    nib.save(nib.Nifti1Image(np.zeros((10, 10, 10), np.uint8), np.eye(4)), str(tmp_path / "empty.nii.gz"))
+    with pytest.raises(InputError) as err:
+        expand_phantoms([f"volume:{tmp_path / 'empty.nii.gz'}?labels=all"])
+    assert "holds no label" in str(err.value) and "\n" not in str(err.value)

@@ -7,7 +7,7 @@ method honours the contract, 2 on bad input (unknown method or parameter, a modu
 
 from __future__ import annotations
 
-from ..check import CASES, OUTPUT_KEPT, check_method, hint
+from ..check import CASES, OUTPUT_KEPT, check_method, hint, refuse_importer
 from ..terminal import printable
 from .methods import add_import_option, import_modules, parse_assignments
 from .validators import case_timeout, int_between
@@ -67,6 +67,7 @@ def _cmd_check(args) -> int:
 
     import_modules(args)
     method = get_method(args.name, **parse_assignments(args.set))
+    refuse_importer(method)         # before the heading: nothing is checked
     cases = args.case or list(CASES)
     settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())
     print(printable(f"check-method {method.name} ({settings or 'no parameters'}), N = {args.n}"))

@@ -2,7 +2,8 @@
 
 The matching and the verdicts are :mod:`bench.report.compare`'s; this room parses the arguments, prints, writes
 the page and picks the exit code: 0, or 1 with ``--fail-on-worse`` when something got worse; 2 on bad input
-(a folder that is not a run, or whose results tables disagree with its sealed cell records: :mod:`bench.run.audit`).
+(a folder that is not a run, or whose results tables disagree with its sealed cell records, or a record or
+``.npz`` altered: :mod:`bench.run.audit`).
 """
 
 from __future__ import annotations
@@ -10,6 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from geometry.files import atomic_write, check_writable
+
+from ..terminal import printable
 
 HELP = """\
 Compare two run folders cell by cell (before / after a change to a method). Cells are matched on phantom,
@@ -41,10 +44,10 @@ def _cmd_compare(args) -> int:
     if args.html:
         check_writable(args.html)
     for run in (args.run_a, args.run_b):      # the sealed records are the truth: a table that departs is refused
-        refuse_damaged(run, check_run_folder(run, arrays=False))
+        refuse_damaged(run, check_run_folder(run))
     cmp = compare_runs(Path(args.run_a), Path(args.run_b))
-    print(format_comparison(cmp))
+    print(printable(format_comparison(cmp)))
     if args.html:
         path = atomic_write(args.html, comparison_html(cmp))
-        print(f"wrote {path}")
+        print(printable(f"wrote {path}"))
     return 1 if args.fail_on_worse and cmp.worse else 0

@@ -176,9 +176,8 @@ def _cmd_run(args) -> int:
     try:
         summary = run_grid(cfg, out, options)
     except WriteError as exc:
-        raise InputError(f"{exc}; the finished cells are saved in {str(out)!r}; free space (or fix the "
-                         f"permissions) and complete the run with `python -m bench run --resume --out {out}`") \
-            from None
+        raise InputError(f"{exc}; the finished cells are saved in {str(out)!r}; {_write_advice(exc)} and complete "
+                         f"the run with `python -m bench run --resume --out {out}`") from None
     except KeyboardInterrupt:
         print(f"interrupted: the finished cells are in {out}; complete the run with "
               f"`python -m bench run --resume --out {out}`", file=sys.stderr)
@@ -198,6 +197,18 @@ def _cmd_run(args) -> int:
               f"{out / 'results.csv'}; details in {out / 'report_error.txt'}", file=sys.stderr)
         return 1
     return 0
+
+
+def _write_advice(exc: WriteError) -> str:
+    """What to do about a file the run could not write, from its cause (a full disk is not a permission)."""
+    import errno
+
+    cause = str(exc.cause)
+    if cause in (os.strerror(errno.ENOSPC), os.strerror(errno.EDQUOT), os.strerror(errno.EFBIG)):
+        return "free space"
+    if cause in (os.strerror(errno.EACCES), os.strerror(errno.EPERM), os.strerror(errno.EROFS)):
+        return "fix the permissions"
+    return "fix that"
 
 
 def _preload_report():
@@ -258,7 +269,7 @@ def _cmd_report(args) -> int:
               file=sys.stderr)
     problems = check_run_folder(out)    # records and tables (a malformed results.csv: exit 2 with its line)
     if not args.force:
-        refuse_damaged(out, problems, ", or render anyway with --force")
+        refuse_damaged(out, problems, ", or render anyway with --force", sealing_tried=args.accept_unsealed)
     path = write_report(out, problems=problems)
     if problems:
         print(printable(f"warning: {len(problems)} problem(s) against the sealed cell records, listed at the top "

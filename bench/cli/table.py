@@ -3,7 +3,7 @@ a run's summary tables for a paper or a README.
 
 The tables are :mod:`bench.report.export`'s; this room parses the arguments and writes the text (stdout, or
 ``-o FILE`` atomically); exit 2 on bad input (not a run folder, an unknown metric or grouping, a results table
-that disagrees with the sealed cell records: :mod:`bench.run.audit`).
+that disagrees with the sealed cell records or a record or ``.npz`` altered: :mod:`bench.run.audit`).
 """
 
 from __future__ import annotations
@@ -12,6 +12,8 @@ from pathlib import Path
 
 from geometry.errors import InputError
 from geometry.files import atomic_write, check_writable
+
+from ..terminal import printable
 
 HELP = """\
 Print the run's summary tables: one per group of cells (default: phantom x noise, and variant / N when the run
@@ -58,7 +60,7 @@ def _cmd_table(args) -> int:
     from ..run.audit import check_run_folder, refuse_damaged
 
     by = _names([args.by]) if args.by is not None else None
-    refuse_damaged(args.run, check_run_folder(args.run, arrays=False))   # the sealed records are the truth
+    refuse_damaged(args.run, check_run_folder(args.run))   # the sealed records (and their arrays) are the truth
     df = read_results(Path(args.run))
     if args.recommend or args.leaderboard:
         from ..report import recommend as rec
@@ -75,8 +77,10 @@ def _cmd_table(args) -> int:
         text = {"markdown": to_markdown, "latex": to_latex, "csv": to_csv}[args.format](tables)
         if args.leaderboard and args.format == "markdown":
             text = first + "\n" + text
+    # names a user or a plug-in chose (a phantom's file, a method label) reach the terminal or file escaped
+    text = printable(text)
     if args.output:
-        print(f"wrote {atomic_write(args.output, text)}")
+        print(printable(f"wrote {atomic_write(args.output, text)}"))
     else:
         print(text, end="")
     return 0

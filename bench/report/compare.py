@@ -34,6 +34,7 @@ from pathlib import Path
 from bench.metrics.tolerances import TOLERANCES, cells_from_rows, compare_value
 
 from ..run.results import read_results
+from ..terminal import printable
 from .export import phantom_genus
 from .pairwise import ALPHA, MIN_PAIRED, holm, median_interval, signed_rank_test
 from .tables import best_rule
@@ -378,7 +379,8 @@ def _verdict_class(verdict: str) -> str:
 
 
 def comparison_html(cmp: Comparison) -> str:
-    """A self-contained page with the content of :func:`format_comparison` (every text escaped)."""
+    """A self-contained page with the content of :func:`format_comparison` (every text escaped, its control
+    characters shown as ``\\xNN``: :func:`bench.terminal.printable`)."""
     e = html.escape
     parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>compare {e(cmp.name_a)} → {e(cmp.name_b)}"
              f"</title><style>{_STYLE}</style></head><body><h1>levelset-bench compare</h1>",
@@ -402,4 +404,4 @@ def comparison_html(cmp: Comparison) -> str:
                      "judged)</p>")
     parts.append(f"<p>Metrics judged with the quality gate's tolerances: {e(', '.join(cmp.metrics))}.</p>"
                  "</body></html>")
-    return "\n".join(parts)
+    return printable("\n".join(parts))

@@ -10,11 +10,13 @@ and LaTeX; the CSV keeps every digit of the means.
 
 from __future__ import annotations
 
+import html
 from dataclasses import dataclass
 
 import numpy as np
 
 from bench.metrics.registry import METRICS
+from bench.terminal import printable
 from phantoms import InputError
 
 from .tables import best_mask, best_rule, complete_inputs, input_title, noise_title, phantom_label, without_truth
@@ -211,7 +213,11 @@ def _header(metric: str) -> tuple[str, str]:
 
 # ---------------------------------------------------------------------------------------------- markdown
 def _md(text: str) -> str:
-    return str(text).replace("\\", "\\\\").replace("|", "\\|").replace("*", "\\*").replace("\n", " ")
+    """``text`` safe in a pipe table or a heading: control characters escaped (:func:`bench.terminal.printable`),
+    ``<``, ``>`` and ``&`` as HTML entities (a viewer that renders inline HTML shows them as text, never as a
+    tag), the table's and emphasis's own characters backslash-escaped."""
+    text = html.escape(printable(text), quote=False)
+    return text.replace("\\", "\\\\").replace("|", "\\|").replace("*", "\\*").replace("\n", " ")
 
 
 def to_markdown(tables: list[GroupTable]) -> str:
@@ -241,8 +247,9 @@ _LATEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"
 
 
 def latex_text(text: str) -> str:
-    """``text`` safe in LaTeX body text (the special characters escaped, a few Unicode signs spelled out)."""
-    return "".join(_LATEX.get(ch, ch) for ch in str(text))
+    """``text`` safe in LaTeX body text (control characters shown as ``\\xNN``: :func:`bench.terminal.printable`;
+    the special characters escaped, a few Unicode signs spelled out)."""
+    return "".join(_LATEX.get(ch, ch) for ch in printable(text))
 
 
 def to_latex(tables: list[GroupTable]) -> str:

@@ -9,10 +9,12 @@ import sys
 from pathlib import Path
 
 from geometry.files import atomic_write
+from markupsafe import Markup
 
 from ..run.store import scan_cells
 from ..run.results import read_results
 from ..run.values import cap_tail, cap_text
+from ..terminal import printable
 from .artifacts import Artifacts
 from .claims import VARIANTS as CLAIM_VARIANTS
 from .claims import check_claims, variant_of
@@ -131,9 +133,21 @@ def _finite_only(obj):
     return obj
 
 
+def _shown_deep(obj):
+    """``obj`` with every text in it, keys too, as the page shows text (:func:`_shown`): the scripts' data (a chart's
+    hover text, the viewer's groups and labels) says the same as the tables and matches their text."""
+    if isinstance(obj, str):
+        return printable(obj)
+    if isinstance(obj, dict):
+        return {_shown_deep(k): _shown_deep(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_shown_deep(v) for v in obj]
+    return obj
+
+
 def _json_in_html(obj) -> str:
-    """JSON safe inside a ``<script>`` element (no ``</`` that would end it)."""
-    return json.dumps(_finite_only(obj), separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    """JSON safe inside a ``<script>`` element (no ``</`` that would end it), its texts as the page shows them."""
+    return json.dumps(_shown_deep(_finite_only(obj)), separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
 
 
 #: at most this many meshes are embedded for the 3-D viewers (the cells the summary tables open, in table order)
@@ -182,6 +196,8 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
     config = meta.get("config") or {}
     sections = _sections(df, arts, config)
     shown = [cid for t in sections["summaries"] for cid in t["cells"].values()]   # what a table row opens
+    for t in sections["summaries"]:                 # label → cell, matched against the table's (escaped) text
+        t["cells"] = _shown_deep(t["cells"])
     return {
         "title": f"levelset-bench — {config.get('name', 'run')}",
         "config_name": config.get("name", "run"),
@@ -232,6 +248,20 @@ def preload() -> None:
     rasterize(np.zeros((1, 3, 2)), np.zeros((1, 3)), 2, 2)
 
 
+class Verbatim(Markup):
+    """Text the page embeds as it is (plotly.js, whose string literals hold control characters)."""
+
+
+def _shown(value):
+    """Every value the template prints, control characters shown as ``\\xNN`` (:func:`bench.terminal.printable`):
+    a phantom's file name or a method label can hold ESC / BEL, which autoescaping leaves in the page."""
+    if isinstance(value, Verbatim):
+        return value
+    if isinstance(value, Markup):
+        return Markup(printable(value))
+    return printable(value) if isinstance(value, str) else value
+
+
 def write_report(out: str | Path, problems: list[str] | None = None) -> Path:
     """Render ``out/index.html`` from the results table, ``out/cells`` and ``out/run.json``; ``problems``
     (the damaged cell files of :func:`bench.run.store.check_run_folder`, rendered anyway) head the page."""
@@ -247,6 +277,8 @@ def write_report(out: str | Path, problems: list[str] | None = None) -> Path:
         warn(f"{msg}; the report leaves the cell's details out")
     context = _context(df, _load_meta(out), records, Artifacts(out, warn=warn))
     context["integrity_problems"] = list(problems or [])
-    env = Environment(loader=FileSystemLoader(str(TEMPLATE_DIR)), autoescape=select_autoescape(["html"]))
+    context["plotly_js"] = Verbatim(context["plotly_js"])
+    env = Environment(loader=FileSystemLoader(str(TEMPLATE_DIR)), autoescape=select_autoescape(["html"]),
+                      finalize=_shown)
     page = env.get_template("report.html").render(**context)
     return atomic_write(out / "index.html", page)

@@ -1,11 +1,12 @@
 """The sealed cell records are the truth of a run folder; ``results.csv`` and ``results.parquet`` are copies.
 
 :func:`check_run_folder` lists every way a folder departs from its sealed records (``cells/<cell_id>.json``
-with its ``checksum``, :mod:`bench.run.integrity`): a record that is unreadable, unsealed, altered, a stray
-copy naming another cell, or whose ``.npz`` is missing or altered; and, in each results table, a cell with no
-row, a row with no record, a cell with several rows, a value that is not its record's.  ``report``, ``table``
-and ``compare`` refuse such a folder (:func:`refuse_damaged`: one line naming the cells, exit 2) — the tables
-are rewritten from the records by ``python -m bench run --resume --out DIR``.
+with its ``checksum``, :mod:`bench.run.integrity`): a record that is unreadable, unsealed, altered, or whose
+``.npz`` is missing or altered; and, in each results table, a cell with no row, a row with no record, a cell with
+several rows, a value that is not its record's.  ``report``, ``table`` and ``compare`` refuse such a folder
+(:func:`refuse_damaged`: one line naming the cells, exit 2) — the tables are rewritten from the records by
+``python -m bench run --resume --out DIR``.  A stray copy (a record file not named after the cell it claims) is
+no cell's record: ignored, with a warning, never a reason to refuse.
 
 :func:`set_aside` is the runner's end of a session: a record file it did not write (a plug-in's) is renamed
 ``<name>.rejected``, never accepted.  :func:`seal_unsealed` is the migration path of a folder written before
@@ -16,13 +17,15 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import sys
 from pathlib import Path
 
 from phantoms import InputError
 
 from .integrity import UNSEALED, record_problem, seal
 from .row import as_row
-from .store import CELLS_DIR, _artifact_problem, read_json, scan_cells, write_json
+from ..terminal import printable
+from .store import CELLS_DIR, IGNORED, _artifact_problem, read_json, scan_cells, write_json
 from .results import RESULTS_CSV, RESULTS_PARQUET, _read_csv_table, frame_of, result_columns, results_table
 
 __all__ = ["check_run_folder", "table_problems", "refuse_damaged", "set_aside", "seal_unsealed", "REJECTED"]
@@ -125,11 +128,16 @@ def table_problems(name: str, df, records: dict[str, dict], damaged: set[str]) -
     return problems + _value_problems(name, df[df["cell_id"].astype(str).isin(once)], records, columns)
 
 
-def check_run_folder(out: str | Path, arrays: bool = True) -> list[str]:
+def _warn(message: str) -> None:
+    print(printable(message), file=sys.stderr)
+
+
+def check_run_folder(out: str | Path, arrays: bool = True, warn=_warn) -> list[str]:
     """Every problem of the run folder ``out`` against its sealed records, each naming its cell or file:
     damaged records (``"cells/<file> <why>"``, :func:`bench.run.store.scan_cells`; ``arrays``: the ``.npz``
-    files too, which the tables do not need), then each results table's departures from the valid records
-    (:func:`table_problems`).  Empty: the tables are the records.
+    files too), then each results table's departures from the valid records (:func:`table_problems`).  Empty:
+    the tables are the records.  A stray copy of a record is no problem: ``warn`` (a function of one line, by
+    default printed on stderr) says it is ignored.
 
     Raises
     ------
@@ -146,21 +154,32 @@ def check_run_folder(out: str | Path, arrays: bool = True) -> list[str]:
                 problems.append(f"{out / CELLS_DIR / cid}.json {err}")
                 del records[cid]
     problems = [p.replace(str(out / CELLS_DIR), CELLS_DIR, 1) for p in problems]
+    for p in problems:
+        if p.endswith(f"{IGNORED})"):
+            warn(f"warning: {p}")
+    problems = [p for p in problems if not p.endswith(f"{IGNORED})")]
     damaged = {Path(p.split(" ", 1)[0]).stem for p in problems}
     for name, df in tables:
         problems += [df] if isinstance(df, str) else table_problems(name, df, records, damaged)
     return problems
 
 
-def refuse_damaged(out: str | Path, problems: list[str], escape: str = "") -> None:
+def refuse_damaged(out: str | Path, problems: list[str], escape: str = "", sealing_tried: bool = False) -> None:
     """:class:`InputError`, one line: the run folder's ``problems`` (the first few, and how many more), how to
-    rewrite its tables from the records, and ``escape`` (e.g. ``", or render anyway with --force"``)."""
+    rewrite its tables from the records, and ``escape`` (e.g. ``", or render anyway with --force"``).  An unsealed
+    record adds how to seal a folder written before seals — unless ``sealing_tried`` (``--accept-unsealed`` ran
+    and left it unsealed: it disagrees with the tables, and only ``--resume`` helps)."""
     if not problems:
         return
     shown = "; ".join(problems[:_SHOWN]) + (f"; ... {len(problems) - _SHOWN} more" if len(problems) > _SHOWN else "")
     unsealed = any(UNSEALED in p for p in problems)
-    migrate = (f"; a folder written before seals is sealed once with `python -m bench report {out} "
-               "--accept-unsealed`" if unsealed else "")
+    if unsealed and sealing_tried:
+        migrate = "; --accept-unsealed left unsealed the records that disagree with the results tables"
+    elif unsealed:
+        migrate = (f"; a folder written before seals is sealed once with `python -m bench report {out} "
+                   "--accept-unsealed`")
+    else:
+        migrate = ""
     raise InputError(f"{str(out)!r}: {len(problems)} problem(s) against the sealed cell records: {shown}; "
                      f"rewrite the tables from the records (and recompute any damaged cell) with "
                      f"`python -m bench run --resume --out {out}`{migrate}{escape}")

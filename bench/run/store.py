@@ -79,7 +79,8 @@ def save_npz(path: str | Path, arrays: dict, compressed: bool = True) -> Path:
 
 # ---------------------------------------------------------------------------------------------- the folder
 def check_output_dir(out: Path, resume: bool) -> None:
-    """Create ``out`` and make sure it is writable; refuse to mix a new run into an old one."""
+    """Create ``out`` and make sure it is writable and that its ``cells`` / ``meshes`` / ``cache`` entries, where
+    present, are folders; refuse to mix a new run into an old one."""
     try:
         out.mkdir(parents=True, exist_ok=True)
         probe = out / f".write-test-{os.getpid()}"
@@ -87,6 +88,10 @@ def check_output_dir(out: Path, resume: bool) -> None:
         probe.unlink()
     except OSError as exc:
         raise InputError(f"output folder {str(out)!r} is not writable: {exc.strerror or exc}") from None
+    for sub in (CELLS_DIR, MESHES_DIR, CACHE_DIR):      # the run's own folders: a file in the way of one is named
+        if (out / sub).exists() and not (out / sub).is_dir():
+            raise InputError(f"{str(out / sub)!r} is not a folder (the run keeps its {sub} there): move it away "
+                             "or choose another --out")
     from .lock import RunLock
 
     RunLock(out).check()  # another live run owns the folder: say whose, before anything else

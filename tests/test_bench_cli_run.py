@@ -293,3 +293,21 @@ def test_a_run_and_its_resume_show_progress_with_a_time_estimate_when_not_on_a_t
     lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("progress:")]
     assert lines[0] == "progress: 12/20 cells done, 8 to run" and lines[-1] == "progress: 20/20 cells, 0 not ok"
     assert any("left" in ln for ln in lines), lines
+
+
+def test_a_grid_changed_on_the_command_line_is_a_custom_run_described_by_its_own_grid(tmp_path):
+    """--phantoms on the paper's config: not titled or described as the paper's experiment."""
+    from bench.cli import build_parser
+    from bench.cli.run import _resolve_config
+
+    args = build_parser().parse_args(["run", "--phantoms", "sphere,torus", "--noise", "none,gaussian@30",
+                                      "--n", "24", "--method", "marching_cubes", "--dry-run"])
+    cfg = _resolve_config(args)
+    assert cfg.name == "custom run"
+    assert "paper's experiment" not in cfg.description
+    assert cfg.description.startswith("A custom run: 2 phantom specs (sphere, torus) × 2 noise settings "
+                                      "(none, gaussian@30) at N = 24, seed 0; 1 method (marching_cubes).")
+    assert "'paper' config" in cfg.description and "--phantoms" in cfg.description
+    # methods alone changed: still the config's grid, its name starred
+    args = build_parser().parse_args(["run", "--quick", "--add-method", "flying_edges", "--dry-run"])
+    assert _resolve_config(args).name == "quick*"

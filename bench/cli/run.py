@@ -131,12 +131,44 @@ def _resolve_config(args) -> RunConfig:
     overrides = [f"--{k.replace('_', '-')}" for k in ("phantoms", "n", "noise", "degrade", "seeds", "method",
                                                        "add_method", "imports", "n_samples") if getattr(args, k)]
     note = f"Changed on the command line ({', '.join(o.replace('--imports', '--import') for o in overrides)})."
-    if overrides and note not in cfg.description:
+    if any(getattr(args, k) for k in GRID_OPTIONS) and cfg.name != CUSTOM_NAME:
+        # another grid is another experiment: its title and description are its own, not the config's
+        cfg.description = f"{describe_grid(cfg)} Started from the {cfg.name!r} config; {note[0].lower()}{note[1:]}"
+        cfg.name = CUSTOM_NAME
+    elif overrides and note not in cfg.description:
         cfg.description = (cfg.description + " " if cfg.description else "") + note
-        if not cfg.name.endswith("*"):
+        if not cfg.name.endswith("*") and cfg.name != CUSTOM_NAME:
             cfg.name += "*"
     cfg.validate()
     return cfg
+
+
+#: the options that change which inputs the grid has (a run with any of them is not its config's experiment)
+GRID_OPTIONS = ("phantoms", "n", "noise", "degrade", "seeds")
+#: the name of a run whose grid was changed on the command line
+CUSTOM_NAME = "custom run"
+
+
+def _listed(items: list[str], most: int = 4) -> str:
+    shown = ", ".join(items[:most])
+    return shown + (f", … ({len(items)} in all)" if len(items) > most else "")
+
+
+def describe_grid(cfg: RunConfig) -> str:
+    """One sentence saying what the grid of ``cfg`` computes: its phantoms, noise settings, degradations, N, seeds
+    and method labels (the report's description of a custom run)."""
+    def count(k: int, word: str) -> str:
+        return f"{k} {word}{'' if k == 1 else 's'}"
+
+    noise = [s.kind + (f"@{s.snr:g}" if isinstance(s.snr, float) else "") for s in cfg.noise]
+    labels = [label for spec in cfg.methods for label, _ in spec.instances()]
+    parts = [f"{count(len(cfg.phantoms), 'phantom spec')} ({_listed(cfg.phantoms)})",
+             f"{count(len(noise), 'noise setting')} ({_listed(noise)})"]
+    if cfg.degrade != ["none"]:
+        parts.append(f"{count(len(cfg.degrade), 'input')} ({_listed(cfg.degrade)})")
+    return (f"A custom run: {' × '.join(parts)} at N = {', '.join(map(str, cfg.n))}, "
+            f"seed{'' if len(cfg.seeds) == 1 else 's'} {', '.join(map(str, cfg.seeds))}; "
+            f"{count(len(labels), 'method')} ({_listed(labels, 8)}).")
 
 
 def _drop_replaced_report_labels(cfg: RunConfig) -> None:

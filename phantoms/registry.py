@@ -151,7 +151,7 @@ def expand_phantoms(specs) -> list[tuple[str, str]]:
     from .labels import expand_labels
 
     out = [pair for name, source in out for pair in (expand_labels(name, source) if source.startswith(VOLUME_PREFIX)
-                                                     and "labels=" in source else [(name, source)])]
+                                                     and "label" in source else [(name, source)])]
     seen: dict[str, str] = {}
     for name, source in out:
         if name in seen and seen[name] != source:

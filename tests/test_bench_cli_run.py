@@ -14,6 +14,7 @@ import time
 from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bench.cli import main
@@ -311,3 +312,40 @@ def test_a_grid_changed_on_the_command_line_is_a_custom_run_described_by_its_own
     # methods alone changed: still the config's grid, its name starred
     args = build_parser().parse_args(["run", "--quick", "--add-method", "flying_edges", "--dry-run"])
     assert _resolve_config(args).name == "quick*"
+
+
+def _label_map(folder) -> str:
+    import nibabel as nib
+
+    lab = np.zeros((20, 20, 20), np.uint8)
+    lab[3:9, 3:9, 3:9] = 1
+    lab[11:17, 11:17, 11:17] = 3
+    path = folder / "seg.nii.gz"
+    nib.save(nib.Nifti1Image(lab, np.eye(4)), str(path))
+    return str(path)
+
+
+def test_a_labels_list_on_the_command_line_keeps_its_commas(tmp_path):
+    from bench.cli.run import split_phantom_list
+
+    seg = _label_map(tmp_path)
+    assert split_phantom_list(f"volume:{seg}?labels=1,3,sphere, torus") == [f"volume:{seg}?labels=1,3", "sphere",
+                                                                            "torus"]
+    assert split_phantom_list("sphere,torus") == ["sphere", "torus"]
+    assert split_phantom_list(f"volume:{seg}?labels=1,3,volume:{seg}?label=3") == [f"volume:{seg}?labels=1,3",
+                                                                                  f"volume:{seg}?label=3"]
+    res = subprocess.run([sys.executable, "-m", "bench", "run", "--phantoms", f"volume:{seg}?labels=1,3",
+                          "--method", "marching_cubes", "--noise", "none", "--dry-run"],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert "seg_label1_" in res.stdout and "seg_label3_" in res.stdout and "2 cells" in res.stdout
+
+
+def test_an_absent_label_is_refused_at_dry_run_and_before_any_cell(tmp_path):
+    seg = _label_map(tmp_path)
+    for extra in (["--dry-run"], ["--out", str(tmp_path / "run")]):
+        res = subprocess.run([sys.executable, "-m", "bench", "run", "--phantoms", f"volume:{seg}?label=4",
+                              "--method", "marching_cubes", "--noise", "none", "--n", "16", *extra],
+                             capture_output=True, text=True, timeout=120)
+        assert res.returncode == 2 and "label 4 does not occur in the image; labels present: 1, 3" in res.stderr
+        assert res.stderr.count("\n") == 1 and not (tmp_path / "run" / "cells").exists()

@@ -2,7 +2,8 @@
 
 The matching and the verdicts are :mod:`bench.report.compare`'s; this room parses the arguments, prints, writes
 the page and picks the exit code: 0, or 1 with ``--fail-on-worse`` when something got worse; 2 on bad input
-(a folder that is not a run, or whose results tables disagree with its sealed cell records: :mod:`bench.run.audit`).
+(a folder that is not a run, or whose results tables disagree with its sealed cell records: :mod:`bench.run.audit`)
+and when no cell of the two runs matched (one line saying why and how to pair the labels).
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from geometry.files import atomic_write, check_writable
+from phantoms import InputError
 
 HELP = """\
 Compare two run folders cell by cell (before / after a change to a method). Cells are matched on phantom,
@@ -43,6 +45,8 @@ def _cmd_compare(args) -> int:
     for run in (args.run_a, args.run_b):      # the sealed records are the truth: a table that departs is refused
         refuse_damaged(run, check_run_folder(run, arrays=False))
     cmp = compare_runs(Path(args.run_a), Path(args.run_b))
+    if not cmp.matched:             # nothing to compare is not "no change"
+        raise InputError(f"compare: 0 cells matched: {cmp.unmatched_reason}")
     print(format_comparison(cmp))
     if args.html:
         path = atomic_write(args.html, comparison_html(cmp))

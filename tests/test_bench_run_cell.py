@@ -252,3 +252,12 @@ def test_a_hook_that_raises_fails_the_cell_naming_where(sphere_cell):
     assert warm.row.status == "failed" and warm.row.error.startswith("warm-up: RuntimeError")
     skip = run_cell(_hook_cell(sphere_cell, "bad_hooks", hook="skip_type")).row.to_dict()
     assert skip["status"] == "failed" and "skip_reason returned 3" in skip["error"]
+
+
+@pytest.mark.parametrize("kind, reason", [("collapsed", "empty mesh: zero area"),
+                                          ("no_faces", "empty: the mesh has no vertices or no faces")])
+def test_an_empty_or_zero_area_mesh_is_an_invalid_row_naming_why_not_a_scoring_crash(sphere_cell, kind, reason):
+    result = run_cell(_hook_cell(sphere_cell, "degenerate_mesh", kind=kind))
+    row = result.row.to_dict()
+    assert row["status"] == "invalid" and reason in row["error"], row["error"]
+    assert result.traceback is None

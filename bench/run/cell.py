@@ -6,9 +6,10 @@ dict form) and returns a :class:`~bench.run.contracts.CellResult` (``row``, ``ar
 
 ``row`` (a :class:`~bench.run.row.ResultRow`, filled as a dict as the stages go and converted once at the end)
 is the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop
-reason, cost, ``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`:
-``error`` says why; the metrics that can be computed are kept) / ``failed`` and ``error`` (over the process's
-memory limit: ``memory limit (N GB) exceeded in the method`` / ``in scoring ...``, see
+reason, cost, ``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`, or
+has zero area, :func:`degenerate_reasons`: ``error`` says why; the metrics that can be computed are kept) /
+``failed`` and ``error`` (over the process's memory limit: ``memory limit (N GB) exceeded in the method``
+/ ``in scoring ...``, see
 :mod:`bench.run.limits`) / ``skipped`` (the method declines the input, :meth:`methods.Method.skip_reason`:
 ``error`` is its reason; no metrics)); ``artifacts`` holds the arrays the report draws: the final mesh with its
 per-vertex mean curvature, the energy history and the snapshots.  Which ``Reconstruction.info`` keys are read
@@ -43,7 +44,7 @@ from .view import view_arrays
 from .values import error_text, plain
 
 __all__ = ["run_cell", "failed_result", "build_volume", "cell_source", "truth_samples", "vertex_mean_curvature",
-           "method_info"]
+           "method_info", "degenerate_reasons"]
 
 
 def _volume_cache_path(cache_dir: str, cell: Cell) -> Path:
@@ -195,6 +196,19 @@ def _artifacts(rec, h: float, curvature: dict | None = None, sdf=None) -> dict:
             if len(sv) <= SNAPSHOT_H_MAX_VERTICES:   # cheap here, in parallel; the report fits the others
                 art[f"snap{it}_H"] = vertex_mean_curvature(sv, sf, h).astype(np.float32)
     return art
+
+
+def degenerate_reasons(mesh) -> list[str]:
+    """Why a mesh the validity check passed still cannot be scored: a closed mesh of zero area (every vertex of a
+    face in one point or on one line — a tiny label meshed to nothing) has no surface to sample; [] otherwise."""
+    v = np.asarray(mesh.vertices, float)
+    f = np.asarray(mesh.faces, np.int64)
+    if len(f) == 0 or len(v) == 0:
+        return ["empty mesh: no faces"]
+    area = float(np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum()) / 2
+    if not area > 0:
+        return [f"empty mesh: zero area ({len(f):,} faces, every one degenerate)"]
+    return []
 
 
 def _stopwatch(phases: dict):
@@ -385,7 +399,7 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         stage = "validity"
         # against the clean level set the grid knows (and, with noise, the one the method was given)
         clean, vol, energy_grid = _read_as_distance(clean, vol, row)
-        invalid = check_mesh(rec.mesh, clean, given=None if vol is clean else vol)
+        invalid = check_mesh(rec.mesh, clean, given=None if vol is clean else vol) or degenerate_reasons(rec.mesh)
         lap("validity")
         stage = "metrics"
         metrics, final_H, metric_phases = _metrics(rec, truth, vol, energy_grid, invalid, cell, cache_dir,

@@ -83,3 +83,16 @@ class DegenerateMesh(Method):
         if self.config["kind"] == "no_faces":
             f = f[:0]
         return Reconstruction(trimesh.Trimesh(v, f, process=False), {})
+
+
+@register_method
+class SlowImportMC(Method):
+    name = "slow_import_mc"
+    description = "marching cubes that imports a slow library lazily, as the VTK methods do (hook tests)"
+    params: dict = {}
+    imports = ("slow_import_library",)
+
+    def reconstruct(self, volume):
+        import slow_import_library  # noqa: F401
+
+        return get_method("marching_cubes").reconstruct(volume)

@@ -261,3 +261,15 @@ def test_an_empty_or_zero_area_mesh_is_an_invalid_row_naming_why_not_a_scoring_c
     row = result.row.to_dict()
     assert row["status"] == "invalid" and reason in row["error"], row["error"]
     assert result.traceback is None
+
+
+def test_a_methods_slow_import_is_paid_before_its_timed_reconstruct(sphere_cell, monkeypatch):
+    """The library a method imports lazily (Method.imports) is imported in the warm-up, not in wall_s."""
+    import sys
+
+    monkeypatch.delitem(sys.modules, "slow_import_library", raising=False)
+    row = run_cell(_hook_cell(sphere_cell, "slow_import_mc")).row.to_dict()
+    import slow_import_library
+
+    assert row["status"] == "ok", row["error"]
+    assert row["phase_s"]["warm_up"] >= slow_import_library.IMPORT_SECONDS > row["wall_s"]

@@ -351,7 +351,37 @@ def _distance_in_voxels(points: np.ndarray, vol: Volume) -> float:
     return float(np.percentile(np.abs(s.phi) / grad, 90)) / float(vol.spacing.max())
 
 
-def _check_truth_inside(truth, vol: Volume, where: str) -> None:
+def _index_frames(v: np.ndarray, vol: Volume, pad: int):
+    """``v`` read as voxel indices of the file, in world coordinates: the array was re-oriented to RAS+ (axes
+    permuted and flipped, :mod:`phantoms.images`) and maybe padded, so each of the 48 axis orders and flips is a
+    candidate (the identity first)."""
+    import itertools
+
+    n = np.asarray(vol.shape) - 2 * pad
+    for perm in itertools.permutations(range(3)):
+        for flips in itertools.product((False, True), repeat=3):
+            idx = np.empty_like(v)
+            for a, d in enumerate(perm):              # the file's axis a is the array's axis d
+                idx[:, d] = n[d] - 1 - v[:, a] if flips[a] else v[:, a]
+            yield vol.index_to_world(idx + pad)
+
+
+def fitting_frame(points, vol: Volume, pad: int = 0) -> str | None:
+    """The frame in which ``points`` (a surface's vertices) lie on ``vol``'s zero level set when they do not in
+    its world coordinates: ``"voxel-index coordinates ..."`` or ``"LPS coordinates (negate x and y for RAS+)"``;
+    None when no such frame fits (or they fit as they are).  ``pad``: the outside voxels the volume's ``pad=``
+    added around the file's grid."""
+    v = np.asarray(points, float)[:: max(1, len(points) // 5000)]
+    if _distance_in_voxels(v, vol) <= TRUTH_TOLERANCE_VOXELS:
+        return None
+    if _distance_in_voxels(v * np.array([-1.0, -1.0, 1.0]), vol) <= TRUTH_TOLERANCE_VOXELS:
+        return "LPS coordinates (negate x and y for RAS+)"
+    if any(_distance_in_voxels(w, vol) <= TRUTH_TOLERANCE_VOXELS for w in _index_frames(v, vol, pad)):
+        return "voxel-index coordinates of the file (convert with the image's affine)"
+    return None
+
+
+def _check_truth_inside(truth, vol: Volume, where: str, pad: int = 0) -> None:
     """Refuse a truth surface that is not where the volume's surface is: outside its box, or its vertices'
     distance to the zero level set over :data:`TRUTH_TOLERANCE_VOXELS` (90th percentile) — naming the frame it looks to
     be in when that frame fits (voxel indices, LPS)."""
@@ -359,10 +389,8 @@ def _check_truth_inside(truth, vol: Volume, where: str) -> None:
     d = _distance_in_voxels(v, vol)
     if d <= TRUTH_TOLERANCE_VOXELS:
         return
-    frames = (("voxel-index coordinates (convert with the image's affine)", vol.index_to_world(v)),
-              ("LPS coordinates (negate x and y for RAS+)", v * np.array([-1.0, -1.0, 1.0])))
-    hint = next((f"; it fits the volume in {name}" for name, w in frames
-                 if _distance_in_voxels(w, vol) <= TRUTH_TOLERANCE_VOXELS), "")
+    frame = fitting_frame(v, vol, pad)
+    hint = f"; it fits the volume in {frame}" if frame else ""
     lo, hi = truth.vertices.min(0), truth.vertices.max(0)
     if not np.isfinite(d):
         what = (f"lies outside the volume (truth box {lo.round(3).tolist()} – {hi.round(3).tolist()}, volume box "
@@ -385,7 +413,7 @@ def read_truth(options: dict, level_set: Volume, where: str):
     check_file_kind(tp)            # a FIFO or a device as truth would block the mesh reader
     is_image = tp.is_dir() or image_suffix(tp) in IMAGE_SUFFIXES
     phantom = _truth_from_labels(str(tp), options, where) if is_image else _truth_from_mesh(str(tp), where)
-    _check_truth_inside(phantom, level_set, where)
+    _check_truth_inside(phantom, level_set, where, int(options.get("pad", 0)))
     return phantom
 
 

@@ -297,3 +297,21 @@ def test_reconstruct_with_a_200000_character_message_shows_2000_and_the_length(s
     err = capsys.readouterr().err
     assert rc == 1 and err.count("\n") == 1 and len(err) < 2200 and err.rstrip().endswith("… (200,046 characters)"), \
         err[-100:]
+
+
+def test_reconstruct_names_every_spacing_and_a_mesh_file_in_lps_gets_the_truths_hint(tmp_path, capsys):
+    """An anisotropic grid prints its three spacings; an LPS export read by mesh_file says "negate x and y"."""
+    from _volumes import write_boxes
+
+    nii, obj = write_boxes(tmp_path)
+    assert main(["reconstruct", str(nii), "-m", "marching_cubes", "-o", str(tmp_path / "mc.ply")]) == 0
+    assert "spacing 0.5 × 0.5 × 0.8)" in capsys.readouterr().out
+    mesh = trimesh.load(str(obj), process=False)
+    trimesh.Trimesh(mesh.vertices * [-1, -1, 1], mesh.faces[:, ::-1], process=False).export(str(tmp_path / "lps.obj"))
+    assert main(["reconstruct", str(nii), "-m", "mesh_file", "--set", f"path={obj}", "-o",
+                 str(tmp_path / "ok.ply")]) == 0
+    capsys.readouterr()
+    assert main(["reconstruct", str(nii), "-m", "mesh_file", "--set", f"path={tmp_path / 'lps.obj'}", "-o",
+                 str(tmp_path / "lps.ply")]) == 2
+    err = capsys.readouterr().err
+    assert "not in the volume's world coordinates (RAS+); it fits the volume in LPS coordinates (negate x and y" in err

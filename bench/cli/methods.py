@@ -204,6 +204,12 @@ def _timed_run(method, volume):
     return out, time.perf_counter() - t0
 
 
+def spacing_text(spacing) -> str:
+    """A grid's spacing: one number when it is the same on every axis, else all three (``0.8 × 0.8 × 1.5``)."""
+    sp = [float(x) for x in np.broadcast_to(np.asarray(spacing, float), (3,))]
+    return f"{sp[0]:.6g}" if len({f"{x:.6g}" for x in sp}) == 1 else " × ".join(f"{x:.6g}" for x in sp)
+
+
 def _cmd_reconstruct(args) -> int:
     from methods import as_reconstruction, get_method
     from geometry.mesh import mesh_facts
@@ -235,7 +241,7 @@ def _cmd_reconstruct(args) -> int:
     facts = mesh_facts(mesh)
     settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())
     print(printable(f"method:       {method.name} ({settings})"))
-    print(f"input:        {printable(args.input)} (shape {volume.shape}, spacing {volume.h:.6g})")
+    print(f"input:        {printable(args.input)} (shape {volume.shape}, spacing {spacing_text(volume.spacing)})")
     print(f"wrote:        {out}")
     print(f"vertices:     {facts['vertices']}")
     print(f"faces:        {facts['faces']}")

@@ -60,11 +60,68 @@ def cell_source(cell: Cell) -> str:
     return cell.source or cell.phantom
 
 
+def _file_stamp(path: str) -> np.ndarray:
+    """``[mtime_ns, size]`` of a file (zeros when it cannot be read): a cached volume follows its file's version."""
+    try:
+        st = Path(path).expanduser().stat()
+        return np.array([st.st_mtime_ns, st.st_size], np.int64)
+    except OSError:
+        return np.zeros(2, np.int64)
+
+
+def _cached_mask_level_set(path: Path, stamp: np.ndarray):
+    """The level set of a user's mask from the run's cache (its mask, bit-packed and compressed), rebuilt by the
+    same function the image's reading uses — the same values to the bit; None without a usable cache file."""
+    from phantoms.user import mask_level_set
+
+    try:
+        with np.load(path) as z:
+            if not np.array_equal(z["stamp"], stamp):
+                return None
+            shape = tuple(int(x) for x in z["shape"])
+            inside = np.unpackbits(z["mask"], count=int(np.prod(shape))).reshape(shape).astype(bool)
+            return mask_level_set(inside, z["origin"], z["spacing"])
+    except Exception:  # a missing or broken cache file is rebuilt
+        return None
+
+
+def _user_volume_phantom(source: str, cache_dir: str | None, cell: Cell):
+    """A ``volume:`` phantom whose mask level set (a label, a threshold, a mask) is built once per run: the first
+    cell stores the mask (one bit a voxel, compressed: a few KB for a label of a CT's grid, not the float64 φ and
+    raw mask of 16 bytes a voxel) and the others rebuild the signed distance from it without reading the image."""
+    from phantoms.user import VolumePhantom, parse_spec
+
+    if not cache_dir:
+        return get_phantom(source)
+    path = _volume_cache_path(cache_dir, cell).with_name(
+        f"{slug(cell.phantom)}_{hashlib.sha1(source.encode()).hexdigest()[:8]}_mask.npz")
+    stamp = _file_stamp(parse_spec(source)[0])
+    level_set = _cached_mask_level_set(path, stamp) if path.exists() else None
+    if level_set is not None:
+        return VolumePhantom(source, level_set=level_set)
+    ph = get_phantom(source)
+    ls = getattr(ph, "level_set", None)
+    if ls is not None and ls.kind == "mask":
+        inside = np.asarray(ls.raw) > 0.5
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            save_npz(path, {"mask": np.packbits(inside, axis=None), "shape": np.asarray(inside.shape, np.int64),
+                            "origin": ls.origin, "spacing": ls.spacing, "stamp": stamp}, compressed=True)
+        except (OSError, WriteError):  # the cache is an optimisation; a full disk must not fail the cell
+            pass
+    return ph
+
+
 def build_volume(cell: Cell, cache_dir: str | None = None):
     """``(phantom, clean volume)`` of a cell, optionally cached on disk: the exact SDF of a phantom can cost
     seconds at N = 96 and is the same for every method and noise setting.  ``n`` 0 is a user volume's native
-    grid."""
-    ph = get_phantom(cell_source(cell))
+    grid.  A user's volume is cached as its mask (:func:`_user_volume_phantom`), never as its φ: the image is
+    read once per run."""
+    source = cell_source(cell)
+    if source.startswith("volume:"):
+        ph = _user_volume_phantom(source, cache_dir, cell)
+        return ph, ph.volume(n=cell.n or None, extent=cell.extent, variant=cell.variant)
+    ph = get_phantom(source)
     path = _volume_cache_path(cache_dir, cell) if cache_dir else None
     if path is not None and path.exists():
         try:

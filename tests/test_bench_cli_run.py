@@ -284,7 +284,8 @@ def test_a_run_and_its_resume_show_progress_with_a_time_estimate_when_not_on_a_t
     assert proc.returncode == 0, proc.stderr[-3000:]
     lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("progress:")]
     assert lines[0] == "progress: 0/20 cells done, 20 to run"
-    assert any(re.fullmatch(r"progress: \d+/20 cells, 0 not ok, about \d+ s left", ln) for ln in lines), lines
+    assert any(re.fullmatch(r"progress: \d+/20 cells, 0 not ok, about [\d.]+ (s|min) left "
+                    r"\([\d.]+ (s|min)–[\d.]+ (s|min)\)", ln) for ln in lines), lines
     assert lines[-1] == "progress: 20/20 cells, 0 not ok"
     records = sorted((out / "cells").glob("*.json"))
     for rec in records[:8]:                                    # an interrupted run: 8 cells never finished

@@ -1,4 +1,5 @@
-"""Refuse, before it runs, a cell whose method would not finish within the cell's time limit.
+"""Refuse, before it runs, a cell whose method would not finish within the cell's time limit; say how long a run
+has left (:class:`RemainingTime`, learnt from its own cells per method and input size, with a range).
 
 A method may declare a cost model (:meth:`methods.Method.estimate_seconds`, from the grid's size).  Before the
 executor starts, :func:`screen_cells` asks each cell's method for its estimate at the cell's N and compares it
@@ -18,7 +19,10 @@ the time limit, which still kills a cell that runs out of it.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Callable
+
+import numpy as np
 
 from phantoms import InputError
 
@@ -27,7 +31,8 @@ from .contracts import Cell, CellResult
 from .grid import as_cell
 from .limits import TimeLimits
 
-__all__ = ["method_estimate", "method_budget", "refusal", "screen_cells", "format_duration", "check_force"]
+__all__ = ["method_estimate", "method_budget", "refusal", "screen_cells", "format_duration", "check_force",
+           "RemainingTime"]
 
 
 def format_duration(seconds: float) -> str:
@@ -99,3 +104,123 @@ def check_force(value, what: str = "run.force") -> bool:
     if not isinstance(value, bool):
         raise InputError(f"{what}: expected true or false, got {value!r}")
     return value
+
+
+# ---------------------------------------------------------------------------------------------- time left
+def _size_key(cell: Cell):
+    """What a cell's cost scales with besides its method: N, or for a user volume on its native grid the file
+    (every label of a label map shares its grid)."""
+    if cell.n:
+        return int(cell.n)
+    return (cell.source or cell.phantom).split("?")[0]
+
+
+@dataclass
+class _Guess:
+    """One cell's expected seconds ``mean``, its own spread ``spread`` (cell to cell) and ``shared``, the error
+    of the mean it comes from (the same for every cell of its group: those errors add up, the spreads do not)."""
+
+    mean: float
+    spread: float
+    shared: float
+    group: tuple
+
+
+class RemainingTime:
+    """The time a run has left, learnt from its own cells: each finished cell's seconds (start to result, as the
+    runner saw them) per method label and input size (N, or the file of a native-grid volume).  A cell to run is
+    expected to take the mean of its (label, size) group; a label seen at another N scales by the power of N its
+    own cells show (N³ with one size); a label not seen yet by the method's cost model calibrated on the cells
+    seen (:meth:`methods.Method.estimate_seconds`), else by the median cell.  The sum over the cells left is
+    divided by the parallelism the run shows (cell-seconds per second of wall time).
+
+    :meth:`text` gives it with its uncertainty: ``about 12 min left (8–17 min)``, the range ±1.64 σ of the sum —
+    the cell-to-cell spread of each group and the error of its mean (large while a group has few cells)."""
+
+    def __init__(self, cells: list[Cell], now: float) -> None:
+        self.t0 = now
+        self.pending: dict[str, Cell] = {c.cell_id: c for c in map(as_cell, cells)}
+        self.started: dict[str, float] = {}
+        self.seconds: dict[tuple, list[float]] = {}     # (label, size) → seconds of its finished cells
+        self.examples: dict[tuple, Cell] = {}           # (label, size) → one of its cells (for the cost model)
+        self.work = 0.0                                 # cell-seconds of the finished cells
+        self._models: dict[tuple, float | None] = {}
+
+    def start(self, cell: Cell, now: float) -> None:
+        self.started[cell.cell_id] = now
+
+    def finish(self, cell: Cell, seconds_in_cell: float | None, now: float) -> None:
+        """Learn from a finished cell: its seconds from its start (when seen) or its own ``cell_s``; a cell that
+        did not run (refused before it started, ``cell_s`` 0) teaches nothing."""
+        self.pending.pop(cell.cell_id, None)
+        t_start = self.started.pop(cell.cell_id, None)
+        if seconds_in_cell is not None and seconds_in_cell <= 0:
+            return
+        seconds = now - t_start if t_start is not None else seconds_in_cell
+        if seconds is None or not math.isfinite(seconds) or seconds < 0:
+            return
+        group = (cell.label, _size_key(cell))
+        self.seconds.setdefault(group, []).append(float(seconds))
+        self.examples.setdefault(group, cell)
+        self.work += float(seconds)
+
+    # ------------------------------------------------------------------ the guesses
+    def _model(self, cell: Cell) -> float | None:
+        key = (cell.label, cell.n)
+        if key not in self._models:
+            self._models[key] = method_estimate(cell) or None
+        return self._models[key]
+
+    def _guess(self, cell: Cell) -> _Guess:
+        label, size = cell.label, _size_key(cell)
+        own = self.seconds.get((label, size))
+        if own:
+            m = float(np.mean(own))
+            sd = float(np.std(own, ddof=1)) if len(own) > 1 else 0.5 * m
+            return _Guess(m, sd, sd / math.sqrt(len(own)) if len(own) > 1 else 0.5 * m, (label, size))
+        sizes = {s: float(np.mean(v)) for (lab, s), v in self.seconds.items() if lab == label and isinstance(s, int)}
+        if sizes and isinstance(size, int):
+            near = min(sizes, key=lambda s: abs(math.log(s / size)))
+            power = 3.0
+            if len(sizes) > 1:
+                ns = np.log(np.array(list(sizes), float))
+                power = float(np.clip(np.polyfit(ns, np.log(list(sizes.values())), 1)[0], 0.5, 4.0))
+            m = sizes[near] * (size / near) ** power
+            return _Guess(m, 0.5 * m, 0.5 * m, (label, size))
+        model = self._model(cell)
+        ratios = []
+        if model:                 # the cost model's ratio between methods, scaled to this machine by the cells seen
+            for group, v in self.seconds.items():
+                est = self._model(self.examples[group])
+                if est:
+                    ratios.append(float(np.mean(v)) / est)
+        if ratios:
+            m = float(np.median(ratios)) * model
+        else:
+            m = float(np.median([np.mean(v) for v in self.seconds.values()]))
+        return _Guess(m, m, m, (label, size))
+
+    def expected(self, now: float) -> tuple[float, float, float] | None:
+        """``(seconds left, low, high)`` of wall time, or None before any cell finished."""
+        if not self.seconds or not self.pending:
+            return None if self.pending else (0.0, 0.0, 0.0)
+        elapsed = max(now - self.t0, 1e-9)
+        running = {cid: now - t for cid, t in self.started.items() if cid in self.pending}
+        parallel = max(1.0, (self.work + sum(running.values())) / elapsed)
+        total, var_spread, shared = 0.0, 0.0, {}
+        for cid, cell in self.pending.items():
+            g = self._guess(cell)
+            left = max(g.mean - running.get(cid, 0.0), 0.0)
+            total += left
+            var_spread += g.spread ** 2
+            shared[g.group] = shared.get(g.group, 0.0) + g.shared * (left / g.mean if g.mean > 0 else 0.0)
+        sigma = math.sqrt(var_spread + sum(v ** 2 for v in shared.values()))
+        return total / parallel, max(total - 1.64 * sigma, 0.0) / parallel, (total + 1.64 * sigma) / parallel
+
+    def text(self, now: float) -> str:
+        """``about 12 min left (8–17 min)``, empty before any cell finished or when nothing is left."""
+        got = self.expected(now)
+        if got is None or not self.pending:
+            return ""
+        mid, lo, hi = got
+        return f"about {format_duration(mid)} left ({format_duration(lo)}–{format_duration(hi)})"

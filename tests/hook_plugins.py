@@ -96,3 +96,14 @@ class SlowImportMC(Method):
         import slow_import_library  # noqa: F401
 
         return get_method("marching_cubes").reconstruct(volume)
+
+
+@register_method
+class SleepyMC(Method):
+    name = "sleepy_mc"
+    description = "marching cubes after a pause of `seconds` (a long method, for progress tests)"
+    params = {"seconds": Param(1.0, "seconds it sleeps first", min=0.0)}
+
+    def reconstruct(self, volume):
+        time.sleep(self.config["seconds"])
+        return get_method("marching_cubes").reconstruct(volume)

@@ -315,3 +315,17 @@ def test_reconstruct_names_every_spacing_and_a_mesh_file_in_lps_gets_the_truths_
                  str(tmp_path / "lps.ply")]) == 2
     err = capsys.readouterr().err
     assert "not in the volume's world coordinates (RAS+); it fits the volume in LPS coordinates (negate x and y" in err
+
+
+def test_reconstruct_says_a_long_method_is_still_running(sphere_file, tmp_path, capsys, monkeypatch):
+    import bench.cli.methods as cli_methods
+
+    monkeypatch.setattr(cli_methods, "TICK_FIRST_S", 0.3)
+    monkeypatch.setattr(cli_methods, "TICK_EVERY_S", 0.3)
+    assert main(["reconstruct", str(sphere_file), "-m", "sleepy_mc", "--set", "seconds=1.2", "--import",
+                 "hook_plugins", "-o", str(tmp_path / "m.ply")]) == 0
+    ticks = [ln for ln in capsys.readouterr().err.splitlines() if "still running" in ln]
+    assert len(ticks) >= 2 and ticks[0].startswith("reconstruct: method 'sleepy_mc' still running (")
+    monkeypatch.setattr(cli_methods, "TICK_FIRST_S", 5.0)
+    assert main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(tmp_path / "q.ply")]) == 0
+    assert "still running" not in capsys.readouterr().err          # a quick method: no ticks

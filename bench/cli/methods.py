@@ -139,6 +139,22 @@ def _in_child(conn, fn, method, volume, out_fd: int) -> None:
 OUTPUT_SHOWN = 4096
 
 
+#: seconds before the first "still running" line of a long reconstruction, and between the next ones
+TICK_FIRST_S, TICK_EVERY_S = 5.0, 15.0
+
+
+def wait_with_ticks(conn, name: str) -> None:
+    """Wait until ``conn`` (the child's pipe) has the method's result, saying on stderr every
+    :data:`TICK_EVERY_S` seconds (the first after :data:`TICK_FIRST_S`) that the method is still running and for
+    how long — a reconstruction of minutes does not run in silence."""
+    t0 = time.perf_counter()
+    wait = TICK_FIRST_S
+    while not conn.poll(wait):
+        print(printable(f"reconstruct: method {name!r} still running ({time.perf_counter() - t0:.0f} s)"),
+              file=sys.stderr, flush=True)
+        wait = TICK_EVERY_S
+
+
 def _isolated(fn, method, volume):
     """``fn(method, volume)`` in a forked child (where fork exists): a method that aborts or segfaults ends the
     child, not this command, and is one line naming the signal."""
@@ -156,6 +172,7 @@ def _isolated(fn, method, volume):
         proc.start()
         send.close()
         try:
+            wait_with_ticks(recv, method.name)
             kind, value = recv.recv()
         except (EOFError, OSError):
             proc.join()

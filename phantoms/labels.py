@@ -71,3 +71,32 @@ def expand_labels(name: str, spec: str) -> list[tuple[str, str]]:
     base = {k: v for k, v in opts.items() if k != "labels"}
     stem = name if name != spec else Path(path).name.split(".")[0]
     return [(f"{stem}_label{x}", format_spec(path, {**base, "label": x})) for x in wanted]
+
+
+def label_surfaces(spec: str) -> dict[int, int]:
+    """Per label of the label map a ``volume:`` spec reads: its surface size, the count of its voxels with a face
+    neighbour of another value (what meshing and scoring a label cost grows with); {} for a spec without
+    ``label=`` / ``labels=`` or an image that cannot be read.  Cached per file version."""
+    path, opts = parse_spec(spec)
+    if "labels" not in opts and "label" not in opts:
+        return {}
+    p = Path(path).expanduser()
+    try:
+        st = p.stat()
+        return dict(_surfaces_cached(str(p), opts.get("series"), (st.st_mtime_ns, st.st_size)))
+    except (OSError, InputError, ValueError):
+        return {}
+
+
+@lru_cache(maxsize=8)
+def _surfaces_cached(path: str, series: str | None, version) -> tuple[tuple[int, int], ...]:
+    values = read_image(path, series=series).values
+    edge = np.zeros(values.shape, bool)
+    for axis in range(3):
+        a = np.swapaxes(values, 0, axis)
+        e = np.swapaxes(edge, 0, axis)
+        differs = a[1:] != a[:-1]
+        e[1:] |= differs
+        e[:-1] |= differs
+    labels, counts = np.unique(values[edge], return_counts=True)
+    return tuple((int(x), int(c)) for x, c in zip(labels, counts) if x != 0 and float(x) == int(x))

@@ -27,7 +27,7 @@ from ..terminal import printable
 from .audit import REJECTED, set_aside
 from .checkpoints import ResultTables
 from .contracts import Cell, CellResult, ResultRow
-from .estimate import RemainingTime, screen_cells
+from .estimate import SCALING_PHASES, RemainingTime, screen_cells
 from .executors.local import LocalExecutor
 from .grid import expand_grid
 from .identity import MixedCodeError, changed_methods, code_identity, config_fingerprint, mixed_code
@@ -172,7 +172,10 @@ class _Progress:
     def finish(self, cell: Cell, row: ResultRow) -> None:
         self.done += 1
         cell_s = row.value("cell_s", None)
-        self.left.finish(cell, float(cell_s) if isinstance(cell_s, (int, float)) else None, time.monotonic())
+        phases = row.value("phase_s", None) or {}
+        scaling = sum(float(v) for k, v in phases.items() if k in SCALING_PHASES and isinstance(v, (int, float)))
+        self.left.finish(cell, float(cell_s) if isinstance(cell_s, (int, float)) else None, time.monotonic(),
+                         scaling if phases else None)
         if self.show:
             eta = self.left.text(time.monotonic())
             self.bar.set_description_str(f"cells ({eta})" if eta else "cells", refresh=False)

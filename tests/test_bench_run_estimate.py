@@ -282,3 +282,26 @@ def test_the_labels_of_one_label_map_share_its_input_size():
     left = RemainingTime(cells, now=0.0)
     left.finish(cells[0], 6.0, 6.0)
     assert left.expected(6.0)[0] == pytest.approx(12.0)
+
+
+def test_a_labels_cost_follows_its_surface_also_for_a_method_not_seen_on_it(tmp_path):
+    """Labels of one map: the part of a cell that grows with the surface (method, validity, metrics, pictures)
+    scales with the label's surface; a method not seen on the map takes the others' fixed and per-surface seconds."""
+    import nibabel as nib
+
+    from bench.run.estimate import RemainingTime
+    from phantoms.labels import label_surfaces
+
+    lab = np.zeros((40, 40, 40), np.uint8)
+    lab[2:30, 2:30, 2:30] = 1                       # a big cube
+    lab[33:37, 33:37, 33:37] = 2                    # a small one
+    nib.save(nib.Nifti1Image(lab, np.eye(4)), str(tmp_path / "seg.nii.gz"))
+    spec = f"volume:{tmp_path / 'seg.nii.gz'}"
+    surfaces = label_surfaces(f"{spec}?label=1")
+    assert surfaces == {1: 28 ** 3 - 26 ** 3, 2: 4 ** 3 - 2 ** 3}
+    cells = [_grid_cell(m, 0, 0, source=f"{spec}?label={k}") for m in ("mc", "sn") for k in (1, 2)]
+    left = RemainingTime(cells, now=0.0)
+    left.finish(cells[0], 10.0, 10.0, scaling_s=8.0)      # mc on label 1: 2 s fixed, 8 s over its surface
+    per = 8.0 / surfaces[1]
+    small = 2.0 + per * surfaces[2]
+    assert left.expected(10.0)[0] == pytest.approx(small + 10.0 + small)   # mc label 2, sn label 1 and 2

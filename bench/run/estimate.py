@@ -148,7 +148,7 @@ class _Guess:
 
 class RemainingTime:
     """The time a run has left, learnt from its own cells: each finished cell's seconds (as the cell measured
-    them, plus the median over the cells of the runner's start-to-result overhead beyond them) per method label and
+    them, times the median over the cells of the runner's start-to-result time over them) per method label and
     input size (N, or the file of a native-grid volume; a label of a label map scales its surface-bound phases by
     its surface, :func:`phantoms.labels.label_surfaces`).  A cell to run is expected to take the mean of its
     (label, size) group; a label seen at another N scales by the power of N its
@@ -162,7 +162,7 @@ class RemainingTime:
     def __init__(self, cells: list[Cell], now: float) -> None:
         self.t0 = now
         self.most = 0                 # the most cells seen running at once: the run's parallelism
-        self.overheads: list[float] = []   # seconds between a cell's start and its result, beyond its own
+        self.overheads: list[float] = []   # a cell's start-to-result seconds over its own (the process, its result)
         self.pending: dict[str, Cell] = {c.cell_id: c for c in map(as_cell, cells)}
         self.started: dict[str, float] = {}
         self.seconds: dict[tuple, list[float]] = {}     # (label, size) → seconds of its finished cells
@@ -189,7 +189,7 @@ class RemainingTime:
         if seconds is None or not math.isfinite(seconds) or seconds < 0:
             return
         if seen is not None and seconds_in_cell is not None:
-            self.overheads.append(max(seen - seconds_in_cell, 0.0))
+            self.overheads.append(max(seen / seconds_in_cell, 1.0))
         group = (cell.label, _size_key(cell))
         self.seconds.setdefault(group, []).append(float(seconds))
         surface = _surface(cell)
@@ -228,6 +228,12 @@ class RemainingTime:
                 power = float(np.clip(np.polyfit(ns, np.log(list(sizes.values())), 1)[0], 0.5, 4.0))
             m = sizes[near] * (size / near) ** power
             return _Guess(m, 0.5 * m, 0.5 * m, (label, size))
+        if surface:               # a method not seen on this label map yet: the other methods' fixed and per-surface
+            others = [float(np.mean([f + p * surface for f, p in v]))
+                      for (_, sz), v in self.parts.items() if sz == size]
+            if others:
+                m = float(np.median(others))
+                return _Guess(m, 0.5 * m, 0.5 * m, (label, size))
         model = self._model(cell)
         ratios = []
         if model:                 # the cost model's ratio between methods, scaled to this machine by the cells seen
@@ -248,11 +254,12 @@ class RemainingTime:
         running = {cid: now - t for cid, t in self.started.items() if cid in self.pending}
         # the workers seen running side by side; without starts (Dask) the cell-seconds per second of the run
         parallel = float(self.most) if self.most else max(1.0, self.work / max(now - self.t0, 1e-9))
-        overhead = float(np.median(self.overheads)) if self.overheads else 0.0
+        overhead = float(np.median(self.overheads)) if self.overheads else 1.0
         total, var_spread, shared = 0.0, 0.0, {}
         for cid, cell in self.pending.items():
             g = self._guess(cell)
-            left = max(g.mean + overhead - running.get(cid, 0.0), 0.0)
+            g = _Guess(g.mean * overhead, g.spread * overhead, g.shared * overhead, g.group)
+            left = max(g.mean - running.get(cid, 0.0), 0.0)
             total += left
             var_spread += g.spread ** 2
             shared[g.group] = shared.get(g.group, 0.0) + g.shared * (left / g.mean if g.mean > 0 else 0.0)

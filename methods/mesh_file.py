@@ -17,7 +17,7 @@ import numpy as np
 import trimesh
 
 from phantoms import InputError, Volume
-from phantoms.user import fitting_frame
+from phantoms.frames import fitting_frame
 
 from .base import Method, Param, Reconstruction
 

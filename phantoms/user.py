@@ -40,6 +40,7 @@ from geometry.errors import InputError
 from .base import Phantom
 from .image_checks import check_file_kind
 from .images import IMAGE_SUFFIXES, image_suffix, read_image
+from .frames import TRUTH_TOLERANCE_VOXELS, distance_in_voxels, fitting_frame
 from .volume import Volume, check_grid, check_memory
 
 __all__ = ["VOLUME_PREFIX", "VolumePhantom", "parse_spec", "format_spec", "spec_from_table", "level_set_from_image"]
@@ -341,58 +342,12 @@ def _truth_from_mesh(path: str, where: str):
     return ph
 
 
-#: how far (90th percentile of its vertices, in voxels of the largest spacing) a truth surface may lie from the
-#: volume's zero level set: a truth from the same segmentation lies within half a voxel, another rater's within
-#: one or two; a frame mix-up (voxel indices, LPS) or a shift moves most of it further
-TRUTH_TOLERANCE_VOXELS = 2.5
-
-
-def _distance_in_voxels(points: np.ndarray, vol: Volume) -> float:
-    """90th percentile of the first-order distance |φ| / |∇φ| from ``points`` to the zero level set, in voxels
-    (inf when a point is outside the box)."""
-    if len(points) == 0 or not vol.contains(points, margin=-float(vol.spacing.max())).all():
-        return math.inf
-    s = vol.sample(points, derivatives=1, clamp=True)
-    grad = np.maximum(np.linalg.norm(s.grad, axis=1), 1e-12)
-    return float(np.percentile(np.abs(s.phi) / grad, 90)) / float(vol.spacing.max())
-
-
-def _index_frames(v: np.ndarray, vol: Volume, pad: int):
-    """``v`` read as voxel indices of the file, in world coordinates: the array was re-oriented to RAS+ (axes
-    permuted and flipped, :mod:`phantoms.images`) and maybe padded, so each of the 48 axis orders and flips is a
-    candidate (the identity first)."""
-    import itertools
-
-    n = np.asarray(vol.shape) - 2 * pad
-    for perm in itertools.permutations(range(3)):
-        for flips in itertools.product((False, True), repeat=3):
-            idx = np.empty_like(v)
-            for a, d in enumerate(perm):              # the file's axis a is the array's axis d
-                idx[:, d] = n[d] - 1 - v[:, a] if flips[a] else v[:, a]
-            yield vol.index_to_world(idx + pad)
-
-
-def fitting_frame(points, vol: Volume, pad: int = 0) -> str | None:
-    """The frame in which ``points`` (a surface's vertices) lie on ``vol``'s zero level set when they do not in
-    its world coordinates: ``"voxel-index coordinates ..."`` or ``"LPS coordinates (negate x and y for RAS+)"``;
-    None when no such frame fits (or they fit as they are).  ``pad``: the outside voxels the volume's ``pad=``
-    added around the file's grid."""
-    v = np.asarray(points, float)[:: max(1, len(points) // 5000)]
-    if _distance_in_voxels(v, vol) <= TRUTH_TOLERANCE_VOXELS:
-        return None
-    if _distance_in_voxels(v * np.array([-1.0, -1.0, 1.0]), vol) <= TRUTH_TOLERANCE_VOXELS:
-        return "LPS coordinates (negate x and y for RAS+)"
-    if any(_distance_in_voxels(w, vol) <= TRUTH_TOLERANCE_VOXELS for w in _index_frames(v, vol, pad)):
-        return "voxel-index coordinates of the file (convert with the image's affine)"
-    return None
-
-
 def _check_truth_inside(truth, vol: Volume, where: str, pad: int = 0) -> None:
     """Refuse a truth surface that is not where the volume's surface is: outside its box, or its vertices'
     distance to the zero level set over :data:`TRUTH_TOLERANCE_VOXELS` (90th percentile) — naming the frame it looks to
     be in when that frame fits (voxel indices, LPS)."""
     v = truth.vertices[:: max(1, len(truth.vertices) // 5000)]
-    d = _distance_in_voxels(v, vol)
+    d = distance_in_voxels(v, vol)
     if d <= TRUTH_TOLERANCE_VOXELS:
         return
     frame = fitting_frame(v, vol, pad)

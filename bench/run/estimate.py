@@ -152,12 +152,14 @@ class RemainingTime:
     input size (N, or the file of a native-grid volume; a label of a label map scales its surface-bound phases by
     its surface, :func:`phantoms.labels.label_surfaces`).  A cell to run is expected to take the mean of its
     (label, size) group; a label seen at another N scales by the power of N its
-    own cells show (N³ with one size); a label not seen yet by the method's cost model calibrated on the cells
-    seen (:meth:`methods.Method.estimate_seconds`), else by the median cell.  The sum over the cells left is
+    own cells show (N³ with one size); a label not seen yet on a label map by the other labels' fixed and
+    per-surface seconds there, elsewhere by the method's cost model calibrated on the cells seen
+    (:meth:`methods.Method.estimate_seconds`), else by the median cell.  The sum over the cells left is
     divided by the parallelism the run shows (the most cells seen running at once).
 
-    :meth:`text` gives it with its uncertainty: ``about 12 min left (8–17 min)``, the range ±1.64 σ of the sum —
-    the cell-to-cell spread of each group and the error of its mean (large while a group has few cells)."""
+    :meth:`text` gives it with its uncertainty: ``about T left (LOW–HIGH)`` (durations as :func:`format_duration`
+    writes them), the range ±1.64 σ of the sum — the cell-to-cell spread of each group and the error of its mean
+    (large while a group has few cells)."""
 
     def __init__(self, cells: list[Cell], now: float) -> None:
         self.t0 = now
@@ -267,7 +269,7 @@ class RemainingTime:
         return total / parallel, max(total - 1.64 * sigma, 0.0) / parallel, (total + 1.64 * sigma) / parallel
 
     def text(self, now: float) -> str:
-        """``about 12 min left (8–17 min)``, empty before any cell finished or when nothing is left."""
+        """``about T left (LOW–HIGH)``; empty before any cell finished or when nothing is left."""
         got = self.expected(now)
         if got is None or not self.pending:
             return ""

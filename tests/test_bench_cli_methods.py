@@ -329,3 +329,9 @@ def test_reconstruct_says_a_long_method_is_still_running(sphere_file, tmp_path, 
     monkeypatch.setattr(cli_methods, "TICK_FIRST_S", 5.0)
     assert main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(tmp_path / "q.ply")]) == 0
     assert "still running" not in capsys.readouterr().err          # a quick method: no ticks
+
+
+def test_reconstruct_names_a_zero_area_mesh_invalid(sphere_file, tmp_path, capsys):
+    assert main(["reconstruct", str(sphere_file), "-m", "degenerate_mesh", "--import", "hook_plugins", "-o",
+                 str(tmp_path / "d.ply")]) == 1
+    assert "empty mesh: zero area" in capsys.readouterr().err

@@ -245,7 +245,9 @@ def _cmd_reconstruct(args) -> int:
     mesh = getattr(rec, "mesh", None)
     if mesh is None:
         raise InputError(f"method {args.method!r} returned no mesh")
-    invalid = check_mesh(mesh, volume)
+    from ..run.cell import degenerate_reasons
+
+    invalid = check_mesh(mesh, volume) or degenerate_reasons(mesh)     # a closed mesh of zero area is no surface
     # an empty mesh, one with NaN / infinite vertices or faces naming vertices that do not exist is invalid too,
     # and there is nothing sensible to write
     unusable = any(r.startswith(("empty", "non-finite", "bad indices")) for r in invalid)

@@ -134,7 +134,7 @@ def _resolve_config(args) -> RunConfig:
     note = f"Changed on the command line ({', '.join(o.replace('--imports', '--import') for o in overrides)})."
     if any(getattr(args, k) for k in GRID_OPTIONS) and cfg.name != CUSTOM_NAME:
         # another grid is another experiment: its title and description are its own, not the config's
-        cfg.description = f"{describe_grid(cfg)} Started from the {cfg.name!r} config; {note[0].lower()}{note[1:]}"
+        cfg.description = f"{describe_grid(cfg)} Started from the {cfg.name!r} config. {note}"
         cfg.name = CUSTOM_NAME
     elif overrides and note not in cfg.description:
         cfg.description = (cfg.description + " " if cfg.description else "") + note

@@ -150,7 +150,8 @@ class Method:
 
         The suite calls it after :meth:`skip_reason` and before every timed :meth:`reconstruct`, in the same
         process (a grid cell's own process); a second call in a process should cost nothing (numba keeps what
-        it compiled; ``cache=True`` keeps it on disk for the next process).  Its seconds are the row's
+        it compiled; ``cache=True`` keeps it on disk for the next process).  The modules of :attr:`imports` and
+        :attr:`requires` are imported before it.  Its seconds are the row's
         ``phase_s["warm_up"]`` and count in the cell's time limit, not the method's.  An exception fails the
         cell as one in :meth:`reconstruct` would.  The default does nothing.
         """
@@ -182,6 +183,11 @@ class Method:
     #: it is given: a grid scores its surface like any other, but ``check-method``'s cases (volumes to reconstruct)
     #: cannot judge it
     imports_surface: ClassVar[bool] = False
+
+    #: modules :meth:`reconstruct` imports lazily (a library such as VTK takes seconds to import): the suite
+    #: imports them, with those of :attr:`requires`, before the timed :meth:`reconstruct`
+    #: (:func:`methods.run_warm_up`), so a method's time is its computation, not its imports
+    imports: ClassVar[tuple[str, ...]] = ()
 
     #: rough cost of one run relative to marching cubes + scoring at the same N (the runner starts the dearest
     #: cells first, so that two workers finish together); a plug-in may set its own

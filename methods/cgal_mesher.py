@@ -102,6 +102,7 @@ def write_inr(path: str, values: np.ndarray, spacing) -> None:
 
 class CGALMesher(Method):
     name = "cgal_mesher"
+    imports = ("CGAL.CGAL_Surface_mesher", "CGAL.CGAL_Kernel")
     description = ("CGAL's surface mesher (Boissonnat–Oudot Delaunay refinement, cgal bindings): angle, size "
                    "and distance bounds in h")
     params = {

@@ -267,7 +267,9 @@ def check_skip(method, volume: Volume) -> None:
 
 
 def run_warm_up(method) -> None:
-    """Call ``method.warm_up()`` (its one-off costs, paid before the timed ``reconstruct``).
+    """Import the method's libraries (:attr:`Method.imports` and :attr:`Method.requires`), then call
+    ``method.warm_up()`` — its one-off costs, paid before the timed ``reconstruct``.  A module that cannot be
+    imported is left to ``reconstruct``, whose :meth:`Method.require` names it.
 
     Parameters
     ----------
@@ -279,6 +281,13 @@ def run_warm_up(method) -> None:
     WrongReturnType
         ``warm_up`` called ``sys.exit()``; any other exception of it propagates unchanged.
     """
+    import importlib
+
+    for module in (*getattr(method, "requires", {}), *getattr(method, "imports", ())):
+        try:
+            importlib.import_module(module)
+        except ImportError:
+            pass
     try:
         method.warm_up()
     except SystemExit as exc:

@@ -64,6 +64,7 @@ def edge_counts(faces: np.ndarray, n_vertices: int) -> tuple[int, int]:
 
 class DCSDF(Method):
     name = "dc_sdf"
+    imports = ("gpytoolbox",)
     description = ("dual contouring of signed distance data (Carrera et al. 2026, gpytoolbox) as published: "
                    "quads split, not made manifold; slow")
     params = {

@@ -114,6 +114,7 @@ def split_quads(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
 
 class DualContouring(Method):
     name = "dual_contouring"
+    imports = ("gpytoolbox",)
     description = ("dual contouring of signed distance data (Carrera et al. 2026, gpytoolbox), manifold: one "
                    "vertex per marching-cubes patch of a crossed cell; quads split; slow")
     params = {

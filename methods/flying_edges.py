@@ -79,6 +79,7 @@ def flying_edges_arrays(volume: Volume, level: float = 0.0, name: str = "flying_
 
 class FlyingEdges(Method):
     name = "flying_edges"
+    imports = ("vtkmodules.util.numpy_support", "vtkmodules.vtkCommonDataModel", "vtkmodules.vtkFiltersCore")
     description = ("Flying Edges (Schroeder et al. 2015, VTK vtkFlyingEdges3D): marching-cubes vertices, "
                    "several times faster")
     params = {

@@ -82,6 +82,7 @@ def marching_cubes_mesh(volume: Volume, *, method: str = "lewiner", step_size: i
 
 class MarchingCubes(Method):
     name = "marching_cubes"
+    imports = ("skimage.measure",)
     description = ("scikit-image marching cubes at level 0: world coordinates, duplicate vertices merged, "
                    "faces outward")
     params = {

@@ -26,6 +26,7 @@ __all__ = ["MCSmoothedMask"]
 
 class MCSmoothedMask(Method):
     name = "mc_smoothed_mask"
+    imports = ("skimage.measure",)
     description = "marching cubes at 0.5 of the mask blurred by a Gaussian of sigma voxels (PyMCubes' smooth)"
     params = {"sigma": Param(1.0, "Gaussian sigma in voxels of each axis (0: marching cubes of the raw mask)",
                              type=float, min=0.0, max=10.0)}

@@ -20,6 +20,7 @@ import numpy as np
 import trimesh
 
 from phantoms import InputError, Volume
+from phantoms.frames import fitting_frame
 
 from .base import Method, Param, Reconstruction
 
@@ -78,5 +79,9 @@ class MeshFile(Method):
                              "two faces); the suite scores closed surfaces")
         v = np.asarray(mesh.vertices, float)
         f = np.asarray(mesh.faces, np.int64)
+        frame = fitting_frame(v, volume)             # an LPS export or voxel indices: said as for a truth=
+        if frame:
+            raise InputError(f"method 'mesh_file': {str(path)!r} is not in the volume's world coordinates (RAS+); "
+                             f"it fits the volume in {frame}")
         return Reconstruction(trimesh.Trimesh(v, f, process=False),
                               {"iterations": 0, "source_file": str(path), "read_s": time.perf_counter() - t0})

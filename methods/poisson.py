@@ -45,6 +45,7 @@ def zero_set_points(volume: Volume, name: str = "poisson") -> tuple[np.ndarray, 
 
 class ScreenedPoisson(Method):
     name = "poisson"
+    imports = ("pymeshlab",)
     relative_cost = 5.0
     description = ("screened Poisson reconstruction (pymeshlab) from the zero-set points with normals "
                    "∇φ/|∇φ|; low-density components trimmed, largest kept")

@@ -115,6 +115,7 @@ def auto_psr_depth(points: np.ndarray, h: float) -> int:
 
 class ReachForTheArcs(Method):
     name = "reach_for_the_arcs"
+    imports = ("gpytoolbox", "gpytoolbox.point_cloud_to_mesh", "gpytoolbox.reach_for_the_arcs")
     description = ("Reach for the Arcs (Sellán, Ren, Batty & Stein 2024, gpytoolbox): tangency points of the "
                    "samples' spheres, fine-tuned, screened Poisson; any topology")
     params = {

@@ -145,6 +145,7 @@ def initial_ellipsoid(volume: Volume, subdivisions: int, size: float) -> tuple[n
 
 class ReachForTheSpheres(Method):
     name = "reach_for_the_spheres"
+    imports = ("gpytoolbox",)
     description = ("Reach for the Spheres (Sellán, Batty & Stein 2023, gpytoolbox): an icosphere flowed to "
                    "tangency with the samples' spheres, remeshed; genus 0")
     params = {

@@ -93,6 +93,7 @@ def _normals(polydata):
 
 class Slicer(Method):
     name = "slicer"
+    imports = ("vtkmodules.all", "vtkmodules.vtkFiltersCore", "vtkmodules.vtkFiltersGeneral")
     description = ("3D Slicer's label map -> closed surface: discrete flying edges, decimation, windowed-sinc "
                    "smoothing in voxel space (Slicer's defaults)")
     params = {

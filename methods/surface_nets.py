@@ -34,6 +34,7 @@ __all__ = ["SurfaceNets"]
 
 class SurfaceNets(Method):
     name = "surface_nets"
+    imports = ("vtkmodules.all", "vtkmodules.vtkFiltersCore")
     description = "VTK's SurfaceNets of the mask (vtkSurfaceNets3D, constrained smoothing): a mask-native mesher"
     params = {
         "smoothing": Param(True, "VTK's constrained smoothing of the vertices (off: the cell centres, a staircase)",

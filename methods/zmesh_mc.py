@@ -26,6 +26,7 @@ __all__ = ["ZMesh"]
 
 class ZMesh(Method):
     name = "zmesh"
+    imports = ("zmesh",)
     description = "zmesh: marching cubes of the label map (connectomics' mesher), optional simplification"
     params = {
         "reduction_factor": Param(0, "simplify to about 1/factor of the triangles (0: none, zmesh's default)",

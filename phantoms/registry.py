@@ -173,7 +173,7 @@ def expand_phantoms(specs) -> list[tuple[str, str]]:
 
     labelled = []
     for name, source in out:
-        if not (source.startswith(VOLUME_PREFIX) and "labels=" in source):
+        if not (source.startswith(VOLUME_PREFIX) and "label" in source):
             labelled.append((name, source))
             continue
         pairs = expand_labels(name, source)

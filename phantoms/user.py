@@ -249,8 +249,6 @@ def level_set_from_image(image, opts: dict, where: str, require_surface: bool = 
     """The level-set :class:`Volume` of an :class:`phantoms.images.Image` under the spec's options.
 
     ``require_surface`` (a phantom): φ read as given must have a closed zero level set inside the grid."""
-    from .masks import mask_to_sdf
-
     values = image.values
     try:
         check_grid(image.origin, image.spacing, values.shape)       # origin / spacing checked before any work
@@ -291,6 +289,14 @@ def level_set_from_image(image, opts: dict, where: str, require_surface: bool = 
         raise InputError(f"{where}: the mask touches the image border (faces {', '.join(border)}), so its zero "
                          "level set is open; add pad=1 (one outside voxel on every face)")
     check_memory(inside.shape, 6, what=f"the signed distance of {where}")
+    return mask_level_set(inside, origin, spacing)
+
+
+def mask_level_set(inside: np.ndarray, origin, spacing) -> Volume:
+    """The level set of a mask read from an image (``inside`` after any ``pad=``): its signed distance, kind
+    ``mask``, the mask as ``raw`` at level ½ — a run's volume cache rebuilds it from the stored mask alone."""
+    from .masks import mask_to_sdf
+
     sdf = mask_to_sdf(inside, origin, spacing)
     return Volume(sdf.values, sdf.origin, sdf.spacing, kind="mask", raw=inside.astype(np.float64), level=0.5)
 
@@ -320,6 +326,8 @@ class VolumePhantom(Phantom):
         ``volume:PATH[?key=value&...]``.
     name : str, optional
         The phantom's name in results (default: ``spec``).
+    level_set : Volume, optional
+        The level set this spec's image gives, when it is known (a run's volume cache): the image is not read.
 
     Raises
     ------
@@ -330,12 +338,14 @@ class VolumePhantom(Phantom):
     description = "a user's volume file"
     paper_snr_db = None
 
-    def __init__(self, spec: str, name: str | None = None):
+    def __init__(self, spec: str, name: str | None = None, level_set: Volume | None = None):
         self.spec = spec
         self.name = name or spec
         self.path, self.options = parse_spec(spec)
-        image = read_image(self.path, series=self.options.get("series"))
-        self.level_set = level_set_from_image(image, self.options, self.path)
+        if level_set is None:       # given: the one this spec's image gives, kept by a run's volume cache
+            image = read_image(self.path, series=self.options.get("series"))
+            level_set = level_set_from_image(image, self.options, self.path)
+        self.level_set = level_set
         self.truth_phantom = None
         if self.options.get("truth") is not None:
             self.truth_phantom = read_truth(self.options, self.level_set, self.path)

@@ -15,6 +15,7 @@ import numpy as np
 
 from geometry.errors import InputError
 
+from .frames import TRUTH_TOLERANCE_VOXELS, distance_in_voxels, fitting_frame
 from .image_checks import check_file_kind
 from .images import IMAGE_SUFFIXES, image_suffix, read_image
 from .volume import Volume
@@ -62,22 +63,6 @@ def _truth_from_mesh(path: str, where: str):
     return ph
 
 
-#: how far (90th percentile of its vertices, in voxels of the largest spacing) a truth surface may lie from the
-#: volume's zero level set: a truth from the same segmentation lies within half a voxel, another rater's within
-#: one or two; a frame mix-up (voxel indices, LPS) or a shift moves most of it further
-TRUTH_TOLERANCE_VOXELS = 2.5
-
-
-def _distance_in_voxels(points: np.ndarray, vol: Volume) -> float:
-    """90th percentile of the first-order distance |φ| / |∇φ| from ``points`` to the zero level set, in voxels
-    (inf when a point is outside the box)."""
-    if len(points) == 0 or not vol.contains(points, margin=-float(vol.spacing.max())).all():
-        return math.inf
-    s = vol.sample(points, derivatives=1, clamp=True)
-    grad = np.maximum(np.linalg.norm(s.grad, axis=1), 1e-12)
-    return float(np.percentile(np.abs(s.phi) / grad, 90)) / float(vol.spacing.max())
-
-
 def _grid_slopes(vol: Volume, nodes: np.ndarray) -> np.ndarray:
     """At grid nodes (K, 3) of index triples: the largest |Δφ| / spacing over the six grid edges leaving each — at
     most 1 where φ is a distance (1-Lipschitz), at least 1/√3 away from a ridge, 1 at a ridge too (the slope down
@@ -119,20 +104,18 @@ def _distance_mismatch_in_voxels(truth, points: np.ndarray, vol: Volume) -> floa
     return float(np.percentile(err, 90)) / float(vol.spacing.max())
 
 
-def _check_truth_inside(truth, vol: Volume, where: str) -> None:
+def _check_truth_inside(truth, vol: Volume, where: str, pad: int = 0) -> None:
     """Refuse a truth surface that is not where the volume's surface is: outside its box, or its vertices further
     than :data:`TRUTH_TOLERANCE_VOXELS` (90th percentile) from the zero level set — naming the frame it looks to be
     in when that frame fits (voxel indices, LPS).  The first-order distance |φ| / |∇φ| decides where it passes; where
     it does not and φ is a distance, the truth's own signed distance at the grid nodes decides
     (:func:`_distance_mismatch_in_voxels`): a thin part's ridge makes the first estimate large, not the second."""
     v = truth.vertices[:: max(1, len(truth.vertices) // 5000)]
-    d = _distance_in_voxels(v, vol)
+    d = distance_in_voxels(v, vol)
     if d <= TRUTH_TOLERANCE_VOXELS or _distance_mismatch_in_voxels(truth, v, vol) <= TRUTH_TOLERANCE_VOXELS:
         return
-    frames = (("voxel-index coordinates (convert with the image's affine)", vol.index_to_world(v)),
-              ("LPS coordinates (negate x and y for RAS+)", v * np.array([-1.0, -1.0, 1.0])))
-    hint = next((f"; it fits the volume in {name}" for name, w in frames
-                 if _distance_in_voxels(w, vol) <= TRUTH_TOLERANCE_VOXELS), "")
+    frame = fitting_frame(v, vol, pad)
+    hint = f"; it fits the volume in {frame}" if frame else ""
     lo, hi = truth.vertices.min(0), truth.vertices.max(0)
     if not np.isfinite(d):
         what = (f"lies outside the volume (truth box {lo.round(3).tolist()} – {hi.round(3).tolist()}, volume box "
@@ -155,5 +138,5 @@ def read_truth(options: dict, level_set: Volume, where: str):
     check_file_kind(tp)            # a FIFO or a device as truth would block the mesh reader
     is_image = tp.is_dir() or image_suffix(tp) in IMAGE_SUFFIXES
     phantom = _truth_from_labels(str(tp), options, where) if is_image else _truth_from_mesh(str(tp), where)
-    _check_truth_inside(phantom, level_set, where)
+    _check_truth_inside(phantom, level_set, where, int(options.get("pad", 0)))
     return phantom

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from methods import Method, Param, ReconstructionFailed, get_method, register_method
 
 #: seconds each process's first warm_up of ``warm_mc`` sleeps (a stand-in for compiling kernels)
@@ -62,4 +64,46 @@ class BadHooks(Method):
         raise RuntimeError("the kernels do not compile")
 
     def reconstruct(self, volume):  # pragma: no cover - never reached
+        return get_method("marching_cubes").reconstruct(volume)
+
+
+@register_method
+class DegenerateMesh(Method):
+    name = "degenerate_mesh"
+    description = "a closed tetrahedron collapsed to one point of the zero set (zero area), or a mesh without faces"
+    params = {"kind": Param("collapsed", "what the mesh is", choices=("collapsed", "no_faces"))}
+
+    def reconstruct(self, volume):
+        import trimesh
+
+        from methods import Reconstruction
+
+        v = np.tile(get_method("marching_cubes").reconstruct(volume).mesh.vertices[:1], (4, 1))
+        f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+        if self.config["kind"] == "no_faces":
+            f = f[:0]
+        return Reconstruction(trimesh.Trimesh(v, f, process=False), {})
+
+
+@register_method
+class SlowImportMC(Method):
+    name = "slow_import_mc"
+    description = "marching cubes that imports a slow library lazily, as the VTK methods do (hook tests)"
+    params: dict = {}
+    imports = ("slow_import_library",)
+
+    def reconstruct(self, volume):
+        import slow_import_library  # noqa: F401
+
+        return get_method("marching_cubes").reconstruct(volume)
+
+
+@register_method
+class SleepyMC(Method):
+    name = "sleepy_mc"
+    description = "marching cubes after a pause of `seconds` (a long method, for progress tests)"
+    params = {"seconds": Param(1.0, "seconds it sleeps first", min=0.0)}
+
+    def reconstruct(self, volume):
+        time.sleep(self.config["seconds"])
         return get_method("marching_cubes").reconstruct(volume)

@@ -134,3 +134,17 @@ def test_a_phantom_name_with_control_bytes_is_shown_escaped_on_the_terminal_and_
     for text in (out, page):
         assert not re.search(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]", text.replace("\n", "")), repr(text[:400])
     assert "\\x1b]0;pwned\\x07" in out and "<img src=x" not in page
+
+def test_runs_that_share_no_cell_exit_2_with_the_reason(tmp_path, capsys):
+    """Labels that cannot be paired: not "0 cells matched" and exit 0, but one line saying why, exit 2."""
+    small = ["run", "--phantoms", "sphere", "--noise", "none", "--n", "16", "--n-samples", "1000", "--jobs", "1",
+             "--no-report"]
+    assert main([*small, "--method", "t5=mc_taubin:iterations=5", "--method", "t9=mc_taubin:iterations=9",
+                 "--out", str(tmp_path / "a")]) == 0
+    assert main([*small, "--method", "u6=mc_taubin:iterations=6", "--method", "u8=mc_taubin:iterations=8",
+                 "--out", str(tmp_path / "b")]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(tmp_path / "a"), str(tmp_path / "b")]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.count("\n") == 1
+    assert "0 cells matched: the runs share 1 input(s) but no method label (A: t5, t9; B: u6, u8)" in captured.err

@@ -297,3 +297,41 @@ def test_reconstruct_with_a_200000_character_message_shows_2000_and_the_length(s
     err = capsys.readouterr().err
     assert rc == 1 and err.count("\n") == 1 and len(err) < 2200 and err.rstrip().endswith("… (200,046 characters)"), \
         err[-100:]
+
+
+def test_reconstruct_names_every_spacing_and_a_mesh_file_in_lps_gets_the_truths_hint(tmp_path, capsys):
+    """An anisotropic grid prints its three spacings; an LPS export read by mesh_file says "negate x and y"."""
+    from _volumes import write_boxes
+
+    nii, obj = write_boxes(tmp_path)
+    assert main(["reconstruct", str(nii), "-m", "marching_cubes", "-o", str(tmp_path / "mc.ply")]) == 0
+    assert "spacing 0.5 × 0.5 × 0.8)" in capsys.readouterr().out
+    mesh = trimesh.load(str(obj), process=False)
+    trimesh.Trimesh(mesh.vertices * [-1, -1, 1], mesh.faces[:, ::-1], process=False).export(str(tmp_path / "lps.obj"))
+    assert main(["reconstruct", str(nii), "-m", "mesh_file", "--set", f"path={obj}", "-o",
+                 str(tmp_path / "ok.ply")]) == 0
+    capsys.readouterr()
+    assert main(["reconstruct", str(nii), "-m", "mesh_file", "--set", f"path={tmp_path / 'lps.obj'}", "-o",
+                 str(tmp_path / "lps.ply")]) == 2
+    err = capsys.readouterr().err
+    assert "not in the volume's world coordinates (RAS+); it fits the volume in LPS coordinates (negate x and y" in err
+
+
+def test_reconstruct_says_a_long_method_is_still_running(sphere_file, tmp_path, capsys, monkeypatch):
+    import bench.cli.methods as cli_methods
+
+    monkeypatch.setattr(cli_methods, "TICK_FIRST_S", 0.3)
+    monkeypatch.setattr(cli_methods, "TICK_EVERY_S", 0.3)
+    assert main(["reconstruct", str(sphere_file), "-m", "sleepy_mc", "--set", "seconds=1.2", "--import",
+                 "hook_plugins", "-o", str(tmp_path / "m.ply")]) == 0
+    ticks = [ln for ln in capsys.readouterr().err.splitlines() if "still running" in ln]
+    assert len(ticks) >= 2 and ticks[0].startswith("reconstruct: method 'sleepy_mc' still running (")
+    monkeypatch.setattr(cli_methods, "TICK_FIRST_S", 5.0)
+    assert main(["reconstruct", str(sphere_file), "-m", "marching_cubes", "-o", str(tmp_path / "q.ply")]) == 0
+    assert "still running" not in capsys.readouterr().err          # a quick method: no ticks
+
+
+def test_reconstruct_names_a_zero_area_mesh_invalid(sphere_file, tmp_path, capsys):
+    assert main(["reconstruct", str(sphere_file), "-m", "degenerate_mesh", "--import", "hook_plugins", "-o",
+                 str(tmp_path / "d.ply")]) == 1
+    assert "empty mesh: zero area" in capsys.readouterr().err

@@ -14,6 +14,7 @@ import time
 from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bench.cli import main
@@ -301,7 +302,8 @@ def test_a_run_and_its_resume_show_progress_with_a_time_estimate_when_not_on_a_t
     assert proc.returncode == 0, proc.stderr[-3000:]
     lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("progress:")]
     assert lines[0] == "progress: 0/20 cells done, 20 to run"
-    assert any(re.fullmatch(r"progress: \d+/20 cells, 0 not ok, about \d+ s left", ln) for ln in lines), lines
+    assert any(re.fullmatch(r"progress: \d+/20 cells, 0 not ok, about [\d.]+ (s|min) left "
+                    r"\([\d.]+ (s|min)–[\d.]+ (s|min)\)", ln) for ln in lines), lines
     assert lines[-1] == "progress: 20/20 cells, 0 not ok"
     records = sorted((out / "cells").glob("*.json"))
     for rec in records[:8]:                                    # an interrupted run: 8 cells never finished
@@ -323,3 +325,57 @@ def test_a_write_error_advises_what_its_cause_needs():
               for code in (errno.ENOSPC, errno.EACCES, errno.EEXIST, errno.ENOTDIR)}
     assert advice == {errno.ENOSPC: "free space", errno.EACCES: "fix the permissions", errno.EEXIST: "fix that",
                       errno.ENOTDIR: "fix that"}
+
+def test_a_grid_changed_on_the_command_line_is_a_custom_run_described_by_its_own_grid(tmp_path):
+    """--phantoms on the paper's config: not titled or described as the paper's experiment."""
+    from bench.cli import build_parser
+    from bench.cli.run import _resolve_config
+
+    args = build_parser().parse_args(["run", "--phantoms", "sphere,torus", "--noise", "none,gaussian@30",
+                                      "--n", "24", "--method", "marching_cubes", "--dry-run"])
+    cfg = _resolve_config(args)
+    assert cfg.name == "custom run"
+    assert "paper's experiment" not in cfg.description
+    assert cfg.description.startswith("A custom run: 2 phantom specs (sphere, torus) × 2 noise settings "
+                                      "(none, gaussian@30) at N = 24, seed 0; 1 method (marching_cubes).")
+    assert "'paper' config" in cfg.description and "--phantoms" in cfg.description
+    # methods alone changed: still the config's grid, its name starred
+    args = build_parser().parse_args(["run", "--quick", "--add-method", "flying_edges", "--dry-run"])
+    assert _resolve_config(args).name == "quick*"
+
+
+def _label_map(folder) -> str:
+    import nibabel as nib
+
+    lab = np.zeros((20, 20, 20), np.uint8)
+    lab[3:9, 3:9, 3:9] = 1
+    lab[11:17, 11:17, 11:17] = 3
+    path = folder / "seg.nii.gz"
+    nib.save(nib.Nifti1Image(lab, np.eye(4)), str(path))
+    return str(path)
+
+
+def test_a_labels_list_on_the_command_line_keeps_its_commas(tmp_path):
+    from bench.cli.run import split_phantom_list
+
+    seg = _label_map(tmp_path)
+    assert split_phantom_list(f"volume:{seg}?labels=1,3,sphere, torus") == [f"volume:{seg}?labels=1,3", "sphere",
+                                                                            "torus"]
+    assert split_phantom_list("sphere,torus") == ["sphere", "torus"]
+    assert split_phantom_list(f"volume:{seg}?labels=1,3,volume:{seg}?label=3") == [f"volume:{seg}?labels=1,3",
+                                                                                  f"volume:{seg}?label=3"]
+    res = subprocess.run([sys.executable, "-m", "bench", "run", "--phantoms", f"volume:{seg}?labels=1,3",
+                          "--method", "marching_cubes", "--noise", "none", "--dry-run"],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert "seg_label1_" in res.stdout and "seg_label3_" in res.stdout and "2 cells" in res.stdout
+
+
+def test_an_absent_label_is_refused_at_dry_run_and_before_any_cell(tmp_path):
+    seg = _label_map(tmp_path)
+    for extra in (["--dry-run"], ["--out", str(tmp_path / "run")]):
+        res = subprocess.run([sys.executable, "-m", "bench", "run", "--phantoms", f"volume:{seg}?label=4",
+                              "--method", "marching_cubes", "--noise", "none", "--n", "16", *extra],
+                             capture_output=True, text=True, timeout=120)
+        assert res.returncode == 2 and "label 4 does not occur in the image; labels present: 1, 3" in res.stderr
+        assert res.stderr.count("\n") == 1 and not (tmp_path / "run" / "cells").exists()

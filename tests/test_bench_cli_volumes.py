@@ -175,3 +175,23 @@ def test_info_into_a_closed_pipe_exits_quietly(tmp_path):
     proc.wait(timeout=120)
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
     assert proc.returncode == 141
+
+
+def test_info_honours_labels_and_label(tmp_path, capsys):
+    """labels=all / labels=1,3: one described phantom per label; an absent label: exit 2 naming those present."""
+    import nibabel as nib
+
+    lab = np.zeros((20, 20, 20), np.uint8)
+    lab[3:9, 3:9, 3:9] = 1
+    lab[11:17, 11:17, 11:17] = 3
+    nib.save(nib.Nifti1Image(lab, np.eye(4)), str(tmp_path / "seg.nii.gz"))
+    seg = tmp_path / "seg.nii.gz"
+    for opts in ("labels=all", "labels=1,3"):
+        assert main(["info", f"volume:{seg}?{opts}"]) == 0
+        out = capsys.readouterr().out
+        assert "2 phantom(s): seg_label1, seg_label3" in out and "no zero level set" not in out
+        assert out.count("closed:       yes") == 2
+    assert main(["info", f"volume:{seg}?label=3"]) == 0 and "closed:       yes" in capsys.readouterr().out
+    for opts in ("labels=1,4", "label=4"):
+        assert main(["info", f"volume:{seg}?{opts}"]) == 2
+        assert "label 4 does not occur in the image; labels present: " in capsys.readouterr().err

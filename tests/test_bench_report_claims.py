@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from bench.report.claims import CLAIMS, check_claims
+from bench.report.claims import CLAIMS, check_claims, claims_section, is_paper_grid
 
 
 def _row(method, phantom, noise, beta=None, status="ok", flags=None, **metrics):
@@ -94,14 +94,17 @@ def test_the_report_page_shows_every_claim_with_its_verdict_from_a_real_run(tmp_
     run_grid(cfg, out, jobs=1, progress=False)
     page = write_report(out).read_text(encoding="utf-8")
     assert 'id="claims"' in page
+    # not the paper's grid: only the claims its cells can test are rows; the others are named in one note
+    assert "The paper's claims this run can test" in page
+    untested = ("smoother", "robust_noise", "noise_vs_mc_distmesh", "distmesh_unstable", "ellipsoid_K")
     for cid, _ in CLAIMS:
-        assert f'id="claim-{cid}"' in page
+        assert (f'id="claim-{cid}"' in page) == (cid not in untested), cid
+    assert "the others (smoother, robust_noise, noise_vs_mc_distmesh, distmesh_unstable, ellipsoid_K)" in page
     # one clean phantom, no noise, no β = 0 and no DistMesh: those claims are not measured; the others are
     import re
 
     verdicts = dict(re.findall(r'id="claim-(\w+)".*?data-variant="(?:default|all)"><span class="verdict v-[\w-]+">'
                                r'([\w ]+)<', page, re.S))
-    assert verdicts["smoother"] == verdicts["robust_noise"] == verdicts["distmesh_unstable"] == "not measured"
     assert verdicts["beats_mc"] in ("holds", "does not hold") and verdicts["diffeomorphic"] != "not measured"
     assert verdicts["energy"] != "not measured"
     printed = dict(re.findall(r'id="claim-(\w+)".*?data-variant="printed"><span class="verdict v-[\w-]+">([\w ]+)<',
@@ -180,3 +183,22 @@ def test_a_claim_without_values_to_judge_is_not_measured_never_does_not_hold():
         assert v[cid] == "not measured", (cid, v[cid])
     failed = dict(rows[0], status="failed")                      # a failed cell is judged: it is the verdict
     assert _verdicts([failed] + rows[1:])["robust_noise"] == "does not hold"
+
+
+def test_the_paper_grid_shows_every_claim_and_another_grid_only_those_it_can_test():
+    from bench.config import builtin_config
+
+    paper = builtin_config("paper").to_dict()
+    custom = {**paper, "grid": {**paper["grid"], "phantoms": ["volume:liver.nii.gz?labels=all"]}}
+    assert is_paper_grid(paper) and not is_paper_grid(custom) and not is_paper_grid({"name": "paper"})
+    rows = [_row("shape_gradient", "sphere", "none", 1.0, roughness_deg=2.0),
+            _row("shape_gradient", "sphere", "none", 0.0, roughness_deg=3.0)]
+    on_paper = claims_section(rows, config=paper)
+    assert on_paper.paper_grid and [c.id for c in on_paper.claims] == [cid for cid, _ in CLAIMS]
+    custom_section = claims_section(rows, config=custom)
+    assert not custom_section.paper_grid
+    assert [c.id for c in custom_section.claims] == ["smoother", "diffeomorphic"]
+    assert "beats_mc" in custom_section.untested and "smoother" not in custom_section.untested
+    # nothing a claim can judge (one marching-cubes row): no claims, the section is left out
+    nothing = claims_section([_row("marching_cubes", "liver_label1", "none")], config=custom)
+    assert nothing.claims == [] and len(nothing.untested) == len(CLAIMS)

@@ -154,3 +154,20 @@ def test_a_cell_a_method_now_declines_is_not_a_worsening(tmp_path):
     b = _run(tmp_path / "b", [_row(seed=0, status="skipped", hausdorff_h=None)])
     cmp = compare_frames(a, b)
     assert [s["verdict"] for s in cmp.states] == ["changed"] and not cmp.worse
+
+
+def test_renamed_labels_of_one_method_pair_by_their_parameters_and_nothing_matched_says_why(tmp_path):
+    """Two labels of one method in each run, renamed: each pairs with the label of the same parameters; when no
+    label can be paired (or no input is shared), nothing matched and the reason says so and how to pair them."""
+    a = _run(tmp_path / "a", [_row("mc1", params='{"k":1}'), _row("mc2", params='{"k":2}')])
+    b = _run(tmp_path / "b", [_row("mcB", params='{"k":2}'), _row("mcA", params='{"k":1}')])
+    cmp = compare_frames(a, b)
+    assert cmp.matched == 2 and not cmp.only_a and not cmp.unmatched_reason
+    assert {p["label"] for p in cmp.parameters} == {"mc1 → mcA", "mc2 → mcB"}
+    c = _run(tmp_path / "c", [_row("x1", params='{"k":3}'), _row("x2", params='{"k":4}')])
+    cmp = compare_frames(a, c)
+    assert cmp.matched == 0
+    assert "share 1 input(s) but no method label (A: mc1, mc2; B: x1, x2)" in cmp.unmatched_reason
+    assert "--method LABEL=NAME" in cmp.unmatched_reason
+    d = _run(tmp_path / "d", [{**_row("mc1"), "phantom": "torus", "cell_id": "torus_mc1"}])
+    assert "no input (phantom, variant, N, noise, SNR, seed) is in both runs" in compare_frames(a, d).unmatched_reason

@@ -263,3 +263,56 @@ def test_the_row_records_the_phantoms_shape_kind(sphere_cell, monkeypatch):
     assert run_cell(sphere_cell).row.to_dict()["shape_kind"] == declared
     monkeypatch.setattr(type(get_phantom("sphere")), "shape_kind", "a test kind", raising=False)
     assert run_cell(sphere_cell).row.to_dict()["shape_kind"] == "a test kind"
+
+@pytest.mark.parametrize("kind, reason", [("collapsed", "empty mesh: zero area"),
+                                          ("no_faces", "empty: the mesh has no vertices or no faces")])
+def test_an_empty_or_zero_area_mesh_is_an_invalid_row_naming_why_not_a_scoring_crash(sphere_cell, kind, reason):
+    result = run_cell(_hook_cell(sphere_cell, "degenerate_mesh", kind=kind))
+    row = result.row.to_dict()
+    assert row["status"] == "invalid" and reason in row["error"], row["error"]
+    assert result.traceback is None
+
+
+def test_a_methods_slow_import_is_paid_before_its_timed_reconstruct(sphere_cell, monkeypatch):
+    """The library a method imports lazily (Method.imports) is imported in the warm-up, not in wall_s."""
+    import sys
+
+    monkeypatch.delitem(sys.modules, "slow_import_library", raising=False)
+    row = run_cell(_hook_cell(sphere_cell, "slow_import_mc")).row.to_dict()
+    import slow_import_library
+
+    assert row["status"] == "ok", row["error"]
+    assert row["phase_s"]["warm_up"] >= slow_import_library.IMPORT_SECONDS > row["wall_s"]
+
+
+def test_a_label_is_read_once_per_run_and_cached_as_its_mask_rebuilding_the_same_volume(tmp_path, monkeypatch):
+    """The first cell of a label stores its mask (one bit a voxel, compressed; at most 1.2× the label map's file);
+    the next cells rebuild the same values, to the bit, without reading the image again."""
+    import nibabel as nib
+
+    import phantoms.user
+
+    rng = np.random.default_rng(1)
+    lab = np.zeros((60, 50, 40), np.uint8)
+    lab[5:30, 5:30, 5:30] = 1
+    lab[35:55, 10:45, 8:35] = 2
+    lab[rng.random(lab.shape) < 0.002] = 3                      # scattered voxels: a label map's noise
+    nii = tmp_path / "organs.nii.gz"
+    nib.save(nib.Nifti1Image(lab, np.diag([0.8, 0.8, 1.5, 1.0])), str(nii))
+    cfg = config_from_dict({"grid": {"phantoms": [f"volume:{nii}?labels=1,2&pad=1"]},
+                            "metrics": {"n_samples": 2000}, "methods": [{"name": "marching_cubes"}]})
+    cfg.validate()
+    cache = tmp_path / "cache"
+    for cell in expand_grid(cfg):
+        _, fresh = build_volume(cell)                                  # no cache: the image read as ever
+        _, first = build_volume(cell, str(cache))
+        (stored,) = cache.glob(f"{cell.phantom}_*_mask.npz")
+        assert stored.stat().st_size <= 1.2 * nii.stat().st_size
+        with monkeypatch.context() as m:
+            m.setattr(phantoms.user, "read_image", lambda *a, **k: pytest.fail("the image was read again"))
+            ph, again = build_volume(cell, str(cache))
+        for vol in (first, again):
+            assert vol.kind == fresh.kind == "mask" and vol.values.dtype == fresh.values.dtype
+            assert np.array_equal(vol.values, fresh.values) and np.array_equal(vol.raw, fresh.raw)
+            assert np.array_equal(vol.origin, fresh.origin) and np.array_equal(vol.spacing, fresh.spacing)
+        assert ph.level_set.kind == "mask" and not ph.has_truth

@@ -224,3 +224,84 @@ def test_peer_estimates_are_of_the_measured_order(method):
     # machine and an AMD EPYC CI machine ran dual contouring's bunny in 2.49 s CPU against 7.70 s estimated
     cpu, estimate = _measured_vs_estimate(method, "bunny", 32)
     assert estimate / 5 <= cpu <= estimate * 3, (cpu, estimate, os.getloadavg())
+
+
+# ---------------------------------------------------------------------------------------------- time left
+def _grid_cell(label: str, n: int, seed: int, method: str = "marching_cubes", source: str = "") -> Cell:
+    return Cell.from_dict({"cell_id": f"{label}-n{n}-s{seed}-{source}", "phantom": "sphere", "variant": "sdf",
+                           "n": n, "extent": 2.5, "noise": "none", "snr_requested": None, "seed": seed,
+                           "method": method, "label": label, "params": {}, "n_samples": 1000, "imports": [],
+                           **({"source": source} if source else {})})
+
+
+def test_the_time_left_is_learnt_per_method_and_input_size_with_its_range():
+    """A fast and a slow method at two sizes: the time left is the sum of each remaining cell's group mean, scaled
+    by the parallelism seen; not the run's mean rate times the cells left."""
+    from bench.run.estimate import RemainingTime
+
+    fast = [_grid_cell("fast", 24, s) for s in range(10)]
+    slow = [_grid_cell("slow", 24, s) for s in range(10)]
+    big = [_grid_cell("fast", 48, s) for s in range(2)]
+    left = RemainingTime(fast + slow + big, now=0.0)
+    assert left.text(0.0) == ""                                   # nothing learnt yet
+    clock = 0.0
+    for cell, seconds in [(fast[0], 1.0), (fast[1], 1.2), (slow[0], 10.0), (slow[1], 11.0)]:  # one job
+        left.start(cell, clock)
+        clock += seconds
+        left.finish(cell, seconds, clock)
+    mid, lo, hi = left.expected(clock)
+    # 8 fast × 1.1 s + 8 slow × 10.5 s + 2 fast at N = 48 × 1.1 s × 2³, one at a time
+    assert mid == pytest.approx(8 * 1.1 + 8 * 10.5 + 2 * 1.1 * 8)
+    assert lo < mid < hi and hi - lo < mid                       # a range, not a point
+    # a run's mean rate would say 12 s / 3 cells × 9 cells left = 36 s where 8 fast cells and a slow one are left
+    mix = RemainingTime(fast[:10] + slow[:2], now=0.0)
+    for t, (cell, seconds) in enumerate([(fast[0], 1.0), (fast[1], 1.0), (slow[0], 10.0)]):
+        mix.finish(cell, seconds, 12.0 * (t + 1) / 3)
+    assert mix.expected(12.0)[0] == pytest.approx(8 * 1.0 + 10.0)
+    text = left.text(clock)
+    assert re.fullmatch(r"about [\d.]+ (s|min) left \([\d.]+ (s|min)–[\d.]+ (s|min)\)", text), text
+    # two jobs: cells overlap, twice the cell-seconds per second of wall time
+    par = RemainingTime(fast[:4], now=0.0)
+    for cell in fast[:2]:
+        par.start(cell, 0.0)
+    for cell in fast[:2]:
+        par.finish(cell, 2.0, 2.0)
+    assert par.expected(2.0)[0] == pytest.approx(2 * 2.0 / 2)
+    # a cell refused before it ran (cell_s 0) teaches nothing; a method not seen yet gets the median cell
+    other = RemainingTime([_grid_cell("a", 24, 0), _grid_cell("b", 24, 0), _grid_cell("c", 24, 0)], now=0.0)
+    other.finish(_grid_cell("a", 24, 0), 0.0, 0.0)
+    assert other.expected(0.0) is None
+    other.finish(_grid_cell("b", 24, 0), 4.0, 4.0)
+    assert other.expected(4.0)[0] == pytest.approx(4.0)
+
+
+def test_the_labels_of_one_label_map_share_its_input_size():
+    from bench.run.estimate import RemainingTime
+
+    cells = [_grid_cell("mc", 0, 0, source=f"volume:seg.nii.gz?label={k}") for k in (1, 2, 3)]
+    left = RemainingTime(cells, now=0.0)
+    left.finish(cells[0], 6.0, 6.0)
+    assert left.expected(6.0)[0] == pytest.approx(12.0)
+
+
+def test_a_labels_cost_follows_its_surface_also_for_a_method_not_seen_on_it(tmp_path):
+    """Labels of one map: the part of a cell that grows with the surface (method, validity, metrics, pictures)
+    scales with the label's surface; a method not seen on the map takes the others' fixed and per-surface seconds."""
+    import nibabel as nib
+
+    from bench.run.estimate import RemainingTime
+    from phantoms.labels import label_surfaces
+
+    lab = np.zeros((40, 40, 40), np.uint8)
+    lab[2:30, 2:30, 2:30] = 1                       # a big cube
+    lab[33:37, 33:37, 33:37] = 2                    # a small one
+    nib.save(nib.Nifti1Image(lab, np.eye(4)), str(tmp_path / "seg.nii.gz"))
+    spec = f"volume:{tmp_path / 'seg.nii.gz'}"
+    surfaces = label_surfaces(f"{spec}?label=1")
+    assert surfaces == {1: 28 ** 3 - 26 ** 3, 2: 4 ** 3 - 2 ** 3}
+    cells = [_grid_cell(m, 0, 0, source=f"{spec}?label={k}") for m in ("mc", "sn") for k in (1, 2)]
+    left = RemainingTime(cells, now=0.0)
+    left.finish(cells[0], 10.0, 10.0, scaling_s=8.0)      # mc on label 1: 2 s fixed, 8 s over its surface
+    per = 8.0 / surfaces[1]
+    small = 2.0 + per * surfaces[2]
+    assert left.expected(10.0)[0] == pytest.approx(small + 10.0 + small)   # mc label 2, sn label 1 and 2

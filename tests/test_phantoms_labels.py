@@ -40,3 +40,11 @@ def test_bad_label_lists_are_one_line(label_map, tmp_path):
         with pytest.raises(InputError) as err:
             expand_phantoms([spec])
         assert words in str(err.value) and "\n" not in str(err.value), str(err.value)
+
+
+def test_an_absent_single_label_is_refused_when_the_phantoms_are_expanded(label_map):
+    """label=L that the image lacks: refused with the phantom list (before any work), naming the labels present."""
+    path, _ = label_map
+    with pytest.raises(InputError, match="label 4 does not occur in the image; labels present: 1, 2, 5"):
+        expand_phantoms([f"volume:{path}?label=4"])
+    assert expand_phantoms([f"volume:{path}?label=5"]) == [(f"volume:{path}?label=5",) * 2]

@@ -277,3 +277,19 @@ def test_info_checks_a_truth_too(tmp_path, capsys):
     assert main(["info", f"volume:{nii}?truth={tmp_path / 'index.obj'}"]) == 2
     err = capsys.readouterr().err
     assert "voxel-index coordinates" in err and err.count("\n") == 1
+
+
+def test_a_truth_in_the_voxel_indices_of_a_flipped_or_padded_file_is_refused_naming_that_frame(tmp_path):
+    """A file stored with flipped x and y (an LPS-ordered NIfTI, re-oriented to RAS+ on reading) or read with pad=:
+    the voxel indices of the file are still recognised as the truth's frame."""
+    m = boxes_mask()
+    aff = np.diag([-0.5, -0.5, 0.8, 1.0])
+    aff[:3, 3] = [30.0, 10.0, 3.2]
+    nib.save(nib.Nifti1Image(m.astype(np.uint8), aff), str(tmp_path / "flipped.nii.gz"))
+    _nifti(tmp_path / "plain.nii.gz", m.astype(np.uint8), spacing=(0.5, 0.5, 0.8), origin=(12.0, -7.5, 3.2))
+    v, f = voxel_surface(m, [0.0, 0.0, 0.0], [1.0, 1.0, 1.0])     # the surface in the file's voxel indices
+    trimesh.Trimesh(v, f, process=False).export(str(tmp_path / "index.obj"))
+    for spec in (f"volume:{tmp_path / 'flipped.nii.gz'}?truth={tmp_path / 'index.obj'}",
+                 f"volume:{tmp_path / 'plain.nii.gz'}?pad=2&truth={tmp_path / 'index.obj'}"):
+        with pytest.raises(InputError, match="fits the volume in voxel-index coordinates of the file"):
+            get_phantom(spec)

@@ -14,7 +14,8 @@ from methods.marching_cubes import marching_cubes_mesh
 from phantoms import InputError, Volume, get_phantom
 from phantoms.field import field_normalize
 from phantoms.mesh.resolve import solid_boundary
-from phantoms.user_truth import TRUTH_TOLERANCE_VOXELS, _distance_in_voxels
+from phantoms.frames import TRUTH_TOLERANCE_VOXELS
+from phantoms.frames import distance_in_voxels as _distance_in_voxels
 
 N = 30                       # Reach for the Arcs' grid: (N + 1)³ points over [−1, 1]³
 H = 2.0 / N

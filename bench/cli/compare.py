@@ -3,7 +3,8 @@
 The matching and the verdicts are :mod:`bench.report.compare`'s; this room parses the arguments, prints, writes
 the page and picks the exit code: 0, or 1 with ``--fail-on-worse`` when something got worse; 2 on bad input
 (a folder that is not a run, or whose results tables disagree with its sealed cell records, or a record or
-``.npz`` altered: :mod:`bench.run.audit`).
+``.npz`` altered: :mod:`bench.run.audit`) and when no cell of the two runs matched (one line saying why and how to
+pair the labels).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from geometry.files import atomic_write, check_writable
+from phantoms import InputError
 
 from ..terminal import printable
 
@@ -46,6 +48,8 @@ def _cmd_compare(args) -> int:
     for run in (args.run_a, args.run_b):      # the sealed records are the truth: a table that departs is refused
         refuse_damaged(run, check_run_folder(run))
     cmp = compare_runs(Path(args.run_a), Path(args.run_b))
+    if not cmp.matched:             # nothing to compare is not "no change"
+        raise InputError(printable(f"compare: 0 cells matched: {cmp.unmatched_reason}"))
     print(printable(format_comparison(cmp)))
     if args.html:
         path = atomic_write(args.html, comparison_html(cmp))

@@ -139,6 +139,22 @@ def _in_child(conn, fn, method, volume, out_fd: int) -> None:
 OUTPUT_SHOWN = 4096
 
 
+#: seconds before the first "still running" line of a long reconstruction, and between the next ones
+TICK_FIRST_S, TICK_EVERY_S = 5.0, 15.0
+
+
+def wait_with_ticks(conn, name: str) -> None:
+    """Wait until ``conn`` (the child's pipe) has the method's result, saying on stderr every
+    :data:`TICK_EVERY_S` seconds (the first after :data:`TICK_FIRST_S`) that the method is still running and for
+    how long — a reconstruction of minutes does not run in silence."""
+    t0 = time.perf_counter()
+    wait = TICK_FIRST_S
+    while not conn.poll(wait):
+        print(printable(f"reconstruct: method {name!r} still running ({time.perf_counter() - t0:.0f} s)"),
+              file=sys.stderr, flush=True)
+        wait = TICK_EVERY_S
+
+
 def _isolated(fn, method, volume):
     """``fn(method, volume)`` in a forked child (where fork exists): a method that aborts or segfaults ends the
     child, not this command, and is one line naming the signal."""
@@ -156,6 +172,7 @@ def _isolated(fn, method, volume):
         proc.start()
         send.close()
         try:
+            wait_with_ticks(recv, method.name)
             kind, value = recv.recv()
         except (EOFError, OSError):
             proc.join()
@@ -204,6 +221,12 @@ def _timed_run(method, volume):
     return out, time.perf_counter() - t0
 
 
+def spacing_text(spacing) -> str:
+    """A grid's spacing: one number when it is the same on every axis, else all three (``0.8 × 0.8 × 1.5``)."""
+    sp = [float(x) for x in np.broadcast_to(np.asarray(spacing, float), (3,))]
+    return f"{sp[0]:.6g}" if len({f"{x:.6g}" for x in sp}) == 1 else " × ".join(f"{x:.6g}" for x in sp)
+
+
 def _cmd_reconstruct(args) -> int:
     from methods import as_reconstruction, get_method
     from geometry.mesh import mesh_facts
@@ -222,7 +245,9 @@ def _cmd_reconstruct(args) -> int:
     mesh = getattr(rec, "mesh", None)
     if mesh is None:
         raise InputError(f"method {args.method!r} returned no mesh")
-    invalid = check_mesh(mesh, volume)
+    from ..run.cell import degenerate_reasons
+
+    invalid = check_mesh(mesh, volume) or degenerate_reasons(mesh)     # a closed mesh of zero area is no surface
     # an empty mesh, one with NaN / infinite vertices or faces naming vertices that do not exist is invalid too,
     # and there is nothing sensible to write
     unusable = any(r.startswith(("empty", "non-finite", "bad indices")) for r in invalid)
@@ -235,7 +260,7 @@ def _cmd_reconstruct(args) -> int:
     facts = mesh_facts(mesh)
     settings = ", ".join(f"{k}={v!r}" for k, v in method.config.items())
     print(printable(f"method:       {method.name} ({settings})"))
-    print(f"input:        {printable(args.input)} (shape {volume.shape}, spacing {volume.h:.6g})")
+    print(f"input:        {printable(args.input)} (shape {volume.shape}, spacing {spacing_text(volume.spacing)})")
     print(f"wrote:        {out}")
     print(f"vertices:     {facts['vertices']}")
     print(f"faces:        {facts['faces']}")

@@ -58,7 +58,8 @@ def register(subparsers) -> None:
     p.add_argument("--no-report", action="store_true", help="skip index.html")
     p.add_argument("--dry-run", action="store_true", help="validate, list the cells and exit")
     g = p.add_argument_group("grid overrides")
-    g.add_argument("--phantoms", metavar="A,B", help="comma-separated phantoms")
+    g.add_argument("--phantoms", metavar="A,B", help="comma-separated phantoms; a comma inside a spec's ?query "
+                   "belongs to it (volume:seg.nii.gz?labels=1,3,sphere: labels 1 and 3, then the sphere)")
     g.add_argument("--n", type=int_list, metavar="N[,N]", help="grid points per axis")
     g.add_argument("--noise", metavar="SPEC", help="e.g. none,gaussian,uniform@40 (no @: the paper's SNR)")
     g.add_argument("--degrade", metavar="SPEC", help="input degradations, e.g. none,mask,partial_volume,"
@@ -108,7 +109,7 @@ def _resolve_config(args) -> RunConfig:
     else:
         cfg = builtin_config("paper")
     if args.phantoms:
-        cfg.phantoms = [p.strip() for p in args.phantoms.split(",") if p.strip()]
+        cfg.phantoms = split_phantom_list(args.phantoms)
     if args.n:
         cfg.n = args.n
     if args.noise:
@@ -131,12 +132,59 @@ def _resolve_config(args) -> RunConfig:
     overrides = [f"--{k.replace('_', '-')}" for k in ("phantoms", "n", "noise", "degrade", "seeds", "method",
                                                        "add_method", "imports", "n_samples") if getattr(args, k)]
     note = f"Changed on the command line ({', '.join(o.replace('--imports', '--import') for o in overrides)})."
-    if overrides and note not in cfg.description:
+    if any(getattr(args, k) for k in GRID_OPTIONS) and cfg.name != CUSTOM_NAME:
+        # another grid is another experiment: its title and description are its own, not the config's
+        cfg.description = f"{describe_grid(cfg)} Started from the {cfg.name!r} config. {note}"
+        cfg.name = CUSTOM_NAME
+    elif overrides and note not in cfg.description:
         cfg.description = (cfg.description + " " if cfg.description else "") + note
-        if not cfg.name.endswith("*"):
+        if not cfg.name.endswith("*") and cfg.name != CUSTOM_NAME:
             cfg.name += "*"
     cfg.validate()
     return cfg
+
+
+#: the options that change which inputs the grid has (a run with any of them is not its config's experiment)
+GRID_OPTIONS = ("phantoms", "n", "noise", "degrade", "seeds")
+#: the name of a run whose grid was changed on the command line
+CUSTOM_NAME = "custom run"
+
+
+def _listed(items: list[str], most: int = 4) -> str:
+    shown = ", ".join(items[:most])
+    return shown + (f", … ({len(items)} in all)" if len(items) > most else "")
+
+
+def describe_grid(cfg: RunConfig) -> str:
+    """One sentence saying what the grid of ``cfg`` computes: its phantoms, noise settings, degradations, N, seeds
+    and method labels (the report's description of a custom run)."""
+    def count(k: int, word: str) -> str:
+        return f"{k} {word}{'' if k == 1 else 's'}"
+
+    noise = [s.kind + (f"@{s.snr:g}" if isinstance(s.snr, float) else "") for s in cfg.noise]
+    labels = [label for spec in cfg.methods for label, _ in spec.instances()]
+    parts = [f"{count(len(cfg.phantoms), 'phantom spec')} ({_listed(cfg.phantoms)})",
+             f"{count(len(noise), 'noise setting')} ({_listed(noise)})"]
+    if cfg.degrade != ["none"]:
+        parts.append(f"{count(len(cfg.degrade), 'input')} ({_listed(cfg.degrade)})")
+    return (f"A custom run: {' × '.join(parts)} at N = {', '.join(map(str, cfg.n))}, "
+            f"seed{'' if len(cfg.seeds) == 1 else 's'} {', '.join(map(str, cfg.seeds))}; "
+            f"{count(len(labels), 'method')} ({_listed(labels, 8)}).")
+
+
+def split_phantom_list(text: str) -> list[str]:
+    """The phantoms of ``--phantoms A,B,...``: split at the commas, except that a comma inside a spec's ``?query``
+    belongs to the spec (``volume:liver.nii.gz?labels=1,3,sphere`` is the labels 1 and 3, then the sphere) — a piece
+    after a query that is not itself a phantom (a built-in name or a ``kind:`` spec) continues that query."""
+    from phantoms import is_phantom_name
+
+    out: list[str] = []
+    for piece in (p.strip() for p in text.split(",")):
+        if out and "?" in out[-1] and piece and not is_phantom_name(piece) and ":" not in piece.split("?")[0]:
+            out[-1] += "," + piece
+        elif piece:
+            out.append(piece)
+    return out
 
 
 def _drop_replaced_report_labels(cfg: RunConfig) -> None:

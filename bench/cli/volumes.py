@@ -54,24 +54,42 @@ def _cmd_volume(args) -> int:
 
 
 def _cmd_info(args) -> int:
-    vol = load_volume(args.file, mask=True if args.mask else None)
-    s = vol.summary()
-    print(printable(f"file:         {args.file}"))           # a file name can hold ESC: shown, not obeyed
-    print(f"shape:        {s['shape']}")
-    print(f"origin:       {[float(f'{v:.6g}') for v in s['origin']]}")   # 6 digits, not 6 decimals: 1e-9 m
-    print(f"spacing:      {[float(f'{v:.6g}') for v in s['spacing']]}")
-    print(f"value range:  [{s['min']:.6g}, {s['max']:.6g}]")
-    print(f"zero crossing: {'yes' if s['zero_crossing'] else 'no'}")
-    if not s["zero_crossing"]:
-        print("closed:       no (the volume has no zero level set)")
-    elif s["closed"]:
-        print("closed:       yes (no zero crossing on the boundary faces of the grid)")
-    else:
-        print("closed:       no (the zero level set reaches the boundary of the grid)")
-    if str(args.file).startswith("volume:") and "truth" in parse_spec(str(args.file))[1]:
-        ph = get_phantom(str(args.file))          # reads the truth and checks it lies on the volume's surface
-        print(printable(f"truth:        {ph.truth_note} (on the volume's zero level set)"))
+    spec = str(args.file)
+    if spec.startswith("volume:") and "labels" in parse_spec(spec)[1]:
+        from phantoms.labels import expand_labels
+
+        phantoms = expand_labels(spec, spec)          # reads the labels; an absent one is refused naming those present
+        print(printable(f"file:         {spec}"))
+        print(printable(f"labels:       {len(phantoms)} phantom(s): {', '.join(n for n, _ in phantoms)}"))
+        for name, source in phantoms:
+            print(printable(f"\n{name} ({source}):"))
+            _describe(source, args.mask, indent="  ")
+        return 0
+    print(printable(f"file:         {spec}"))           # a file name can hold ESC: shown, not obeyed
+    _describe(spec, args.mask)
     return 0
+
+
+def _describe(spec: str, mask: bool, indent: str = "") -> None:
+    """The shape, origin, spacing, value range and closedness of one volume (a file or a ``volume:`` spec)."""
+    vol = load_volume(spec, mask=True if mask else None)
+    s = vol.summary()
+    lines = [f"shape:        {s['shape']}",
+             f"origin:       {[float(f'{v:.6g}') for v in s['origin']]}",    # 6 digits, not 6 decimals: 1e-9 m
+             f"spacing:      {[float(f'{v:.6g}') for v in s['spacing']]}",
+             f"value range:  [{s['min']:.6g}, {s['max']:.6g}]",
+             f"zero crossing: {'yes' if s['zero_crossing'] else 'no'}"]
+    if not s["zero_crossing"]:
+        lines.append("closed:       no (the volume has no zero level set)")
+    elif s["closed"]:
+        lines.append("closed:       yes (no zero crossing on the boundary faces of the grid)")
+    else:
+        lines.append("closed:       no (the zero level set reaches the boundary of the grid)")
+    if spec.startswith("volume:") and "truth" in parse_spec(spec)[1]:
+        ph = get_phantom(spec)          # reads the truth and checks it lies on the volume's surface
+        lines.append(f"truth:        {ph.truth_note} (on the volume's zero level set)")
+    for line in lines:
+        print(printable(indent + line))
 
 
 def register(sub) -> None:

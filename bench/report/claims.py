@@ -42,7 +42,8 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["Claim", "Verdict", "CLAIMS", "VARIANTS", "WHY", "check_claims", "variant_of"]
+__all__ = ["Claim", "Verdict", "CLAIMS", "VARIANTS", "WHY", "ClaimsSection", "check_claims", "claims_section",
+           "is_paper_grid", "variant_of"]
 
 HOLDS, PARTLY, NO, UNMEASURED = "holds", "partly", "does not hold", "not measured"
 
@@ -354,3 +355,34 @@ def check_claims(rows: list[dict], arrays: Callable[[str], dict | None] = lambda
         out.append(Claim(cid, text, first.verdict, first.numbers, first.cells, by,
                          "" if cid in SHARED else _why(cid, by), cid in SHARED))
     return out
+
+
+@dataclass
+class ClaimsSection:
+    """The report's claims section: ``claims`` to show, whether the run's grid is the paper's (``paper_grid``: every
+    claim is shown), and the ids of the claims left out because no cell of the run can test them (``untested``)."""
+
+    claims: list[Claim]
+    paper_grid: bool
+    untested: list[str] = field(default_factory=list)
+
+
+def is_paper_grid(config: dict | None) -> bool:
+    """Whether a run's config (``run.json``'s ``config``) computes the paper's grid: the same phantoms, variants,
+    N, extent, seeds, noise and degradations as the shipped ``paper`` config — not whether it is named so."""
+    from ..config import builtin_config
+
+    grid = (config or {}).get("grid")
+    return isinstance(grid, dict) and grid == builtin_config("paper").to_dict()["grid"]
+
+
+def claims_section(rows: list[dict], arrays: Callable[[str], dict | None] = lambda cell_id: None, *,
+                   config: dict | None = None, extent: float = 2.5) -> ClaimsSection:
+    """The claims the report shows: on the paper's grid every claim of :func:`check_claims`; on any other grid (a
+    custom run, e.g. a label map) only those some cell of the run can test, naming the rest (``untested``) — an
+    empty ``claims`` when it can test none, so the section is left out."""
+    claims = check_claims(rows, arrays, extent=extent)
+    if is_paper_grid(config):
+        return ClaimsSection(claims, True)
+    measured = [c for c in claims if any(v.verdict != UNMEASURED for v in c.by_variant.values())]
+    return ClaimsSection(measured, False, [c.id for c in claims if c not in measured])

@@ -40,7 +40,7 @@ from .pairwise import ALPHA, MIN_PAIRED, holm, median_interval, signed_rank_test
 from .tables import best_rule
 
 __all__ = ["MATCH_KEY", "KEY_METRICS", "Comparison", "compare_runs", "compare_frames", "conclude", "format_comparison",
-           "comparison_html", "short_name"]
+           "comparison_html", "short_name", "why_nothing_matched"]
 
 #: the columns that say what a cell computes, without the code or the method's parameters
 MATCH_KEY = ("phantom", "variant", "N", "noise", "snr_requested", "seed", "label")
@@ -69,6 +69,8 @@ class Comparison:
     time_cells: int = 0
     #: one per label × key metric (:func:`conclude`)
     changes: list[dict] = field(default_factory=list)
+    #: why no cell matched (:func:`why_nothing_matched`), empty when some did
+    unmatched_reason: str = ""
 
     def count(self, verdict: str) -> int:
         return sum(v["verdict"] == verdict for v in self.values)
@@ -131,25 +133,56 @@ def _keyed(rows: list[dict], key_cols) -> dict[tuple, dict]:
 
 
 def _label_pairs(a: dict, b: dict) -> dict[tuple, tuple]:
-    """Unmatched keys of A and B paired by method name, where a method has one unmatched label in each run."""
+    """Unmatched keys of A and B paired by method name: where a method has one unmatched label in each run, those
+    two labels; where it has several, each label of A with the one label of B whose cells ran the same parameters
+    (a renamed label) when exactly one does."""
     only_a, only_b = [k for k in a if k not in b], [k for k in b if k not in a]
 
     def labels(keys, rows):
-        found: dict[str, set] = {}
+        found: dict[str, dict] = {}
         for k in keys:
-            found.setdefault(str(rows[k].get("method")), set()).add(k[-1] if len(k) == len(MATCH_KEY) else None)
+            lab = k[-1] if len(k) == len(MATCH_KEY) else None
+            found.setdefault(str(rows[k].get("method")), {}).setdefault(lab, set()).add(str(rows[k].get("parameters")))
         return found
 
     la, lb = labels(only_a, a), labels(only_b, b)
     free_b = set(only_b)
     pairs = {}
     for method, labs in la.items():
-        if len(labs) == 1 and len(lb.get(method, ())) == 1 and None not in labs | lb[method]:
-            lab_b = next(iter(lb[method]))
-            for k in only_a:
-                if str(a[k].get("method")) == method and (k[:-1] + (lab_b,)) in free_b:
-                    pairs[k] = k[:-1] + (lab_b,)
+        other = lb.get(method, {})
+        if None in labs or None in other:
+            continue
+        if len(labs) == 1 and len(other) == 1:
+            renamed = {next(iter(labs)): next(iter(other))}
+        else:
+            renamed = {}
+            for lab, params in labs.items():
+                same = [o for o, p in other.items() if p == params]
+                if len(same) == 1 and sum(p == params for p in labs.values()) == 1:
+                    renamed[lab] = same[0]
+        for k in only_a:
+            if str(a[k].get("method")) == method and k[-1] in renamed and (k[:-1] + (renamed[k[-1]],)) in free_b:
+                pairs[k] = k[:-1] + (renamed[k[-1]],)
     return pairs
+
+
+def why_nothing_matched(rows_a: list[dict], rows_b: list[dict]) -> str:
+    """Why two results tables share no cell, in one line with what to do: no input (phantom, variant, N, noise,
+    SNR, seed) in both, or shared inputs whose method labels differ and could not be paired by method."""
+    if not rows_a or not rows_b:
+        return f"run {'A' if not rows_a else 'B'} has no cells"
+    inputs_a = {tuple(_key_text(c, r.get(c)) for c in MATCH_KEY[:-1]) for r in rows_a}
+    inputs_b = {tuple(_key_text(c, r.get(c)) for c in MATCH_KEY[:-1]) for r in rows_b}
+    if not inputs_a & inputs_b:
+        ph_a = sorted({str(r.get("phantom")) for r in rows_a})
+        ph_b = sorted({str(r.get("phantom")) for r in rows_b})
+        return (f"no input (phantom, variant, N, noise, SNR, seed) is in both runs (phantoms of A: "
+                f"{', '.join(ph_a[:6])}; of B: {', '.join(ph_b[:6])}): compare runs of the same grid")
+    lab_a = list(dict.fromkeys(str(r.get("label")) for r in rows_a))
+    lab_b = list(dict.fromkeys(str(r.get("label")) for r in rows_b))
+    return (f"the runs share {len(inputs_a & inputs_b)} input(s) but no method label (A: {', '.join(lab_a[:6])}; "
+            f"B: {', '.join(lab_b[:6])}), and no label could be paired by its method (one label of a method in each "
+            "run, or labels of the same parameters): give the methods the same labels, e.g. --method LABEL=NAME:...")
 
 
 def _parameters_text(pa, pb) -> str:
@@ -277,6 +310,8 @@ def compare_frames(df_a, df_b, name_a: str = "A", name_b: str = "B") -> Comparis
     pairs = {k: k for k in a if k in b}
     pairs.update(_label_pairs(a, b))
     cmp = Comparison(name_a, name_b, len(rows_a), len(rows_b), matched=len(pairs))
+    if not pairs:
+        cmp.unmatched_reason = why_nothing_matched(rows_a, rows_b)
     cmp.metrics = [m for m in TOLERANCES if m in df_a.columns and m in df_b.columns]
     changed: dict[tuple, dict] = {}
     ratios = []

@@ -17,7 +17,7 @@ from ..run.values import cap_tail, cap_text
 from ..terminal import printable
 from .artifacts import Artifacts
 from .claims import VARIANTS as CLAIM_VARIANTS
-from .claims import check_claims, variant_of
+from .claims import claims_section, variant_of
 from .colours import method_colour
 from .cost_section import cost_section
 from .interactive import VIEW_FACES, pareto_figure, plotly_js, robustness_figures, viewer_payload
@@ -114,12 +114,14 @@ def _sections(df, arts: Artifacts, config: dict) -> dict:
             "galleries": gallery_tables(pictures, arts, layout), "picture_note": note, "cost": cost_section(df)}
 
 
-def _claims(df, arts: Artifacts, config: dict) -> list:
+def _claims(df, arts: Artifacts, config: dict) -> dict:
+    """The claims section's entries: ``claims`` (empty: no section), ``paper_grid`` and the ``untested`` ids."""
     rows = df.to_dict("records") if len(df) else []
     if not any(variant_of(r) for r in rows):     # no shape-gradient row: nothing of the paper's to check
-        return []
+        return {"claims": [], "claims_paper_grid": False, "claims_untested": []}
     extent = float(((config.get("grid") or {}).get("extent")) or 2.5)
-    return check_claims(rows, arts.get, extent=extent)
+    section = claims_section(rows, arts.get, config=config, extent=extent)
+    return {"claims": section.claims, "claims_paper_grid": section.paper_grid, "claims_untested": section.untested}
 
 
 def _finite_only(obj):
@@ -205,7 +207,7 @@ def _context(df, meta: dict, records: dict, arts: Artifacts) -> dict:
         "n_rows": len(df), "n_total": (meta.get("cells") or {}).get("total", len(df)),
         "counts": df["status"].value_counts().to_dict() if len(df) else {},
         **sections,
-        "claims": _claims(df, arts, config), "claim_variants": CLAIM_VARIANTS,
+        **_claims(df, arts, config), "claim_variants": CLAIM_VARIANTS,
         **_interactive(df, arts, config, shown),
         "failed": _failed(df, records),
         "facts": _facts(df, records),

@@ -6,9 +6,10 @@ dict form) and returns a :class:`~bench.run.contracts.CellResult` (``row``, ``ar
 
 ``row`` (a :class:`~bench.run.row.ResultRow`, filled as a dict as the stages go and converted once at the end)
 is the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop
-reason, cost, ``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`:
-``error`` says why; the metrics that can be computed are kept) / ``failed`` and ``error`` (over the process's
-memory limit: ``memory limit (N GB) exceeded in the method`` / ``in scoring ...``, see
+reason, cost, ``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`, or
+has zero area, :func:`degenerate_reasons`: ``error`` says why; the metrics that can be computed are kept) /
+``failed`` and ``error`` (over the process's memory limit: ``memory limit (N GB) exceeded in the method``
+/ ``in scoring ...``, see
 :mod:`bench.run.limits`) / ``skipped`` (the method declines the input, :meth:`methods.Method.skip_reason`:
 ``error`` is its reason; no metrics)); ``artifacts`` holds the arrays the report draws: the final mesh with its
 per-vertex mean curvature, the energy history and the snapshots.  Which ``Reconstruction.info`` keys are read
@@ -43,7 +44,7 @@ from .view import view_arrays
 from .values import error_text, plain
 
 __all__ = ["run_cell", "failed_result", "build_volume", "cell_source", "truth_samples", "vertex_mean_curvature",
-           "method_info"]
+           "method_info", "degenerate_reasons"]
 
 
 def _volume_cache_path(cache_dir: str, cell: Cell) -> Path:
@@ -59,11 +60,68 @@ def cell_source(cell: Cell) -> str:
     return cell.source or cell.phantom
 
 
+def _file_stamp(path: str) -> np.ndarray:
+    """``[mtime_ns, size]`` of a file (zeros when it cannot be read): a cached volume follows its file's version."""
+    try:
+        st = Path(path).expanduser().stat()
+        return np.array([st.st_mtime_ns, st.st_size], np.int64)
+    except OSError:
+        return np.zeros(2, np.int64)
+
+
+def _cached_mask_level_set(path: Path, stamp: np.ndarray):
+    """The level set of a user's mask from the run's cache (its mask, bit-packed and compressed), rebuilt by the
+    same function the image's reading uses — the same values to the bit; None without a usable cache file."""
+    from phantoms.user import mask_level_set
+
+    try:
+        with np.load(path) as z:
+            if not np.array_equal(z["stamp"], stamp):
+                return None
+            shape = tuple(int(x) for x in z["shape"])
+            inside = np.unpackbits(z["mask"], count=int(np.prod(shape))).reshape(shape).astype(bool)
+            return mask_level_set(inside, z["origin"], z["spacing"])
+    except Exception:  # a missing or broken cache file is rebuilt
+        return None
+
+
+def _user_volume_phantom(source: str, cache_dir: str | None, cell: Cell):
+    """A ``volume:`` phantom whose mask level set (a label, a threshold, a mask) is built once per run: the first
+    cell stores the mask (one bit a voxel, compressed: a few KB for a label of a CT's grid, not the float64 φ and
+    raw mask of 16 bytes a voxel) and the others rebuild the signed distance from it without reading the image."""
+    from phantoms.user import VolumePhantom, parse_spec
+
+    if not cache_dir:
+        return get_phantom(source)
+    path = _volume_cache_path(cache_dir, cell).with_name(
+        f"{slug(cell.phantom)}_{hashlib.sha1(source.encode()).hexdigest()[:8]}_mask.npz")
+    stamp = _file_stamp(parse_spec(source)[0])
+    level_set = _cached_mask_level_set(path, stamp) if path.exists() else None
+    if level_set is not None:
+        return VolumePhantom(source, level_set=level_set)
+    ph = get_phantom(source)
+    ls = getattr(ph, "level_set", None)
+    if ls is not None and ls.kind == "mask":
+        inside = np.asarray(ls.raw) > 0.5
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            save_npz(path, {"mask": np.packbits(inside, axis=None), "shape": np.asarray(inside.shape, np.int64),
+                            "origin": ls.origin, "spacing": ls.spacing, "stamp": stamp}, compressed=True)
+        except (OSError, WriteError):  # the cache is an optimisation; a full disk must not fail the cell
+            pass
+    return ph
+
+
 def build_volume(cell: Cell, cache_dir: str | None = None):
     """``(phantom, clean volume)`` of a cell, optionally cached on disk: the exact SDF of a phantom can cost
     seconds at N = 96 and is the same for every method and noise setting.  ``n`` 0 is a user volume's native
-    grid."""
-    ph = get_phantom(cell_source(cell))
+    grid.  A user's volume is cached as its mask (:func:`_user_volume_phantom`), never as its φ: the image is
+    read once per run."""
+    source = cell_source(cell)
+    if source.startswith("volume:"):
+        ph = _user_volume_phantom(source, cache_dir, cell)
+        return ph, ph.volume(n=cell.n or None, extent=cell.extent, variant=cell.variant)
+    ph = get_phantom(source)
     path = _volume_cache_path(cache_dir, cell) if cache_dir else None
     if path is not None and path.exists():
         try:
@@ -195,6 +253,19 @@ def _artifacts(rec, h: float, curvature: dict | None = None, sdf=None) -> dict:
             if len(sv) <= SNAPSHOT_H_MAX_VERTICES:   # cheap here, in parallel; the report fits the others
                 art[f"snap{it}_H"] = vertex_mean_curvature(sv, sf, h).astype(np.float32)
     return art
+
+
+def degenerate_reasons(mesh) -> list[str]:
+    """Why a mesh the validity check passed still cannot be scored: a closed mesh of zero area (every vertex of a
+    face in one point or on one line — a tiny label meshed to nothing) has no surface to sample; [] otherwise."""
+    v = np.asarray(mesh.vertices, float)
+    f = np.asarray(mesh.faces, np.int64)
+    if len(f) == 0 or len(v) == 0:
+        return ["empty mesh: no faces"]
+    area = float(np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum()) / 2
+    if not area > 0:
+        return [f"empty mesh: zero area ({len(f):,} faces, every one degenerate)"]
+    return []
 
 
 def _stopwatch(phases: dict):
@@ -391,7 +462,7 @@ def run_cell(cell: Cell | dict, cache_dir: str | None = None, on_phase=None) -> 
         stage = "validity"
         # against the clean level set the grid knows (and, with noise, the one the method was given)
         clean, vol, energy_grid = _read_as_distance(clean, vol, row)
-        invalid = check_mesh(rec.mesh, clean, given=None if vol is clean else vol)
+        invalid = check_mesh(rec.mesh, clean, given=None if vol is clean else vol) or degenerate_reasons(rec.mesh)
         lap("validity")
         stage = "metrics"
         metrics, final_H, metric_phases = _metrics(rec, truth, vol, energy_grid, invalid, cell, cache_dir,

@@ -27,7 +27,7 @@ from ..terminal import printable
 from .audit import REJECTED, set_aside
 from .checkpoints import ResultTables
 from .contracts import Cell, CellResult, ResultRow
-from .estimate import screen_cells
+from .estimate import SCALING_PHASES, RemainingTime, screen_cells
 from .executors.local import LocalExecutor
 from .grid import expand_grid
 from .identity import MixedCodeError, changed_methods, code_identity, config_fingerprint, mixed_code
@@ -152,23 +152,33 @@ class _Progress:
     #: seconds between two plain progress lines when stderr is not a terminal
     LOG_EVERY_S = 30.0
 
-    def __init__(self, total: int, done: int, show: bool, log: bool = True) -> None:
+    def __init__(self, total: int, done: int, show: bool, log: bool = True, todo: list[Cell] | None = None) -> None:
         from tqdm import tqdm
 
         self.show, self.log = show, log and not show
         self.total, self.done, self.start_done, self.failed = total, done, done, 0
         self.t0 = self.last_log = time.monotonic()
+        self.left = RemainingTime(todo or [], self.t0)      # learns each method's seconds from its cells
         self.bar = tqdm(total=total, initial=done, unit="cell", disable=not show, dynamic_ncols=True,
                         desc="cells", file=sys.stderr)
         if self.log and total > done:
             print(f"progress: {done}/{total} cells done, {total - done} to run", file=sys.stderr, flush=True)
 
     def start(self, cell: Cell) -> None:
+        self.left.start(cell, time.monotonic())
         self.bar.set_postfix_str(printable(f"{cell.phantom}/{cell.noise}/{cell.label}")
                                  + (f", {self.failed} failed" if self.failed else ""), refresh=True)
 
     def finish(self, cell: Cell, row: ResultRow) -> None:
         self.done += 1
+        cell_s = row.value("cell_s", None)
+        phases = row.value("phase_s", None) or {}
+        scaling = sum(float(v) for k, v in phases.items() if k in SCALING_PHASES and isinstance(v, (int, float)))
+        self.left.finish(cell, float(cell_s) if isinstance(cell_s, (int, float)) else None, time.monotonic(),
+                         scaling if phases else None)
+        if self.show:
+            eta = self.left.text(time.monotonic())
+            self.bar.set_description_str(f"cells ({eta})" if eta else "cells", refresh=False)
         if row.status != "ok":
             self.failed += row.status != SKIPPED      # a skipped cell is shown, but is no failure
             if self.show:
@@ -182,12 +192,10 @@ class _Progress:
             print(self.line(now), file=sys.stderr, flush=True)
 
     def line(self, now: float) -> str:
-        """``progress: done/total cells, failed, time left`` (the rate of this session's cells)."""
-        ran = self.done - self.start_done
-        left = (now - self.t0) / ran * (self.total - self.done) if ran else None
-        eta = ("" if left is None or self.done >= self.total else
-               f", about {left / 60:.0f} min left" if left >= 90 else f", about {left:.0f} s left")
-        return f"progress: {self.done}/{self.total} cells, {self.failed} not ok{eta}"
+        """``progress: done/total cells, failed, time left`` (:class:`~bench.run.estimate.RemainingTime`: from
+        the seconds of this session's cells per method and input size, with its range)."""
+        eta = "" if self.done >= self.total else self.left.text(now)
+        return f"progress: {self.done}/{self.total} cells, {self.failed} not ok" + (f", {eta}" if eta else "")
 
     def close(self) -> None:
         self.bar.close()
@@ -377,7 +385,7 @@ def _run_locked(cfg, out: Path, opts: RunOptions, executor) -> RunSummary:
     log.mixed_code = plan.mixed
     log.write(records, end=False)
     bar = _Progress(len(cells), summary.skipped, sys.stderr.isatty() if opts.progress is None else opts.progress,
-                    log=opts.progress is None)
+                    log=opts.progress is None, todo=plan.todo)
     if bar.show:
         bar.bar.write(printable(f"{cfg.name}: {len(cells)} cells → {out}"), file=sys.stderr)
     tables = ResultTables(out, [c.cell_id for c in cells], records)

@@ -66,6 +66,11 @@ def warm() -> float | None:
         from methods import get_method
         from phantoms import add_noise, get_phantom
 
+        import numpy as np
+
+        from phantoms import mask_to_sdf
+
+        mask_to_sdf(np.pad(np.ones((3, 3, 3), bool), 2))        # a user mask's distance transform (compiled)
         get_phantom("ellipsoid").truth([[0.3, 0.2, 0.1]])     # its closest-point root find is compiled
         ph = get_phantom("sphere")
         vol = ph.volume(n=24)

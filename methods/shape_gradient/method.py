@@ -97,6 +97,7 @@ def _refuse_far_topology(topology: dict, max_gap: int) -> None:
 
 class ShapeGradient(Method):
     name = "shape_gradient"
+    imports = ("scipy.ndimage", "skimage.measure", "skimage.segmentation", "pymeshlab", "gpytoolbox", "pyamg")
     description = ("the paper's shape-gradient descent of E = ∫ αφ² + β|∇_Γφ|² from a genus-0 surface grown "
                    "from the volume (full gradient, H¹ preconditioning, capped backtracking)")
     params = {

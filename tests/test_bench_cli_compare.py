@@ -125,7 +125,7 @@ def test_a_phantom_name_with_control_bytes_is_shown_escaped_on_the_terminal_and_
 
     hostile = "volume:/scans/\x1b]0;pwned\x07<img src=x onerror=alert(1)>\x1b[2J.nii.gz?label=1"
     a, b = tmp_path / "a", tmp_path / "b"
-    write_synthetic_run(a, n_shapes=1, seeds=1, noise=("none",), sealed=True, phantom=hostile)
+    write_synthetic_run(a, n_shapes=1, seeds=1, noise=("none",), sealed=True, phantom=hostile + "{}")
     write_synthetic_run(b, n_shapes=2, seeds=1, noise=("none",), sealed=True, phantom=hostile + "{}")
     capsys.readouterr()
     assert main(["compare", str(a), str(b), "--html", str(tmp_path / "c.html")]) == 0

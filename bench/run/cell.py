@@ -4,16 +4,16 @@
 cache, when given), so any executor can run it anywhere.  It takes a :class:`~bench.run.contracts.Cell` (or its
 dict form) and returns a :class:`~bench.run.contracts.CellResult` (``row``, ``artifacts``, ``traceback``).
 
-``row`` (a :class:`~bench.run.row.ResultRow`, filled as a dict as the stages go and converted once at the end)
-is the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop
-reason, cost, ``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`, or
-has zero area, :func:`degenerate_reasons`: ``error`` says why; the metrics that can be computed are kept) /
-``failed`` and ``error`` (over the process's memory limit: ``memory limit (N GB) exceeded in the method``
-/ ``in scoring ...``, see :mod:`bench.run.limits`) / ``skipped`` (the method declines the input,
-:meth:`methods.Method.skip_reason`: ``error`` is its reason; no metrics)); ``artifacts`` holds the arrays the report draws: the final mesh with its
-per-vertex mean curvature, the energy history and the snapshots.  Which ``Reconstruction.info`` keys are read
-is documented in :data:`methods.INFO_KEYS`.  The method's :meth:`~methods.Method.warm_up` runs before
-``reconstruct`` is timed (``phase_s["warm_up"]``), so compiling does not count in ``wall_s``.
+``row`` (a :class:`~bench.run.row.ResultRow`, filled as a dict as the stages go and converted once at the end) is
+the cell's results.csv row (ID columns, every metric, the method's iterations / energy / stop reason, cost,
+``status`` ``ok`` / ``invalid`` (the mesh fails :func:`bench.metrics.validity.check_mesh`, or has zero area,
+:func:`degenerate_reasons`: ``error`` says why; the metrics that can be computed are kept) / ``failed`` and
+``error`` (over the process's memory limit: ``memory limit (N GB) exceeded in the method`` / ``in scoring ...``, see
+:mod:`bench.run.limits`) / ``skipped`` (the method declines the input, :meth:`methods.Method.skip_reason`: ``error``
+is its reason; no metrics)); ``artifacts`` holds the arrays the report draws: the final mesh with its per-vertex
+mean curvature, the energy history and the snapshots.  Which ``Reconstruction.info`` keys are read is documented in
+:data:`methods.INFO_KEYS`.  The method's :meth:`~methods.Method.warm_up` runs before ``reconstruct`` is timed
+(``phase_s["warm_up"]``), so compiling does not count in ``wall_s``.
 """
 
 from __future__ import annotations

@@ -255,11 +255,11 @@ def test_on_the_usable_board_of_cells_without_truth_a_mesh_that_merges_the_datas
                          "snr_requested": None, "seed": 0, "label": label, "status": "ok", "flags": flags,
                          "has_truth": False, "wall_s": 1.0, "sdf_rms_h": v * scale, "phi_mean_h": v * scale,
                          "sign_err_pct": 0.01, "roughness_deg": 5.0})
-    board = next(b for b in leaderboards(rows) if b.get("usable_board"))     # the truth-free board: the only one
-    assert board["rows"][0]["label"] == "one_piece" and board["rows"][0]["usable_pct"] == 0.0
-    usable = board["usable_board"]
-    assert [r["label"] for r in usable["rows"]] == ["a", "b", "one_piece"]
-    assert usable["rows"][0]["usable_pct"] == 100.0
+    board = next(b for b in leaderboards(rows) if b.get("raw_board"))     # the truth-free board: the only one
+    raw = board["raw_board"]                                              # the raw values, usable or not
+    assert raw["rows"][0]["label"] == "one_piece" and raw["rows"][0]["usable_pct"] == 0.0
+    assert [r["label"] for r in board["rows"]] == ["a", "b", "one_piece"]  # the verdict's board
+    assert board["rows"][0]["usable_pct"] == 100.0 and board["rows"][-1]["usable_pct"] == 0.0
 
 
 def test_one_piece_where_the_data_has_many_parts_is_flagged_merged_with_both_counts():

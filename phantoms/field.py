@@ -91,6 +91,7 @@ class FieldPhantom(MeshPhantom):
                          description=f"{inner.description}; the field's protocol (longest side {scale:g}, centred)",
                          crease_angle_deg=inner.crease_angle_deg, source=inner.source)
         self.field_scale = float(scale)
+        self.shape_kind = inner.shape_kind                   # the same shape, rescaled
 
     @property
     def params(self) -> dict:

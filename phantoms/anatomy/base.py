@@ -158,7 +158,10 @@ class AnatomyPhantom(MeshPhantom):
             except (TypeError, ValueError):
                 raise InputError(f"phantom {self.name!r}: {key} must be a number; got {value!r}") from None
         solid = self._build(np.random.default_rng(self.seed))
-        mesh = solid.to_mesh64()
+        # split edges longer than two voxels (the same flat triangles, more of them): a long sliver — a capsule's
+        # side, a disc's cap — puts its vertices far from most of its points, and the certified distance query's
+        # first bound (the faces around the nearest vertex) then admits thousands of candidates
+        mesh = solid.refine_to_length(2.0 * self.h).to_mesh64()
         v = np.asarray(mesh.vert_properties, np.float64)[:, :3]
         f = np.asarray(mesh.tri_verts, np.int64)
         super().__init__(v, f, normalize=False, source=f"manifold3d:{self.name}")

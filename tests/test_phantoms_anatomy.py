@@ -153,7 +153,7 @@ def test_sizes_are_in_voxels_of_the_given_grid():
     assert thin.r_out - thin.r_in == pytest.approx(5.0 / 63)
     assert coarse.r_out - coarse.r_in == pytest.approx(5.0 / 31)
     tree = get_phantom("vessel_tree")
-    assert tree.radii.max() / tree.h == pytest.approx(4.0) and tree.radii.min() / tree.h < 1.0
+    assert tree.radii.max() / tree.h == pytest.approx(3.0) and tree.radii.min() / tree.h < 1.0
     pair = get_phantom("touching_pair")
     assert pair.r1 - pair.r_ball == pytest.approx(0.25 * pair.h)
     # the gap as built: the two parts' closest vertices are a quarter voxel apart (within the tessellation)

@@ -1,5 +1,5 @@
 """Draw a picture of each anatomy phantom (docs/PHANTOMS.md, "Anatomy phantoms"): its exact surface, shaded,
-cut open where the inside matters (vault, cavities, socket), beside the mid-slice of its N = 64 mask with the exact
+cut open where the inside matters (vault, cavities, socket), beside the mid-slice of its N = 48 mask with the exact
 surface's slice in red.
 
     python docs/scripts/anatomy_pictures.py [OUT_DIR]      # default docs/img/: anatomy_<name>.png
@@ -42,7 +42,7 @@ def _surface(ax, ph) -> None:
     ax.set_axis_off()
 
 
-def _slice(ax, ph, n: int = 64) -> None:
+def _slice(ax, ph, n: int = 48) -> None:
     vol = degrade(ph, "mask", n)
     exact = ph.volume(n=n)
     j = n // 2

@@ -17,7 +17,7 @@ from ..mesh import MeshPhantom
 __all__ = ["AnatomyPhantom", "ANATOMY_N", "INT_PARAMS"]
 
 #: the grid size the voxel sizes refer to by default
-ANATOMY_N = 64
+ANATOMY_N = 48
 #: the shape parameters that are counts
 INT_PARAMS = ("n", "seed", "foramina", "count", "cells", "levels")
 
@@ -130,7 +130,7 @@ class AnatomyPhantom(MeshPhantom):
     Parameters
     ----------
     n : int
-        The grid size the voxel sizes refer to (h = 2·extent / (n − 1)); default 64.
+        The grid size the voxel sizes refer to (h = 2·extent / (n − 1)); default 48 (the anatomy tier's grid).
     extent : float
         Half-width of that grid's box; default 2.5.
     seed : int

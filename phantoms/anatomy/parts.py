@@ -19,18 +19,18 @@ __all__ = ["VesselTree", "SpineParts", "Lattice"]
 
 class VesselTree(AnatomyPhantom):
     """A branching tube tree (vessel / airway-like): ``levels`` generations of bifurcating capsules from a root of
-    ``root_radius`` voxels, each child's radius ``ratio`` times its parent's (default: 4 voxels down to 0.67), in
+    ``root_radius`` voxels, each child's radius ``ratio`` times its parent's (default: 3 voxels down to 0.58), in
     seeded directions that keep non-adjacent branches 1.5 voxels apart.  One component, genus 0; no closed-form
     volume (the capsules overlap at the joints)."""
 
     name = "vessel_tree"
-    description = "branching tube tree (vessel-like): capsule radii from 4 voxels down to below one voxel"
+    description = "branching tube tree (vessel-like): capsule radii from 3 voxels down to below one voxel"
     shape_kind = "tubes"
     genus = 0
     has_creases = False
 
     def __init__(self, n: int = ANATOMY_N, extent: float = DEFAULT_EXTENT, seed: int = 0,
-                 root_radius: float = 4.0, ratio: float = 0.7, levels: int = 6):
+                 root_radius: float = 3.0, ratio: float = 0.72, levels: int = 6):
         super().__init__(n, extent, seed, root_radius=root_radius, ratio=ratio, levels=levels)
 
     def _build(self, rng):
@@ -62,7 +62,9 @@ class VesselTree(AnatomyPhantom):
                     reach = length * (1.0 if attempt < 100 else 0.7 if attempt < 200 else 0.45)
                     ends = [b + reach * (math.cos(t) * axis + math.sin(t) * side) for t in angles]
                     # siblings diverge from their common start, so they close no loop: only the others count
-                    if all(np.all(np.abs(q) <= bound) and self._clear(segments, parent, b, q, rc, margin)
+                    # near its start a branch lies inside its parent's end sphere: clearance is asked beyond it
+                    if all(np.all(np.abs(q) <= bound) and self._clear(segments, parent, b + (r + margin) * (q - b) /
+                                                                      np.linalg.norm(q - b), q, rc, margin)
                            for q in ends):
                         break
                 else:
@@ -84,10 +86,10 @@ class VesselTree(AnatomyPhantom):
 
     @staticmethod
     def _clear(segments, parent, a, b, r, margin) -> bool:
-        """The new branch a→b of radius r keeps ``margin`` from every branch but its parent and siblings
-        (which share its start point)."""
+        """The new branch a→b of radius r keeps ``margin`` from every branch but its parent and the parent's
+        other children (its start is the parent's end; the genus check after the union is the last word)."""
         for i, (c, d, rr, _) in enumerate(segments):
-            if i == parent or np.allclose(c, a):
+            if i == parent or segments[i][3] == parent:
                 continue
             if _segment_distance(a, b, c, d) <= r + rr + margin:
                 return False

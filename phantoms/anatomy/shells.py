@@ -98,8 +98,8 @@ class VaultShell(AnatomyPhantom):
 
 
 class CavitySolid(AnatomyPhantom):
-    """A ball (radius 0.64·extent) with ``count`` internal spherical cavities of radii ``radii`` voxels (cycled),
-    at seeded positions at least ``wall`` voxels from each other and from the outer surface: 1 + count surface
+    """A ball (radius 0.64·extent) with ``count`` internal spherical cavities of radii from ``small`` to ``large``
+    voxels, at seeded positions at least ``wall`` voxels from each other and from the outer surface: 1 + count surface
     components (the inner ones facing inward, into the cavity), genus 0.  Closed-form volume and area."""
 
     name = "cavity_solid"
@@ -109,7 +109,7 @@ class CavitySolid(AnatomyPhantom):
     has_creases = False
 
     def __init__(self, n: int = ANATOMY_N, extent: float = DEFAULT_EXTENT, seed: int = 0,
-                 count: int = 3, small: float = 3.0, large: float = 8.0, wall: float = 2.0):
+                 count: int = 3, small: float = 3.0, large: float = 5.0, wall: float = 2.0):
         super().__init__(n, extent, seed, count=count, small=small, large=large, wall=wall)
 
     def _build(self, rng):

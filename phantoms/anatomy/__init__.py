@@ -52,7 +52,7 @@ def parse_anatomy_spec(spec: str) -> tuple[str, dict]:
     name, _, query = str(spec).partition("?")
     if name not in ANATOMY:
         raise InputError(f"{spec!r}: {name!r} is not an anatomy phantom ({', '.join(ANATOMY)})")
-    valid = ANATOMY[name]._shape_params
+    valid = ANATOMY[name].parameter_names
     params: dict = {}
     for item in filter(None, query.split("&")):
         key, eq, value = item.partition("=")

@@ -125,7 +125,7 @@ def _segment_distance(a0, a1, b0, b1, samples: int = 24) -> float:
 class AnatomyPhantom(MeshPhantom):
     """A manifold3d-built polyhedron as a phantom (module docstring).  A subclass implements :meth:`_build`
     (the manifold, setting ``expected_components``, ``expected_genus``, ``tessellation_error`` and what
-    :meth:`ideal_sdf` needs) and lists its own parameters in ``_shape_params``.
+    :meth:`ideal_sdf` needs); its constructor's arguments are its ``parameter_names`` (the spec's options).
 
     Parameters
     ----------
@@ -137,7 +137,7 @@ class AnatomyPhantom(MeshPhantom):
         Seed of the random positions and directions.
     """
 
-    _shape_params: ClassVar[tuple[str, ...]] = ()
+    parameter_names: ClassVar[tuple[str, ...]] = ()
     expected_components: int = 1
     expected_genus: int = 0
 
@@ -173,7 +173,7 @@ class AnatomyPhantom(MeshPhantom):
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
-        cls._shape_params = tuple(cls.__init__.__code__.co_varnames[1:cls.__init__.__code__.co_argcount])
+        cls.parameter_names = tuple(cls.__init__.__code__.co_varnames[1:cls.__init__.__code__.co_argcount])
 
     def _param_text(self) -> str:
         return ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in self.params.items())
@@ -201,7 +201,7 @@ class AnatomyPhantom(MeshPhantom):
     @property
     def params(self) -> dict:
         out = {"n": self.n_ref, "extent": self.extent_ref, "seed": self.seed}
-        for key in self._shape_params:
+        for key in self.parameter_names:
             if key not in out:
                 value = getattr(self, key)
                 out[key] = int(value) if key in INT_PARAMS else value

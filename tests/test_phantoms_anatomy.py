@@ -281,3 +281,23 @@ def test_the_metrics_of_the_truth_mesh_itself_are_exact_and_unflagged():
     assert row["components"] == 4 and row["euler"] == 8
     assert row["hausdorff"] < 1e-9 and row["coverage_pct"] == 100.0
     assert result_flags(row, ph) == []
+
+
+def test_the_anatomy_config_is_the_tier_times_four_inputs_times_seven_methods():
+    """bench/configs/anatomy.toml validates and expands to 12 shape instances × 4 inputs × 7 methods, every
+    instance an anatomy phantom whose shape kind the recommendation table can read."""
+    from pathlib import Path
+
+    from bench.config import load_config
+    from bench.run.grid import expand_grid
+
+    cfg = load_config(Path(__file__).resolve().parents[1] / "bench" / "configs" / "anatomy.toml")
+    cfg.validate()
+    cells = expand_grid(cfg)
+    assert len(cells) == 12 * 4 * 7
+    assert {c.method for c in cells} == {"marching_cubes", "surface_nets", "slicer", "mc_smoothed_mask", "zmesh",
+                                         "poisson", "shape_gradient"}
+    assert {(c.degrade, c.noise) for c in cells} == {(None, "gaussian"), ("mask", "none"), ("partial_volume", "none"),
+                                                     ("thick_slices@3+mask", "none")}
+    kinds = {getattr(get_phantom(p), "shape_kind", None) for p in cfg.phantoms}
+    assert kinds == set(SHAPE_KINDS) - {"smooth solid"}

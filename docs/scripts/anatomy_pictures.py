@@ -1,6 +1,6 @@
 """Draw a picture of each anatomy phantom (docs/PHANTOMS.md, "Anatomy phantoms"): its exact surface, shaded,
 cut open where the inside matters (vault, cavities, socket), beside the mid-slice of its N = 48 mask with the exact
-surface's slice in red.
+surface's slice (the truth mesh cut by the plane) in red.
 
     python docs/scripts/anatomy_pictures.py [OUT_DIR]      # default docs/img/: anatomy_<name>.png
 
@@ -15,6 +15,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+import trimesh  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from phantoms import get_phantom  # noqa: E402
@@ -44,18 +46,20 @@ def _surface(ax, ph) -> None:
 
 def _slice(ax, ph, n: int = 48) -> None:
     vol = degrade(ph, "mask", n)
-    exact = ph.volume(n=n)
     j = n // 2
+    y = vol.origin[1] + j * vol.spacing[1]
     half = vol.spacing / 2
     ext = [vol.lower[0] - half[0], vol.upper[0] + half[0], vol.lower[2] - half[2], vol.upper[2] + half[2]]
     ax.imshow(vol.raw[:, j, :].T, origin="lower", cmap="gray", extent=ext, interpolation="nearest", vmin=0, vmax=1)
-    ax.contour(exact.values[:, j, :].T, levels=[0], colors="red", linewidths=0.7, origin="lower",
-               extent=[exact.lower[0], exact.upper[0], exact.lower[2], exact.upper[2]])
+    # the exact surface's slice: the truth mesh cut by the plane (a grid's contour would miss sub-voxel gaps)
+    lines = trimesh.intersections.mesh_plane(trimesh.Trimesh(ph.vertices, ph.faces, process=False),
+                                             [0.0, 1.0, 0.0], [0.0, y, 0.0])
+    ax.add_collection(LineCollection(lines[:, :, [0, 2]], colors="red", linewidths=0.6))
     ax.set_xlim(-2, 2)
     ax.set_ylim(-2, 2)
     ax.set_xticks([])
     ax.set_yticks([])
-    ax.set_title(f"mask at N = {n}, slice y = 0", fontsize=9)
+    ax.set_title(f"mask at N = {n}, mid slice; red: the exact surface", fontsize=9)
 
 
 def main(out: Path) -> None:

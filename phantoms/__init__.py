@@ -6,8 +6,9 @@
 >>> noisy, snr = add_noise(vol, "gaussian", 42.0, seed=0)
 >>> truth = ph.truth(noisy.grid_points().reshape(-1, 3)[:10])
 
-Modules: ``volume`` (the grid type) < ``base`` (the phantom interface) < ``analytic``, ``mesh/``, ``real``,
-``user`` (the phantoms; ``user`` reads a user's image through ``images``) < ``registry`` (names → phantoms);
+Modules: ``volume`` (the grid type) < ``base`` (the phantom interface) < ``analytic``, ``mesh/``, ``anatomy/``,
+``real``, ``user`` (the phantoms; ``user`` reads a user's image through ``images``) < ``registry`` (names →
+phantoms);
 ``noise`` and ``io`` work on volumes.
 """
 

@@ -21,6 +21,7 @@ def _sphere_points(rng: np.random.Generator, n: int) -> np.ndarray:
 
 class Sphere(Phantom):
     name = "sphere"
+    shape_kind = "smooth solid"
     description = "unit sphere, H = 1 everywhere"
     paper_snr_db = 44.5
 
@@ -93,6 +94,7 @@ def _root_compiled(ey, e2, lo, hi, max_iter):  # pragma: no cover - compiled; El
 
 class Ellipsoid(Phantom):
     name = "ellipsoid"
+    shape_kind = "smooth solid"
     description = "ellipsoid with semi-axes (1, 2, 1); K in [1/4, 4]"
     paper_snr_db = 42.0
 
@@ -227,6 +229,7 @@ class Ellipsoid(Phantom):
 
 class FusedSpheres(Phantom):
     name = "fused_spheres"
+    shape_kind = "smooth solid"
     description = "union of two balls r = 0.8 at z = ±0.7; concave crease circle at z = 0, radius √0.15"
     has_creases = True
     paper_snr_db = 43.2
@@ -322,6 +325,7 @@ class FusedSpheres(Phantom):
 
 class Cylinder(Phantom):
     name = "cylinder"
+    shape_kind = "smooth solid"
     description = "finite cylinder r = 0.4, |z| <= 1 (flat caps; rims are creases)"
     has_creases = True
     paper_snr_db = 42.0
@@ -406,6 +410,7 @@ class Cylinder(Phantom):
 
 class Torus(Phantom):
     name = "torus"
+    shape_kind = "smooth solid"
     description = "torus R = 1, r = 0.35 about the z axis (genus 1: a sphere-topology method must fail visibly)"
     genus = 1
     paper_snr_db = 42.0

@@ -28,7 +28,7 @@ from geometry.errors import InputError
 from .volume import Volume, check_memory
 
 __all__ = [
-    "Truth", "Phantom", "DEFAULT_N", "DEFAULT_EXTENT", "VARIANTS", "grid_volume",
+    "SHAPE_KINDS", "Truth", "Phantom", "DEFAULT_N", "DEFAULT_EXTENT", "VARIANTS", "grid_volume",
     "as_points", "unit", "arc_positions", "check_n", "check_extent", "check_sample_count",
 ]
 
@@ -39,6 +39,8 @@ GRID_CHANNELS = 8
 #: points per slab of :func:`grid_volume`
 GRID_CHUNK = 1 << 20
 VARIANTS = ("sdf", "paper")
+#: the values of :attr:`Phantom.shape_kind`
+SHAPE_KINDS = ("smooth solid", "thin shell", "tubes", "cavities", "many parts", "high genus", "touching parts")
 
 
 @dataclass(frozen=True)
@@ -170,10 +172,10 @@ def check_sample_count(n) -> int:
 class Phantom:
     """Base class of the phantoms: a closed surface with exact ground truth.
 
-    A subclass sets ``name``, ``description``, ``genus`` and ``has_creases`` and implements :meth:`sdf` (exact
-    signed distance, negative inside), :meth:`paper` (the paper's level-set polynomial), :meth:`truth` and
-    :meth:`sample_surface` (seeded area-uniform samples and their normals); its constructor takes the
-    phantom's geometric parameters (:attr:`params`).
+    A subclass sets ``name``, ``description``, ``genus``, ``has_creases`` and ``shape_kind`` and implements
+    :meth:`sdf` (exact signed distance, negative inside), :meth:`paper` (the paper's level-set polynomial),
+    :meth:`truth` and :meth:`sample_surface` (seeded area-uniform samples and their normals); its constructor
+    takes the phantom's geometric parameters (:attr:`params`).
     """
 
     name: ClassVar[str] = ""
@@ -182,6 +184,9 @@ class Phantom:
     has_creases: ClassVar[bool] = False
     #: SNR (dB) used in the paper's noisy experiments (None when the paper has no such phantom)
     paper_snr_db: ClassVar[float | None] = None
+    #: what kind of shape it is, for the report's recommendation per input kind: "smooth solid", "thin shell",
+    #: "tubes", "cavities", "many parts", "high genus" or "touching parts" (None: not said, e.g. a user's volume)
+    shape_kind: ClassVar[str | None] = None
 
     @property
     def params(self) -> dict:

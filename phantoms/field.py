@@ -105,6 +105,7 @@ class FieldPhantom(MeshPhantom):
         self.resolution = inner.resolution
         if inner.resolution is not None:
             self.truth_note = f"{self.truth_note}; {inner.resolution.note()}"
+        self.shape_kind = inner.shape_kind                   # the same shape, rescaled
 
     @property
     def params(self) -> dict:

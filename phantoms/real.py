@@ -69,6 +69,7 @@ def mni152_t1_path() -> Path:
 
 class Bunny(MeshPhantom):
     name = "bunny"
+    shape_kind = "smooth solid"
     description = "Stanford bunny (pymeshlab sample mesh, 28k vertices, genus 0): deep concavities"
     # class-level facts for listings (instances recompute them from the mesh)
     genus = 0
@@ -83,6 +84,7 @@ class Bunny(MeshPhantom):
 
 class Cortex(MeshPhantom):
     name = "cortex"
+    shape_kind = "smooth solid"
     description = "fsaverage5 pial surface, left hemisphere (nilearn, 10k vertices, genus 0): sulci"
     genus = 0
     has_creases = True          # 682 edges above 60° (sulcal fundi and gyral crowns at this resolution)
@@ -112,6 +114,7 @@ class BrainMRI(MeshPhantom):
     """
 
     name = "brain_mri"
+    shape_kind = "smooth solid"
     description = ("MNI152 T1 template (nilearn, 1 mm): brain mask (T1 > 0.2) -> signed distance; "
                    "truth = marching cubes of the full-resolution volume")
     genus = 0

@@ -1,4 +1,5 @@
-"""Phantom names: the analytic classes, the named real shapes, ``mesh:PATH`` for any closed mesh file and
+"""Phantom names: the analytic classes, the anatomy-like shapes (``NAME?key=value&...`` for non-default
+parameters), the named real shapes, ``mesh:PATH`` for any closed mesh file and
 ``volume:PATH[?options]`` for a user's volume (:mod:`phantoms.user`); a glob in either path is a dataset
 (:func:`expand_phantoms`).
 
@@ -15,15 +16,16 @@ from pathlib import Path
 from geometry.errors import InputError
 
 from .analytic import Cylinder, Ellipsoid, FusedSpheres, Sphere, Torus
+from .anatomy import ANATOMY, parse_anatomy_spec
 from .base import Phantom
 from .field import FIELD_PREFIX, FieldPhantom, parse_field_spec
 from .real import REAL_SHAPES, get_mesh_file_phantom, get_real_phantom, get_volume_phantom
 from .real_tier import FINE_SHAPES, get_fine_phantom
 from .user import VOLUME_PREFIX, parse_spec
 
-__all__ = ["FIELD_PREFIX", "check_phantom_files", "PHANTOMS", "REAL_PHANTOMS", "MESH_PREFIX", "VOLUME_PREFIX",
-           "phantom_names", "is_phantom_name", "get_phantom", "expand_phantoms", "is_file_phantom", "phantom_path",
-           "short_name"]
+__all__ = ["FIELD_PREFIX", "check_phantom_files", "PHANTOMS", "ANATOMY_PHANTOMS", "REAL_PHANTOMS", "MESH_PREFIX",
+           "VOLUME_PREFIX", "phantom_names", "is_phantom_name", "get_phantom", "expand_phantoms", "is_file_phantom",
+           "phantom_path", "short_name"]
 
 #: the analytic phantom classes by name
 PHANTOMS: dict[str, type[Phantom]] = {
@@ -34,11 +36,13 @@ PHANTOMS: dict[str, type[Phantom]] = {
 #: real tier's fine segmentations (``phantoms/real_tier.py``); any closed mesh file is a phantom as ``mesh:PATH``.
 #: PHANTOMS keeps the analytic classes only.
 REAL_PHANTOMS: tuple[str, ...] = tuple(REAL_SHAPES) + tuple(FINE_SHAPES)
+#: the anatomy-like shapes (``phantoms/anatomy/``): exact polyhedra, seeded and parameterised in voxels
+ANATOMY_PHANTOMS: tuple[str, ...] = tuple(ANATOMY)
 MESH_PREFIX = "mesh:"
 
 
 def phantom_names() -> list[str]:
-    """The registered phantom names: the analytic phantoms, then the named real shapes.
+    """The registered phantom names: the analytic phantoms, the anatomy-like shapes, then the named real shapes.
 
     ``mesh:PATH`` and ``volume:PATH`` are accepted too (:func:`is_phantom_name`) but are not listed.
 
@@ -46,7 +50,18 @@ def phantom_names() -> list[str]:
     -------
     list of str
     """
-    return list(PHANTOMS) + list(REAL_PHANTOMS)
+    return list(PHANTOMS) + list(ANATOMY_PHANTOMS) + list(REAL_PHANTOMS)
+
+
+def _is_anatomy_spec(name) -> bool:
+    """An anatomy shape's name, with or without ``?key=value`` options (checked)."""
+    if not isinstance(name, str) or name.partition("?")[0] not in ANATOMY:
+        return False
+    try:
+        parse_anatomy_spec(name)
+    except InputError:
+        return False
+    return True
 
 
 def _is_mesh_name(name) -> bool:
@@ -101,7 +116,7 @@ def is_phantom_name(name: str) -> bool:
     if isinstance(name, str) and name.startswith(FIELD_PREFIX):   # its options are checked with its files
         inner = name[len(FIELD_PREFIX):].partition("?")[0]
         return not inner.startswith((FIELD_PREFIX, VOLUME_PREFIX)) and is_phantom_name(inner)
-    return name in PHANTOMS or name in REAL_PHANTOMS or is_file_phantom(name)
+    return name in PHANTOMS or name in REAL_PHANTOMS or _is_anatomy_spec(name) or is_file_phantom(name)
 
 
 _GLOB_CHARS = re.compile(r"[*?\[]")
@@ -220,6 +235,8 @@ def get_phantom(name: str, **params) -> Phantom:
         return get_fine_phantom(name, **params)
     if name in REAL_PHANTOMS:
         return get_real_phantom(name, **params)
+    if name.partition("?")[0] in ANATOMY:
+        return _anatomy_phantom(name, **params)
     if name not in PHANTOMS:
         raise InputError(f"unknown phantom {name!r}; valid phantoms: {', '.join(phantom_names())}, "
                          f"or {MESH_PREFIX}PATH for a closed mesh file, {VOLUME_PREFIX}PATH for a volume file")
@@ -227,6 +244,27 @@ def get_phantom(name: str, **params) -> Phantom:
         return PHANTOMS[name](**params)
     except TypeError as exc:
         raise InputError(f"bad parameters for phantom {name!r}: {exc}") from None
+
+
+_ANATOMY_CACHE: dict = {}
+
+
+def _anatomy_phantom(spec: str, **params):
+    """``NAME[?key=value&...]`` of an anatomy shape (:func:`phantoms.anatomy.parse_anatomy_spec`), cached per
+    process and parameters (building and checking the polyhedron takes a second or two)."""
+    name, options = parse_anatomy_spec(spec)
+    options.update(params)
+    key = (spec, tuple(sorted(options.items())))
+    if key not in _ANATOMY_CACHE:
+        if len(_ANATOMY_CACHE) >= 8:
+            _ANATOMY_CACHE.pop(next(iter(_ANATOMY_CACHE)))
+        try:
+            ph = ANATOMY[name](**options)
+        except TypeError as exc:
+            raise InputError(f"bad parameters for phantom {spec!r}: {exc}") from None
+        ph.name = spec
+        _ANATOMY_CACHE[key] = ph
+    return _ANATOMY_CACHE[key]
 
 
 _FIELD_CACHE: dict = {}

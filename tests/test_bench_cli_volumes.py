@@ -59,8 +59,9 @@ def test_an_argparse_error_through_python_m_bench():
 def test_phantoms_lists_every_phantom(capsys):
     assert main(["phantoms"]) == 0
     out = capsys.readouterr().out
-    for name in ("sphere", "ellipsoid", "fused_spheres", "cylinder", "torus"):
+    for name in ("sphere", "ellipsoid", "fused_spheres", "cylinder", "torus", "vault_shell", "lattice"):
         assert name in out
+    assert "high genus; options: n=&extent=&seed=&cells=&strut=" in out
     assert "44.5 dB" in out and "radius=0.4" in out
 
 

@@ -18,6 +18,12 @@ def _cmd_phantoms(args) -> int:
         params = ", ".join(f"{k}={v}" for k, v in ph.params.items())
         print(f"{name:<15} {ph.genus:>5} {str(ph.has_creases).lower():>7} {snr:>9}  {params}")
         print(f"{'':<40}{ph.description}")
+    from phantoms.anatomy import ANATOMY  # anatomy shapes: listed from class facts, not built
+
+    for name, cls in ANATOMY.items():
+        print(f"{name:<15} {cls.genus:>5} {str(cls.has_creases).lower():>7} {'-':>9}  {cls.shape_kind}; "
+              f"options: {'&'.join(f'{k}=' for k in cls.parameter_names)}")
+        print(f"{'':<40}{cls.description}")
     from phantoms.real import REAL_SHAPES  # real shapes: listed from class facts, not loaded
     from phantoms.real_tier import FINE_SHAPES
 

@@ -77,7 +77,7 @@ def test_paper_grid_end_to_end(benchmark, tmp_path):
     summary, out = outs[-1]
     assert summary.total == 64 and summary.failed == 0 and summary.timeout == 0, summary.line()
     rows = [rec["row"] for rec in load_cells(out).values()]
-    cells = sorted(((r.get("cpu_s") or 0.0, r["label"], r["phantom"], r["noise"]) for r in rows), reverse=True)
+    cells = sorted(((r.cpu_s or 0.0, r.label, r.phantom, r.noise) for r in rows), reverse=True)
     by_label: dict[str, float] = {}
     for cpu, label, _, _ in cells:
         by_label[label] = by_label.get(label, 0.0) + cpu

@@ -149,3 +149,25 @@ def test_the_compiled_ball_depth_equals_the_numpy_gather():
     fast, ref = ball_depth(vol, pts, 0.97), ball_depth_numpy(vol, pts, 0.97)
     assert np.array_equal(fast, ref)
     assert np.isneginf(ref[:50]).all() and np.isfinite(ref).sum() > 3000
+
+
+def test_the_stop_test_reads_the_move_the_limits_let_through():
+    """The clamped move is the largest normal move once each inward part is cut to its limit (outward parts
+    whole); a carved start on a sphere, whose surface sits on the carved hull pushing inwards, is still within a
+    few remeshes instead of running to max_iter (the uncut trial move never fell below move_tol)."""
+    from types import SimpleNamespace
+
+    from methods.shape_gradient.flow import ShapeGradientFlow
+
+    normals = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
+    direction = np.array([[-2.0, 0.3, 0], [0, -0.5, 0], [0.1, 0, 0.4]])      # inward 2, inward 0.5, outward 0.4
+    geo = SimpleNamespace(vertex_normals=normals)
+    assert ShapeGradientFlow._clamped_move(geo, direction, 0.5, np.array([0.1, 1.0, 0.0])) == pytest.approx(0.25)
+    assert ShapeGradientFlow._clamped_move(geo, direction, 0.5, np.array([2.0, 1.0, 0.0])) == pytest.approx(1.0)
+    n = 48                                                  # here the uncut move ran to max_iter
+    g = _LO + (4.0 / (n - 1)) * np.arange(n)
+    p = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)
+    vol = Volume(np.linalg.norm(p, axis=-1) - 1.2, [_LO] * 3, 4.0 / (n - 1))
+    rec = ShapeGradient(start_choice="off", carved_start=True, hold_carved=True, carve_margin=0.1,
+                        max_iter=150).reconstruct(vol)
+    assert rec.info["stop_reason"] == "converged" and rec.info["iterations"] < 60

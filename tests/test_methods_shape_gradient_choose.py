@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from methods.shape_gradient import ShapeGradient
-from methods.shape_gradient.choose import (AGREE_NOISE_STDS, AGREE_VOXELS, CANDIDATES, PREFER_USUAL, agrees_everywhere,
+from methods.shape_gradient.choose import (AGREE_NOISE_STDS, AGREE_VOXELS, CANDIDATES, PREFER_USUAL, lacks_a_part,
                                            data_errors, data_residual, pick, start_candidates)
 from phantoms import Volume
 
@@ -57,14 +57,20 @@ def test_the_residual_counts_a_missing_part():
     assert one > 3.0
 
 
-def test_agreeing_everywhere_allows_half_a_voxel_plus_the_noise():
+def test_a_part_is_lacking_where_a_sample_lies_outside_the_mesh_past_half_a_voxel_plus_the_noise():
+    """A sphere smaller by 0.6 voxel leaves every band sample 0.6 voxel farther out than its distance: a part of
+    the data it lacks (unless the noise allows 0.2 voxel more); one larger by as much covers samples instead —
+    nothing a start with more material could mend — and lacks nothing."""
     vol = _sphere_volume()
     v, f = _sphere_mesh(_R)
     e = data_errors(vol, v, f)
-    assert len(e) > 1000 and agrees_everywhere(e, 0.0)
-    assert not agrees_everywhere(data_errors(vol, v * (1 + 0.6 * _H / _R), f), 0.0)     # 0.6 voxel out
-    assert agrees_everywhere(data_errors(vol, v * (1 + 0.6 * _H / _R), f), 0.2 / AGREE_NOISE_STDS)
-    assert not agrees_everywhere(np.zeros(0), 1.0)
+    assert len(e) > 1000 and not lacks_a_part(e, 0.0)
+    smaller = data_errors(vol, v * (1 - 0.6 * _H / _R), f)
+    assert smaller.min() > 0.5 and lacks_a_part(smaller, 0.0)
+    assert not lacks_a_part(smaller, 0.2 / AGREE_NOISE_STDS)
+    larger = data_errors(vol, v * (1 + 0.6 * _H / _R), f)
+    assert larger.max() < -0.5 and not lacks_a_part(larger, 0.0)
+    assert lacks_a_part(np.zeros(0), 1.0)
     assert AGREE_VOXELS == 0.5
 
 

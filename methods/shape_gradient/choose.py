@@ -12,9 +12,13 @@ samples around it with small φ but a large d_Γ; a filled gap puts samples of p
 by a bias shifts every term.  The band is one fixed set of samples, the same for every candidate, so the scores
 compare; noise adds the same variance to each.  The score reads only the input — no truth.
 
-The other starts cost two more flows, so they are tried only where the usual start's result disagrees with some
-sample by more than :func:`agrees_everywhere` allows — half a voxel plus three noise stds: where it agrees with
-every sample, no part of the data is missing from it (a lost limb leaves samples voxels away from Γ).
+The other starts cost two more flows, so they are tried only where the usual start's result lacks a part of the
+data (:func:`lacks_a_part`): some sample lies farther outside Γ than its own distance says, d_Γ(q) − φ(q) above
+half a voxel plus three noise stds (a lost limb leaves samples voxels away from Γ).  A disagreement of the other
+sign — Γ nearer to, or over, a sample than φ(q) says: a concave crease the trilinear zero set fills, a gap it
+closes — is not tried: every other start holds more material than the usual one (the carved hull lies within
+φ₀ < 0 ∪ the region no ball reaches, the quarter-voxel level below φ₀ < 0) and ``hold_carved`` only limits inward
+moves, so none of them can take material out of a filled crease.
 
 A candidate is scored on the flow's result before the reach to the samples (reach.py, when it is on): the reach
 mends single spots, which would hide from the score a start that lost more.
@@ -35,14 +39,14 @@ from phantoms import Volume
 
 from .carved_start import fine_grid_fits
 
-__all__ = ["band_samples", "mesh_distances", "data_errors", "data_residual", "rms", "agrees_everywhere",
+__all__ = ["band_samples", "mesh_distances", "data_errors", "data_residual", "rms", "lacks_a_part",
            "CANDIDATES", "BAND_VOXELS", "PREFER_USUAL", "AGREE_VOXELS", "agree_limit", "AGREE_NOISE_STDS",
            "start_candidates", "pick"]
 
 #: the band of samples the residual reads: |φ| below this many voxels
 BAND_VOXELS = 1.5
 
-#: the usual result agrees with the data everywhere when no band sample is off by more than this many voxels ...
+#: the usual result lacks no part of the data when no band sample lies outside it by more than this many voxels ...
 AGREE_VOXELS = 0.5
 #: ... plus this many noise stds (the estimated noise of the input)
 AGREE_NOISE_STDS = 3.0
@@ -130,9 +134,11 @@ def rms(errors: np.ndarray) -> float:
     return float(np.sqrt(np.mean(errors ** 2))) if len(errors) else float("nan")
 
 
-def agrees_everywhere(errors: np.ndarray, noise_voxels: float) -> bool:
-    """Whether no sample is off by more than :data:`AGREE_VOXELS` + :data:`AGREE_NOISE_STDS` noise stds."""
-    return bool(len(errors)) and float(np.abs(errors).max()) <= agree_limit(noise_voxels)
+def lacks_a_part(errors: np.ndarray, noise_voxels: float) -> bool:
+    """Whether some sample lies outside the mesh farther than its distance says, d_Γ − φ above
+    :data:`AGREE_VOXELS` + :data:`AGREE_NOISE_STDS` noise stds (``errors``: :func:`data_errors`), or there are no
+    band samples to tell: the mesh misses a part of the data that a start with more material may hold."""
+    return not len(errors) or float(np.max(errors)) > agree_limit(noise_voxels)
 
 
 def agree_limit(noise_voxels: float) -> float:

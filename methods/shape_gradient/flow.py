@@ -96,6 +96,7 @@ class ShapeGradientFlow:
         self._grow = True
         self.cg_iterations: list[int] = []
         self.moves: list[float] = []
+        self._normal_move: float | None = None          # the accepted step's largest normal move after the limits
         self._polished = None
         self.before_reach = None      # the final vertices before the reach to the samples (set by result())
         self.guard = settings.guard
@@ -236,7 +237,18 @@ class ShapeGradientFlow:
         if new is not None:
             self._grow = move == first
             self._move_prev = move
+            self._normal_move = move if limit is None else self._clamped_move(geo, direction, move / vmax, limit)
         return new, move
+
+    @staticmethod
+    def _clamped_move(geo, direction: np.ndarray, tau: float, limit: np.ndarray) -> float:
+        """The largest normal move the step ``tau`` · ``direction`` makes once each vertex's inward part is cut to
+        its ``limit`` (hold_carved): the move the stop test reads.  The uncut trial move stays large while a held
+        vertex pushes against its limit, so a flow whose surface has stopped on the carved hull would never read
+        as still."""
+        outward = tau * np.einsum("vd,vd->v", direction, geo.vertex_normals)       # < 0: inward
+        moved = np.where(outward >= 0.0, outward, np.minimum(-outward, limit))
+        return float(moved.max()) if len(moved) else 0.0
 
     def _accept(self, it: int, new, move: float) -> bool:
         """Take ``new`` as iteration ``it``'s state (remesh and snapshot when due), then the convergence tests."""
@@ -254,8 +266,10 @@ class ShapeGradientFlow:
             self.snapshots[it] = self._snapshot()
         rel = abs(prev - new.E) / max(abs(prev), 1e-300)
         held = self._hold_stop        # the start kept unremeshed: marching cubes' slivers move slowly until a remesh
+        moved = self._normal_move if self._normal_move is not None else move
+        self._normal_move = None
         self._calm, self._still = (0, 0) if held else (self._calm + 1 if rel < st.tol else 0,
-                                                       self._still + 1 if move < st.move_tol * h else 0)
+                                                       self._still + 1 if moved < st.move_tol * h else 0)
         if self._calm >= _CONVERGE_PATIENCE:
             return self._settle("converged", f"iteration {it}: relative energy change below tol = {st.tol:g} "
                                           f"for {_CONVERGE_PATIENCE} iterations")

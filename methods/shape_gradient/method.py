@@ -14,7 +14,7 @@ from phantoms import InputError, Volume
 from ..base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
 from .field import CLEAN_NOISE_VOXELS, estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
 from .carved_start import carved_surface
-from .choose import agrees_everywhere, data_errors, pick, rms, start_candidates
+from .choose import data_errors, lacks_a_part, pick, rms, start_candidates
 from .flow import ShapeGradientFlow
 from .settings import FlowSettings, edge_length_voxels
 from .start import denoised_topology, initial_surface, parse_snapshots, target_topology, topology_gap
@@ -233,7 +233,9 @@ class ShapeGradient(Method):
                              "noise: the direction is the pre-smoothed field's), search along the plain (L²) shape "
                              "gradient before stopping on the line-search floor (docs/NOTES.md)", bool),
         "start_choice": Param("auto", "'auto': on a signed distance whose refined grid fits (N ≤ 128), the flow runs "
-                              "from three genus-0 starts — φ < 0, the carved hull (carved_start, hold_carved, "
+                              "from φ < 0 and, where its result lacks a part of the data (a sample lies outside it "
+                              "by more than ½ voxel + 3 noise stds past its distance), also from two more genus-0 "
+                              "starts — the carved hull (carved_start, hold_carved, "
                               "carve_margin = 0.1) and the carved hull read at φ < ¼ voxel (start_level = 0.25) — "
                               "and keeps the result whose signed distance agrees best with the samples (rms of "
                               "d_Γ − φ over |φ| < 1.5 voxels; choose.py; info['start_choice']); 'off', or any of "
@@ -370,9 +372,10 @@ class ShapeGradient(Method):
 
     def _choose(self, volume: Volume, candidates) -> Reconstruction:
         """Flow from every start of ``candidates`` and keep the result :func:`.choose.pick` picks by the data
-        residual (choose.py); where the first's (the usual start's) result agrees with every sample, the others are
-        not tried.  A candidate whose flow fails is left out — the usual one's failure is the method's only when
-        every candidate fails; an error about the input (InputError) from the usual start is raised at once."""
+        residual (choose.py); where the first's (the usual start's) result lacks no part of the data (no sample lies
+        outside it farther than its distance allows), the others are not tried.  A candidate whose flow fails is
+        left out — the usual one's failure is the method's only when every candidate fails; an error about the
+        input (InputError) from the usual start is raised at once."""
         results, residuals, facts, first_error = {}, {}, {}, None
         for k, (name, overrides) in enumerate(candidates):
             t0 = time.perf_counter()
@@ -393,7 +396,8 @@ class ShapeGradient(Method):
             results[name], residuals[name] = rec, residual
             if k == 0:
                 facts[name]["largest_error_voxels"] = round(float(np.abs(errors).max()), 4) if len(errors) else None
-                if agrees_everywhere(errors, float(rec.info["noise_estimate_voxels"])):
+                facts[name]["largest_outside_error_voxels"] = round(float(errors.max()), 4) if len(errors) else None
+                if not lacks_a_part(errors, float(rec.info["noise_estimate_voxels"])):
                     break
         if not results:
             raise first_error if first_error is not None else ReconstructionFailed(

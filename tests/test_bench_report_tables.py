@@ -145,3 +145,16 @@ def test_a_cell_that_ended_before_reading_its_volume_joins_its_inputs_table():
     assert done.loc[1, "N"] == 40 and done.loc[1, "input_kind"] == "mask" and df.loc[1, "N"] == 0
     (table,) = summary_tables(df)                             # one table, not a second "sdf, N = 0" one
     assert table["title"].startswith("ct — mask") and table["n_methods"] == 2
+
+
+def test_the_topology_targets_count_every_surface_of_the_truth():
+    """A truth of several surfaces (the anatomy tier's spine_parts: 5 bodies, genus 0): its components and Euler
+    characteristic targets are 5 and 10, not one surface's 1 and 2 — the mesh that has them is the one marked."""
+    from bench.report.tables import phantom_topology
+
+    assert best_rule("euler", genus=0, components=5) == ("target", 10)
+    assert best_rule("components", components=5) == ("target", 5)
+    components, genus = phantom_topology("spine_parts")
+    assert (components, genus) == (5, 0)
+    df = pd.DataFrame([_row("a", phantom="spine_parts", euler=2), _row("b", phantom="spine_parts", euler=10)])
+    assert _marked(summary_tables(df)[0]["html"]) == ["10"]

@@ -35,9 +35,8 @@ from bench.metrics.tolerances import TOLERANCES, cells_from_rows, compare_value
 
 from ..run.results import read_results
 from ..terminal import printable
-from .export import phantom_genus
 from .pairwise import ALPHA, MIN_PAIRED, holm, median_interval, signed_rank_test
-from .tables import best_rule
+from .tables import best_rule, phantom_topology
 
 __all__ = ["MATCH_KEY", "KEY_METRICS", "Comparison", "compare_runs", "compare_frames", "conclude", "format_comparison",
            "comparison_html", "short_name", "why_nothing_matched"]
@@ -199,8 +198,9 @@ def _parameters_text(pa, pb) -> str:
 
 
 def _truth_value(metric: str, row: dict) -> float | None:
-    """The truth's value of a target metric (Euler characteristic 2 − 2·genus, one component)."""
-    rule = best_rule(metric, phantom_genus(str(row.get("source") or row.get("phantom"))))
+    """The truth's value of a target metric (its components; Euler characteristic 2·components − 2·genus)."""
+    components, genus = phantom_topology(str(row.get("source") or row.get("phantom")))
+    rule = best_rule(metric, genus, True, components)
     return float(rule[1]) if isinstance(rule, tuple) else None
 
 

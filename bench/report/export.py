@@ -19,10 +19,10 @@ from bench.metrics.registry import METRICS
 from bench.terminal import printable
 from phantoms import InputError
 
-from .tables import best_mask, best_rule, complete_inputs, input_title, noise_title, phantom_label, without_truth
+from .tables import (best_mask, best_rule, complete_inputs, input_title, noise_title, phantom_label, phantom_topology,
+                     without_truth)
 
 __all__ = ["DEFAULT_METRICS", "GROUP_KEYS", "DIGITS", "GroupTable", "group_tables", "leaderboard_tables",
-           "phantom_genus",
            "format_number", "to_markdown", "to_latex", "to_csv", "FORMATS"]
 
 #: the metrics a table shows unless told otherwise (those the run has)
@@ -37,21 +37,6 @@ GROUP_KEYS = {"phantom": ("phantom",), "variant": ("variant",), "N": ("N",), "no
 #: significant digits of the numbers in markdown and LaTeX
 DIGITS = 4
 FORMATS = ("markdown", "latex", "csv")
-
-_genus: dict[str, int] = {}
-
-
-def phantom_genus(name: str) -> int:
-    """The genus of the phantom ``name`` (0 when it does not resolve): the Euler characteristic's target."""
-    if name not in _genus:
-        from phantoms import get_phantom
-
-        try:
-            _genus[name] = int(getattr(get_phantom(name), "genus", 0) or 0)
-        except Exception:  # noqa: BLE001 — a file phantom that moved, a user volume: genus 0, as the report
-            _genus[name] = 0
-    return _genus[name]
-
 
 @dataclass
 class GroupTable:
@@ -146,11 +131,11 @@ def group_tables(df, metrics=None, by=None) -> list[GroupTable]:
         group = {k: (tuple(next(it) for _ in GROUP_KEYS[k]) if len(GROUP_KEYS[k]) > 1 else next(it)) for k in by}
         t = _method_frame(sub, metrics)
         phantoms = sub["phantom"].unique()
-        genus = phantom_genus(str(phantoms[0])) if len(phantoms) == 1 else 0
+        components, genus = phantom_topology(str(phantoms[0])) if len(phantoms) == 1 else (1, 0)
         truth = not without_truth(sub)
         best = {}
         for m in metrics:
-            rule = best_rule(m, genus, truth)
+            rule = best_rule(m, genus, truth, components)
             mask = (best_mask(t[m].where(t["_valid"], np.nan), rule, metric=m) if rule is not None
                     else np.zeros(len(t), bool))
             best[m] = mask if mask.sum() == 1 else np.zeros(len(t), bool)    # bold only a unique best

@@ -139,14 +139,17 @@ def _metric_columns(df) -> list[str]:
 TOPOLOGY_METRICS = ("euler", "components")
 
 
-def best_rule(metric: str, genus: int = 0, truth: bool = True):
-    """The registry's rule for ``metric``; the Euler characteristic's target is the phantom's 2 − 2·genus.
+def best_rule(metric: str, genus: int = 0, truth: bool = True, components: int = 1):
+    """The registry's rule for ``metric``; the targets of the topology columns are the truth's: ``components``
+    surfaces and the Euler characteristic 2·components − 2·genus (``genus`` summed over the components).
     ``truth`` False (the cells have no ground truth): None for the topology metrics — no target to be best at."""
     m = METRICS.get(metric)
     if m is None or m.best is None or (not truth and metric in TOPOLOGY_METRICS):
         return None
     if metric == "euler":
-        return ("target", 2 - 2 * genus)
+        return ("target", 2 * components - 2 * genus)
+    if metric == "components" and isinstance(m.best, tuple):
+        return ("target", components)
     return m.best
 
 
@@ -284,13 +287,16 @@ def _method_rows(d, idx: np.ndarray, num: dict[str, np.ndarray], metrics: list[s
 
 
 @functools.lru_cache(maxsize=256)
-def _genus(phantom: str) -> int:
+def phantom_topology(phantom: str) -> tuple[int, int]:
+    """The truth's number of surfaces and summed genus for the phantom named ``phantom`` — the targets of the
+    components and Euler characteristic columns; (1, 0) when the name does not resolve (a file that moved)."""
     from phantoms import get_phantom
 
     try:
-        return int(getattr(get_phantom(phantom), "genus", 0) or 0)
-    except Exception:
-        return 0
+        ph = get_phantom(phantom)
+    except Exception:  # noqa: BLE001 — a file phantom that moved, an unreadable volume: the report still renders
+        return 1, 0
+    return int(getattr(ph, "n_components", 1) or 1), int(getattr(ph, "genus", 0) or 0)
 
 
 def _source(sub) -> str:
@@ -314,11 +320,12 @@ def without_truth(sub) -> bool:
     return bool(truth_cols) and bool(sub[truth_cols].isna().all().all()) and bool((sub["status"] == "ok").any())
 
 
-def _marked_html(t: list[dict], metrics: list[str], genus: int, truth: bool = True) -> str:
+def _marked_html(t: list[dict], metrics: list[str], topology: tuple[int, int], truth: bool = True) -> str:
     cols = [c for c in metrics if any(c in r for r in t)]
     marks = {}
+    components, genus = topology
     for m in cols:
-        rule = best_rule(m, genus, truth)
+        rule = best_rule(m, genus, truth, components)
         # an invalid or failed result is never best
         vals = np.array([r.get(m, np.nan) if r["_valid"] and "missing_parts" not in r["_flags"] else np.nan
                          for r in t], float)
@@ -371,7 +378,8 @@ def summary_tables(df) -> list[dict]:
         cells = {}
         for lab, cid in zip(sub["label"], sub["cell_id"]):
             cells.setdefault(str(lab), str(cid))
+        topology = (1, 0) if no_truth else phantom_topology(_source(sub))
         tables.append({"title": title, "phantom": phantom, "short": phantom_label(phantom), "noise": noise,
-                       "html": _marked_html(t, shown, 0 if no_truth else _genus(_source(sub)), not no_truth),
+                       "html": _marked_html(t, shown, topology, not no_truth),
                        "n_methods": len(t), "cells": cells, "note": NO_TRUTH_NOTE if no_truth else ""})
     return tables

@@ -273,16 +273,17 @@ def test_the_recommendation_table_prints_alone_in_each_format_and_compiles(run, 
     lines = md.splitlines()
     assert lines[0] == "### Which method, for which shape and input"
     head = next(ln for ln in lines if ln.startswith("| shape kind"))
-    assert head == "| shape kind \\ input | noisy φ | clean φ |"
+    assert head == "| shape kind \\ input | noisy φ | clean φ | every input |"
     # the quick grid's phantoms declare a kind (or, before they did, are unclassified); 4 inputs per cell: no test
     row = next(ln for ln in lines if ln.startswith("| ") and ln != head)
     assert row.count("no method is clearly better on hausdorff_h (no pair shares enough inputs for a test: 6 are "
-                     "needed)") == 2
+                     "needed)") >= 2
     assert "rests on 4 inputs (sphere, ellipsoid), 8 results" in row
+    assert "rests on 6 inputs (sphere, ellipsoid), 12 results" in row          # the pooled column: every input
     csv = _table([str(run), "--recommend", "--format", "csv"], capsys)
     frame = pd.read_csv(__import__("io").StringIO(csv))
     # clean cells run once (no seed to vary), noisy ones per seed
-    assert dict(zip(frame["input"], frame["n_results"])) == {"noisy φ": 8, "clean φ": 4}
+    assert dict(zip(frame["input"], frame["n_results"])) == {"noisy φ": 8, "clean φ": 4, "every input": 12}
     tex = _table([str(run), "--recommend", "--format", "latex"], capsys)
     assert r"\toprule" in tex and r"$\varphi$" in tex
     if not shutil.which("pdflatex"):

@@ -38,7 +38,8 @@ def test_a_method_best_on_one_kind_and_another_on_another_gives_two_recommendati
             + _rows("thin shell", "mask", {"A": 1.5, "B": 1.0, "C": 1.3}, prefix="vault")
             + _rows("smooth solid", "none", ties, prefix="ball"))
     t = recommendation_table(rows)
-    assert t["shapes"] == ["smooth solid", "thin shell"] and t["inputs"] == ["mask", "clean φ"]
+    assert t["shapes"] == ["smooth solid", "thin shell", "every shape kind"]
+    assert t["inputs"] == ["mask", "clean φ", "every input"]
     solid, shell = t["cells"][("smooth solid", "mask")], t["cells"][("thin shell", "mask")]
     assert solid["best"] == "A" and shell["best"] == "B"
     assert solid["text"].startswith("use A on hausdorff_h (better than B (16–0 of 16, p < 0.001) and C (16–0")
@@ -49,7 +50,7 @@ def test_a_method_best_on_one_kind_and_another_on_another_gives_two_recommendati
     tie = t["cells"][("smooth solid", "clean φ")]
     assert tie["best"] is None and tie["text"].startswith("no method is clearly better on hausdorff_h")
     html = recommendation_html(t)
-    assert html.count("<tr>") == 3 and "use A on hausdorff_h" in html and "not run" in html
+    assert html.count("<tr>") == 4 and "use A on hausdorff_h" in html and "not run" in html
     md = recommendation_markdown(t)
     assert "| smooth solid | **use A on hausdorff_h" in md and "| thin shell |" in md and "not run" in md
 
@@ -96,3 +97,26 @@ def test_rows_of_a_run_from_before_the_shape_kind_column_are_unclassified_not_lo
         del r["shape_kind"]
     t = recommendation_table(rows)
     assert t["shapes"] == [UNCLASSIFIED] and t["cells"][(UNCLASSIFIED, "mask")]["best"] == "A"
+
+
+def test_the_pooled_row_and_column_give_a_verdict_where_each_cell_has_too_few_inputs():
+    """Two phantoms per kind (4 inputs: too few for a test) in three kinds, A ahead everywhere: every cell says no
+    test can be made, the pooled 'every shape kind' row (12 inputs per input) and 'every input' column (8 inputs
+    per kind) recommend A, naming their scope; a kind where every result is unusable says so."""
+    rows = []
+    for kind in ("thin shell", "tubes", "cavities"):
+        for degrade in ("mask", "partial_volume"):
+            rows += _rows(kind, degrade, {"A": 1.0, "B": 1.3, "C": 1.6}, n_phantoms=2, prefix=kind[:4])
+    bad = _rows("touching parts", "mask", {"A": 1.0, "B": 1.3}, n_phantoms=2, prefix="pair")
+    for r in bad:
+        r["status"] = "invalid"
+    t = recommendation_table(rows + bad)
+    assert t["shapes"][-1] == "every shape kind" and t["inputs"][-1] == "every input"
+    cell = t["cells"][("tubes", "mask")]
+    assert cell["best"] is None and "no pair shares enough inputs" in cell["text"]
+    for key in (("every shape kind", "mask"), ("every shape kind", "partial volume"), ("tubes", "every input"),
+                ("every shape kind", "every input")):
+        assert t["cells"][key]["best"] == "A", (key, t["cells"][key]["text"])
+    assert t["cells"][("every shape kind", "mask")]["n_inputs"] == 16     # 4 kinds x 2 phantoms x 2 N
+    assert t["cells"][("touching parts", "mask")]["text"] == ("no method gives a usable mesh here: every result is "
+                                                               "invalid or unusable")

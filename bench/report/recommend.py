@@ -13,6 +13,11 @@ Columns (:func:`input_class`)
     ``thick_slices@K``, K > 1), else ``partial volume``, else ``mask`` (label noise and blur included), else — the
     phantom's exact φ — ``noisy φ`` (noise other than ``none``) or ``clean φ``.
 
+Margins
+    ``every input`` (a kind over all the inputs it was given) and ``every shape kind`` (an input over all the kinds
+    with a truth), where there is more than one to pool: a cell of two phantoms has too few inputs for a test, the
+    wider scope may have enough, and its name says the scope its verdict holds for.
+
 Cells (:func:`recommendation_table`)
     The board (:func:`bench.report.verdicts.board`) over the cell's rows on one metric — the distance to the
     truth (``hausdorff_h``), or data fidelity (``sdf_rms_h``) without a truth — and its verdict
@@ -47,6 +52,10 @@ INPUTS = ("mask", "partial volume", "thick slices", "noisy φ", "clean φ")
 SHAPE_KINDS = ("smooth solid", "thin shell", "tubes", "cavities", "many parts", "high genus", "touching parts")
 YOUR_DATA = "your data"
 UNCLASSIFIED = "unclassified"
+#: the pooled row (every shape kind with a truth) and column (every input of a row's kind): where a cell has too few
+#: inputs for a test, the wider scope may have enough — its verdict says so by its name
+ALL_SHAPES = "every shape kind"
+ALL_INPUTS = "every input"
 NO_TRUTH = " (no truth)"
 #: at most this many phantoms are named in a cell
 MAX_NAMED = 8
@@ -96,12 +105,12 @@ def shape_class(row: dict, by_phantom: dict[str, str] | None = None) -> str:
 def _shape_order(name: str) -> tuple:
     base = name.removesuffix(NO_TRUTH)
     tier = (0, SHAPE_KINDS.index(base)) if base in SHAPE_KINDS else (
-        (2, 0) if base == YOUR_DATA else (3, 0) if base == UNCLASSIFIED else (1, 0))
+        (2, 0) if base == YOUR_DATA else (3, 0) if base == UNCLASSIFIED else (4, 0) if base == ALL_SHAPES else (1, 0))
     return (*tier, base, name.endswith(NO_TRUTH))
 
 
 def _input_order(name: str) -> tuple:
-    return (INPUTS.index(name), "") if name in INPUTS else (len(INPUTS), name)
+    return (INPUTS.index(name), "") if name in INPUTS else (len(INPUTS) + (name == ALL_INPUTS), name)
 
 
 def _names(names: list[str]) -> str:
@@ -125,7 +134,10 @@ def _cell(rows: list[dict], shape: str, inp: str) -> dict:
     if b is None:
         return {"text": "no method has a value here", "best": None, "basis": basis, "verdict": None}
     v = b["verdict"]
-    return {"text": v["text"], "best": v["best"], "as_good": v["as_good"], "basis": basis, "verdict": v,
+    text = v["text"]
+    if sum(bad.values()) == len(rows):       # all tie as losses: say what the tie is
+        text = "no method gives a usable mesh here: every result is invalid or unusable"
+    return {"text": text, "best": v["best"], "as_good": v["as_good"], "basis": basis, "verdict": v,
             "metric": b["metric"], "n_inputs": len(inputs), "n_results": len(rows), "phantoms": phantoms,
             "not_usable": bad}
 
@@ -145,6 +157,17 @@ def recommendation_table(rows: list[dict]) -> dict:
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in rows:
         groups.setdefault((shape_class(r, by_phantom), input_class(r)), []).append(r)
+    kinds = {s for s, _ in groups}
+    inputs = {i for _, i in groups}
+    if len(inputs) > 1:                       # each kind over every input it was given
+        for s in kinds:
+            groups[(s, ALL_INPUTS)] = [r for (k, _), sub in list(groups.items()) if k == s for r in sub]
+    truth_kinds = [s for s in kinds if not s.endswith(NO_TRUTH)]
+    if len(truth_kinds) > 1:                  # each input over every kind with a truth
+        for i in [*inputs, *([ALL_INPUTS] if len(inputs) > 1 else [])]:
+            pooled = [r for (k, j), sub in list(groups.items()) if j == i and k in truth_kinds for r in sub]
+            if pooled:
+                groups[(ALL_SHAPES, i)] = pooled
     cells = {key: _cell(sub, *key) for key, sub in groups.items()}
     return {"shapes": sorted({s for s, _ in cells}, key=_shape_order),
             "inputs": sorted({i for _, i in cells}, key=_input_order), "cells": cells}
@@ -153,7 +176,8 @@ def recommendation_table(rows: list[dict]) -> dict:
 #: what the table's heading says about its rule
 RULE = (f"Each cell: one verdict from the pairwise tests ({TEST_NAME}) on the distance to the truth "
         "(hausdorff_h; without a truth: sdf_rms_h) over that kind of shape and input only; an invalid or unusable "
-        "mesh counts as a loss. It holds for the inputs it names, not beyond them.")
+        "mesh counts as a loss. It holds for the inputs it names, not beyond them; the last row and column pool "
+        "every kind of shape and every input, for a verdict with a wider scope where a cell has too few inputs.")
 
 
 def recommendation_html(table: dict) -> str:

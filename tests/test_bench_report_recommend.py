@@ -107,7 +107,7 @@ def test_the_pooled_row_and_column_give_a_verdict_where_each_cell_has_too_few_in
     for kind in ("thin shell", "tubes", "cavities"):
         for degrade in ("mask", "partial_volume"):
             rows += _rows(kind, degrade, {"A": 1.0, "B": 1.3, "C": 1.6}, n_phantoms=2, prefix=kind[:4])
-    bad = _rows("touching parts", "mask", {"A": 1.0, "B": 1.3}, n_phantoms=2, prefix="pair")
+    bad = _rows("touching parts", "mask", {"A": 1.0, "B": 1.3}, n_phantoms=4, prefix="pair")
     for r in bad:
         r["status"] = "invalid"
     t = recommendation_table(rows + bad)
@@ -117,6 +117,12 @@ def test_the_pooled_row_and_column_give_a_verdict_where_each_cell_has_too_few_in
     for key in (("every shape kind", "mask"), ("every shape kind", "partial volume"), ("tubes", "every input"),
                 ("every shape kind", "every input")):
         assert t["cells"][key]["best"] == "A", (key, t["cells"][key]["text"])
-    assert t["cells"][("every shape kind", "mask")]["n_inputs"] == 16     # 4 kinds x 2 phantoms x 2 N
+    assert t["cells"][("every shape kind", "mask")]["n_inputs"] == 20     # (3 kinds x 2 + 4) phantoms x 2 N
     assert t["cells"][("touching parts", "mask")]["text"] == ("no method gives a usable mesh here: every result is "
-                                                               "invalid or unusable")
+                                                               "invalid or unusable")    # invalid: no raw values
+    for r in bad:                                  # valid but unusable (merged): the raw values still rank them
+        r["status"], r["flags"] = "ok", "topology_mismatch"
+    cell = recommendation_table(rows + bad)["cells"][("touching parts", "mask")]
+    assert cell["best"] is None and cell["text"].startswith("no method gives a usable mesh here: every result is "
+                                                            "invalid or unusable; closest to the truth, usable or "
+                                                            "not: use A on hausdorff_h (better than B (8–0 of 8"), cell["text"]

@@ -135,8 +135,11 @@ def _cell(rows: list[dict], shape: str, inp: str) -> dict:
         return {"text": "no method has a value here", "best": None, "basis": basis, "verdict": None}
     v = b["verdict"]
     text = v["text"]
-    if sum(bad.values()) == len(rows):       # all tie as losses: say what the tie is
+    if sum(bad.values()) == len(rows):       # all tie as losses: say what the tie is, and what the raw values say
         text = "no method gives a usable mesh here: every result is invalid or unusable"
+        raw = board(rows, keys, f"{shape} × {inp}, raw values", usable=False)
+        if raw is not None and raw["verdict"]["best"]:
+            text += f"; closest to the truth, usable or not: {raw['verdict']['text']}"
     return {"text": text, "best": v["best"], "as_good": v["as_good"], "basis": basis, "verdict": v,
             "metric": b["metric"], "n_inputs": len(inputs), "n_results": len(rows), "phantoms": phantoms,
             "not_usable": bad}

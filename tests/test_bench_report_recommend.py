@@ -123,6 +123,6 @@ def test_the_pooled_row_and_column_give_a_verdict_where_each_cell_has_too_few_in
     for r in bad:                                  # valid but unusable (merged): the raw values still rank them
         r["status"], r["flags"] = "ok", "topology_mismatch"
     cell = recommendation_table(rows + bad)["cells"][("touching parts", "mask")]
-    assert cell["best"] is None and cell["text"].startswith("no method gives a usable mesh here: every result is "
-                                                            "invalid or unusable; closest to the truth, usable or "
-                                                            "not: use A on hausdorff_h (better than B (8–0 of 8"), cell["text"]
+    assert cell["best"] is None
+    assert cell["text"].startswith("no method gives a usable mesh here: every result is invalid or unusable; closest "
+                                   "to the truth, usable or not: use A on hausdorff_h (better than B (8–0 of 8")

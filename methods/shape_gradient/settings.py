@@ -80,9 +80,11 @@ class FlowSettings:
     max_iter : int
         Iteration limit.
     tol : float
-        Relative energy change below which an iteration counts as calm (0 = off).
+        Relative energy change below which an iteration counts towards the
+        ``converged`` stop (0 = off).
     move_tol : float
-        Largest normal move, in voxels, below which an iteration counts as still (0 = off).
+        Largest normal move, in voxels, below which an iteration counts towards the
+        ``converged`` stop (0 = off).
     remesh_every : int
         Remesh every this many iterations (0 = fixed connectivity).
     remesh_iterations : int

@@ -156,12 +156,12 @@ class FlowSettings:
     snapshots: tuple[int, ...]
     presmooth: float
     start_smooth: float
+    keep_tips: bool
+    hold_carved: bool
+    carve_margin: float
+    l2_fallback: bool
+    reach_samples: bool
     parameters: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
-    keep_tips: bool = False
-    hold_carved: bool = False
-    carve_margin: float = 0.25
-    l2_fallback: bool = True
-    reach_samples: bool = False
 
     @classmethod
     def resolve(cls, config: Mapping[str, Any], *, h: float, clean: bool, noise: float, presmooth: float,
@@ -214,21 +214,24 @@ class FlowSettings:
             "projection_used": config["projection"] == "on" or (config["projection"] == "auto" and clean),
             "sign_guard_used": bool(config["sign_guard"]) and clean and remesh_start,
         }
-        c = {**config, "beta": beta, **derived}
+        # every parameter is in ``config`` (the Params' defaults filled in): each is read by its key, never with a
+        # fallback of its own that could contradict the declared default
+        cfg = {**config, "beta": beta, **derived}
         return cls(
-            alpha=c["alpha"], beta=beta, gradient=c["gradient"], curvature=c["curvature"], step=c["step"],
-            max_move=c["max_move"], tau=c["tau"], precondition=c["precondition"], s_world=c["s_world"],
-            solver=c["solver"], relax=c["relax"], max_iter=c["max_iter"], tol=c["tol"], move_tol=c["move_tol"],
-            remesh_every=int(c["remesh_every"]), remesh_iterations=int(c["remesh_iterations"]),
-            remesh_start=bool(remesh_start), guard=bool(c["guard"]), sign_guard=bool(c["sign_guard_used"]),
-            polish=bool(c["polish_used"]), polish_angle=c["polish_angle"], polish_weight=c["polish_weight"],
-            projection=bool(c["projection_used"]), extend_tips=bool(c["extend_tips"]),
-            tip_curvature=float(c["tip_curvature"]), noise_variance=float(c["noise_variance"]),
+            alpha=cfg["alpha"], beta=beta, gradient=cfg["gradient"], curvature=cfg["curvature"], step=cfg["step"],
+            max_move=cfg["max_move"], tau=cfg["tau"], precondition=cfg["precondition"], s_world=cfg["s_world"],
+            solver=cfg["solver"], relax=cfg["relax"], max_iter=cfg["max_iter"], tol=cfg["tol"],
+            move_tol=cfg["move_tol"], remesh_every=int(cfg["remesh_every"]),
+            remesh_iterations=int(cfg["remesh_iterations"]), remesh_start=bool(remesh_start), guard=bool(cfg["guard"]),
+            sign_guard=bool(cfg["sign_guard_used"]), polish=bool(cfg["polish_used"]),
+            polish_angle=cfg["polish_angle"], polish_weight=cfg["polish_weight"],
+            projection=bool(cfg["projection_used"]), extend_tips=bool(cfg["extend_tips"]),
+            tip_curvature=float(cfg["tip_curvature"]), noise_variance=float(cfg["noise_variance"]),
             stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),
-            snapshots=tuple(c["snapshots"]), presmooth=c["presmooth_used"], start_smooth=c["start_smooth_used"],
-            parameters=_reported(c), keep_tips=bool(c.get("keep_tips", False)),
-            hold_carved=bool(c["hold_carved"]), carve_margin=float(c["carve_margin"]),
-            l2_fallback=bool(c.get("l2_fallback", True)), reach_samples=bool(c.get("reach_samples", False)))
+            snapshots=tuple(cfg["snapshots"]), presmooth=cfg["presmooth_used"], start_smooth=cfg["start_smooth_used"],
+            keep_tips=bool(cfg["keep_tips"]), hold_carved=bool(cfg["hold_carved"]),
+            carve_margin=float(cfg["carve_margin"]), l2_fallback=bool(cfg["l2_fallback"]),
+            reach_samples=bool(cfg["reach_samples"]), parameters=_reported(cfg))
 
     def reported_parameters(self) -> dict[str, Any]:
         """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""

@@ -69,7 +69,7 @@ class ShapeGradientFlow:
         self.init_facts: dict = dict(init_facts or {})
         self.iteration = 0
         self.remesh_every = settings.remesh_every
-        self.stages = list(settings.stages)             # coarse to fine: the stages still to come, first first
+        self.stages = list(settings.stages)             # the stages still to come, first first
         self.stage_starts: list[dict] = []
         self._enter_stage(self.stages.pop(0))
         self.state = evaluate_state(field, ops, np.asarray(x, float), self.alpha, self.beta, self.timings,
@@ -325,7 +325,7 @@ class ShapeGradientFlow:
         # all the rounds (marching cubes' slivers); a later mesh is near isotropic: one round
         rounds = self.settings.remesh_iterations if it == 0 else 1
         before = (self.state.x, self.ops, self.state)
-        # keep_tips / hold_carved: (held) tips stay (the start, marching cubes' slivers, is remeshed freely)
+        # hold_carved: held tips stay (the start, marching cubes' slivers, is remeshed freely)
         keep = {"keep": remesh_keep(self.ops, self.state.geo, self.h, self.settings, self.carve)} if it > 0 else {}
         out = remesh(self.state.x, self.ops.faces, self.edge_length, rounds, closed=it > 0, **keep)
         if out is None:

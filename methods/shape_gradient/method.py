@@ -31,8 +31,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # a tolerance, so its tables' rows 50 and 100 are reached unless the line search runs out of steps.
     "paper": {"gradient": "paper", "precondition": "none", "relax": 0.0, "presmooth": 0.0,
               "curvature": "paper", "polish": "off", "init": "sphere", "remesh_every": 0, "guard": False,
-              "extend_tips": False,
-              "coarse_to_fine": False, "beta": 1.0,
+              "extend_tips": False, "beta": 1.0,
               "projection": "off", "max_iter": 100, "tol": 0.0, "move_tol": 0.0, "l2_fallback": False,
               "reach_samples": False},
     # the paper's experiment (the same Γ0, β, iteration count and fixed connectivity) run by the suite's
@@ -40,7 +39,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # on clean volumes, the crease polish and final projection — as they were when its rows were measured: no
     # plain-gradient step past the line-search floor and no reach to the samples, which came later (its rows stay
     # comparable)
-    "paper+fixes": {"init": "sphere", "remesh_every": 0, "coarse_to_fine": False, "beta": 1.0,
+    "paper+fixes": {"init": "sphere", "remesh_every": 0, "beta": 1.0,
                     "max_iter": 100, "tol": 0.0, "move_tol": 0.0, "l2_fallback": False,
                     "reach_samples": False},
 }
@@ -135,8 +134,6 @@ class ShapeGradient(Method):
                         "trilinear φ of noise with std σ has E[φ²] = φ_true² + (2/3)³σ² on average, so ∫αφ² carries "
                         "(2/3)³ασ² × area, a mean-curvature flow that shrinks thin parts and tips (docs/NOTES.md)",
                         bool),
-        "presmooth_phi": Param(False, "pre-smooth φ itself too (True: the data term then sees the shrunken "
-                               "level set of the smoothed volume), or only the derivative grids (False)", bool),
         "polish": Param("auto", "crease polish of the final mesh (crease_polish): vertices next to sharp creases "
                         "of the level set are Newton-projected onto φ = 0 and one endpoint of every edge "
                         "crossing a crease is put on the crease; smooth regions are not touched. 'auto': on "
@@ -189,10 +186,6 @@ class ShapeGradient(Method):
                              "remeshing, in voxels (0.1–20); 'auto' = 1 on a binary mask (it resolves nothing finer: "
                              "as close and half the time on the held-out shapes, docs/NOTES.md), else 0.5, which "
                              "keeps parts a voxel thin (the bunny's ear tips are lost at 1)", object),
-        "coarse_to_fine": Param(False, "two stages: first the data term alone (β = 0) draws the surface into "
-                                "concavities and sulci (the alignment term resists the intermediate shapes), then "
-                                "the configured β smooths and aligns it; a stage ends when the flow settles. False "
-                                "(or beta = 0, or remesh_every = 0): one stage", bool),
         "remesh_iterations": Param(3, "split/collapse/flip/relax rounds of the start's remesh (marching cubes' "
                                    "slivers); the later remeshes, of a mesh already near isotropic, run one", int,
                                    min=1, max=20),
@@ -214,10 +207,6 @@ class ShapeGradient(Method):
                                "mesh vertex nearest q's foot point q − φ∇φ/|∇φ| moves there; 3 rounds, kept "
                                "back where faces would meet; on a noisy volume only samples with a flagged neighbour "
                                "pull. The start choice scores each flow before it (docs/NOTES.md)", bool),
-        "keep_tips": Param(False, "the remesher keeps the vertices of sharply convex parts (mean curvature above "
-                           "tip_curvature per voxel) where they are: its collapses otherwise shorten a thin limb's "
-                           "tip by a voxel or more per remesh (better on the development shapes with thin limbs, worse "
-                           "on the N = 32 needle's tip extension; off by default, docs/NOTES.md)", bool),
         "hold_carved": Param(False, "the flow moves a vertex inwards only as far as it stays within carve_margin "
                              "voxels of the union of the outside samples' empty balls |x − q| < φ(q)/|∇φ| (carve.py): "
                              "a part thinner than a voxel, which φ shows only as a dip, is not cut where no ball "
@@ -355,7 +344,7 @@ class ShapeGradient(Method):
         cfg["edge_length"] = edge
         settings = FlowSettings.resolve(cfg, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,
                                         join_below=join_below, remesh_start=init_facts["kind"] == "genus0")
-        field = smoothed_field(volume, sigma, cfg["presmooth_phi"])
+        field = smoothed_field(volume, sigma)
         if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):
             ops = MeshOperators(faces, len(x))
         field.sample_t(np.ascontiguousarray(x[:1].T), 2)     # build the cached derivative grids now (setup)

@@ -10,8 +10,6 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .field import noise_after_smoothing
-
 __all__ = ["FlowSettings", "Stage"]
 
 _AUTO_BETA = (1.0, 0.01)      # beta='auto': on clean / noisy volumes
@@ -32,7 +30,7 @@ def edge_length_voxels(value: Any, kind: str) -> float:
 
 @dataclass(frozen=True)
 class Stage:
-    """One stage of the flow (coarse to fine: the data term alone first, then the configured β).
+    """One stage of the flow: the weight β and the remeshing's edge length it runs with.
 
     Parameters
     ----------
@@ -106,13 +104,11 @@ class FlowSettings:
     noise_variance : float
         The noise variance subtracted from φ² in the data term (0 on clean volumes or with ``unbias=False``).
     stages : tuple of Stage
-        The stages, first first (one, or two with ``coarse_to_fine``).
+        The stages, first first (one: the configured β and edge length).
     snapshots : tuple of int
         Iterations whose vertices are kept.
     presmooth, start_smooth : float
         The Gaussian σ (voxels) of the derivative grids and of the start's values, as decided (reported).
-    keep_tips : bool
-        The remesher keeps the tips of sharply convex parts (mean curvature above ``tip_curvature``) in place.
     hold_carved, carve_margin : bool, float
         The flow's inward moves stay within ``carve_margin`` voxels of the union of the outside samples' empty
         balls (carve.py).
@@ -156,7 +152,6 @@ class FlowSettings:
     snapshots: tuple[int, ...]
     presmooth: float
     start_smooth: float
-    keep_tips: bool
     hold_carved: bool
     carve_margin: float
     l2_fallback: bool
@@ -197,8 +192,6 @@ class FlowSettings:
             beta = _AUTO_BETA[0] if clean else _AUTO_BETA[1]
         edge = edge_length_voxels(config["edge_length"], kind)
         stages = [{"beta": beta, "edge_length": edge}]
-        if config["coarse_to_fine"] and config["remesh_every"] > 0 and beta > 0:
-            stages.insert(0, {"beta": 0.0, "edge_length": edge})
         # the noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise has variance
         # σ²Σwᵢ², on average (∫₀¹ t² + (1 − t)² dt)³ = (2/3)³ of σ² over positions in a cell
         derived = {
@@ -207,8 +200,7 @@ class FlowSettings:
             "join_below_used": join_below,
             "remesh_start": remesh_start,
             "presmooth_used": float(presmooth),
-            "noise_variance": _noise_variance(noise, presmooth, bool(config["presmooth_phi"]))
-            if (config["unbias"] and not clean) else 0.0,
+            "noise_variance": _INTERP_NOISE_GAIN * float(noise) ** 2 if (config["unbias"] and not clean) else 0.0,
             "start_smooth_used": float(start_smooth),
             "polish_used": config["polish"] == "on" or (config["polish"] == "auto" and clean),
             "projection_used": config["projection"] == "on" or (config["projection"] == "auto" and clean),
@@ -229,23 +221,13 @@ class FlowSettings:
             tip_curvature=float(cfg["tip_curvature"]), noise_variance=float(cfg["noise_variance"]),
             stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),
             snapshots=tuple(cfg["snapshots"]), presmooth=cfg["presmooth_used"], start_smooth=cfg["start_smooth_used"],
-            keep_tips=bool(cfg["keep_tips"]), hold_carved=bool(cfg["hold_carved"]),
+            hold_carved=bool(cfg["hold_carved"]),
             carve_margin=float(cfg["carve_margin"]), l2_fallback=bool(cfg["l2_fallback"]),
             reach_samples=bool(cfg["reach_samples"]), parameters=_reported(cfg))
 
     def reported_parameters(self) -> dict[str, Any]:
         """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""
         return copy.deepcopy(dict(self.parameters))
-
-
-def _noise_variance(noise: float, presmooth: float, presmooth_phi: bool) -> float:
-    """The noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise of std σ has
-    variance (2/3)³σ² on average over a cell; a pre-smoothed φ (``presmooth_phi``, σ_s voxels) carries the
-    filtered noise, whose std is the filter's gain times σ and which interpolation barely lowers (it is
-    correlated over σ_s)."""
-    if presmooth_phi and presmooth > 0:
-        return noise_after_smoothing(float(noise), float(presmooth)) ** 2
-    return _INTERP_NOISE_GAIN * float(noise) ** 2
 
 
 def _reported(config: Mapping[str, Any]) -> dict[str, Any]:

@@ -55,8 +55,8 @@ _N_CHANNELS = {0: 1, 1: 4, 2: 10}   # φ; φ, ∇φ; φ, ∇φ, the Hessian's si
 #: above this many bytes in float64 (N ≈ 150 for a cube) the flow's interpolation grids are stored in single
 #: precision (computed in double): ten grids of N³ are the flow's largest array (1.34 GB in float64 at N = 256,
 #: beside a 0.13 GB volume); rounding them moves a sampled value by 6e-8 of its size, far below trilinear
-#: interpolation's own O(h²) error (docs/NOTES.md: results against float64 grids).  Below it they stay float64:
-#: the compiled gather reads float32 ~30 % slower, and memory is no concern there
+#: interpolation's own O(h²) error.  Below it they stay float64: the compiled gather reads float32 more slowly,
+#: and memory is no concern there
 FLOAT32_ABOVE_BYTES = 2 ** 28
 
 

@@ -17,7 +17,7 @@ _INTERP_NOISE_GAIN = (2.0 / 3.0) ** 3   # mean of Σwᵢ² of trilinear weights 
 
 
 #: edge_length='auto': the remeshing's edge length (voxels) on a binary mask, which resolves nothing finer (as close
-#: and half the time on the held-out shapes, docs/NOTES.md), and on every other volume (keeps parts a voxel thin)
+#: and faster), and on every other volume (keeps parts a voxel thin)
 AUTO_EDGE_VOXELS = {"mask": 1.0, "other": 0.5}
 
 

@@ -62,12 +62,14 @@ def test_the_timing_check_finds_one(tmp_path):
 _NOTES = re.compile(r"\bNOTES\b")
 
 #: a measured figure: a speed ratio ("4× faster"), a relative cost ("25 % slower", "40 % less"), a number given as
-#: measured ("measured 117–138"), a metric value of a run ("Hausdorff 1.49 h"), or the date of a measurement
+#: measured ("measured 117–138"), a metric value of a run ("Hausdorff 1.49 h", "2.5 h without it"), or the date of a
+#: measurement
 _FIGURE = re.compile("|".join((
     r"\d+(?:[.,]\d+)?\s?(?:×|x|times)\s+(?:faster|slower)\b",
     r"\d+(?:[.,]\d+)?(?:\s?[–-]\s?\d+(?:[.,]\d+)?)?\s?%\s+(?:faster|slower|less|more)\b",
     r"\bmeasured:?\s+[~≈]?\d",
     r"\b(?:Hausdorff|mean distance)\b[^.;()]{0,24}?\d+\.\d+\s?h\b",
+    r"\d+\.\d+\s?h\s+with(?:out)?\b",
     r"\b20\d\d-\d\d-\d\d\b",
 )))
 
@@ -128,7 +130,7 @@ def test_the_notes_and_figure_checks_find_one(tmp_path):
     p = tmp_path / "m.py"
     p.write_text(
         '"""Faster (docs/NOTES.md); 4× faster than numpy, 30 % slower in float32."""\n'
-        "# the bunny: Hausdorff 1.49 h (2026-11-23); measured 117-138 steps\n"
+        "# the bunny: Hausdorff 1.49 h (2026-11-23); measured 117-138 steps; 0.70 h with it\n"
         "P = {'a': Param(1.0, 'the sweep: NOTES.md', float)}\n"
         "# why: see NOTES\n\n"
         "def f():\n"
@@ -137,7 +139,7 @@ def test_the_notes_and_figure_checks_find_one(tmp_path):
     notes = sorted(h.split(" (")[0] for h in documentation_hits([p], _NOTES, root=tmp_path))
     assert notes == ["m.py:1: NOTES", "m.py:3: NOTES", "m.py:4: NOTES"]
     figures = sorted(h.split(" (")[0] for h in documentation_hits([p], _FIGURE, root=tmp_path))
-    assert figures == ["m.py:1: 30 % slower", "m.py:1: 4× faster", "m.py:2: 2026-11-23", "m.py:2: Hausdorff 1.49 h",
-                       "m.py:2: measured 1"]
+    assert figures == ["m.py:1: 30 % slower", "m.py:1: 4× faster", "m.py:2: 0.70 h with", "m.py:2: 2026-11-23",
+                       "m.py:2: Hausdorff 1.49 h", "m.py:2: measured 1"]
     left = documentation_hits([p], _FIGURE, {("m.py", "4× faster"), ("m.py", "30 %")}, root=tmp_path)
-    assert [h.split(":")[1] for h in left] == ["2", "2", "2"]            # the allowed figures of line 1 are not
+    assert [h.split(":")[1] for h in left] == ["2", "2", "2", "2"]           # the allowed figures of line 1 are not

@@ -38,7 +38,7 @@ on a sphere at N = 33 the library takes minutes and returns 111k vertices.  The 
   accurate, none is half the time and less accurate;
 * the local searches, whose obstacles are ``batch_size`` spheres drawn at random: on a noisy volume most searches
   fail and run all ``local_search_iters``, and with the library's 10,000 obstacles ``check-method``'s noisy
-  sphere took far longer than with 3,000, the default (on the clean bunny faster, and as close).
+  sphere took far longer than with 3,000, the default (on the clean bunny faster too, and nearly as close).
 
 Radii (``redistance``).  The spheres need |φ| to be a distance; the adapter reads it and, when it is not one,
 gives the library the distance to φ's zero set instead, exactly as ``reach_for_the_spheres`` does (its module

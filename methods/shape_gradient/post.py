@@ -3,7 +3,7 @@ samples.
 
 Each is a geometric step on the flow's last iterate (nothing here changes where the flow went).  With the guard on,
 a step that makes faces meet keeps those faces' vertices back (the projection; the tip extension halves their moves
-first) or is dropped (the polish: a polish kept back in part leaves creases half done, worse than none).
+first) or is dropped (the polish: kept back in part, it did worse than dropped).
 """
 
 from __future__ import annotations

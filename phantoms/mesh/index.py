@@ -119,8 +119,8 @@ class TriangleIndex:
         feature (P,))`` (certified candidate search; see the module docstring).
 
         Memory is bounded by the chunk: a chunk with more than ``max_pairs`` (point, triangle) candidates is
-        split in two.  1M pairs is about 300 MB of work arrays: a larger chunk is hardly faster and needs
-        several times the memory on a mesh with long triangles."""
+        split in two.  1M pairs is about 300 MB of work arrays: a larger chunk is only slightly faster and
+        needs much more memory on a mesh with long triangles."""
         p = as_points(points)
         P = len(p)
         out_x = np.empty((P, 3))

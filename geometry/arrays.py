@@ -1,7 +1,7 @@
 """Array helpers the hot paths share.
 
 ``np.unique`` of numpy ≥ 2.3 takes a hash-based path when asked for the values only; on the large integer arrays meshes
-produce (edge keys, face indices) it is about 10× slower than sorting (570k int64 keys), and the shape-gradient flow
+produce (edge keys, face indices) it is much slower than sorting, and the shape-gradient flow
 calls it at every remesh and intersection check.
 """
 

@@ -20,9 +20,8 @@ The distance to a mesh
     far outside the mesh's box is searched the same way from the nearest cell.
 
 Why not pymeshlab's ``compute_scalar_by_distance_from_another_mesh_per_vertex``: it returns float32 and is
-slower on these queries; this search also releases the GIL, so the metrics run it beside numpy's work (timings
-and the command that measures them: docs/NOTES.md, "The exact distance query").  The tests compare this
-search with a brute-force numpy distance and with pymeshlab.
+slower on these queries; this search also releases the GIL, so the metrics run it beside numpy's work.  The
+tests compare this search with a brute-force numpy distance and with pymeshlab.
 """
 
 from __future__ import annotations

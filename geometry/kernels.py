@@ -41,8 +41,8 @@ except ImportError:  # pragma: no cover - numba is a dependency; the numpy refer
 
 #: the kernels run on arrays of at least this many vertices, faces or points (:func:`wanted`): a process
 #: loads each kernel's cached machine code once (a fraction of a second; the benchmark's cells come from a fork
-#: server that has loaded them); below this size numpy's per-call overhead is small enough.  The paper's
-#: 1,896-vertex flow (100 iterations, ~8 field samples each) is ~25 % faster compiled (docs/NOTES.md)
+#: server that has loaded them); below this size numpy's per-call overhead is small enough (the paper's
+#: 1,896-vertex flow is already faster compiled)
 MIN_SIZE = 1000
 
 __all__ = ["AVAILABLE", "MIN_SIZE", "wanted", "cg_csr", "ring_curvature", "trilinear", "trilinear_point",

@@ -5,7 +5,7 @@ input with it, the methods their initial meshes and output, the metrics score wi
 arrays: faces (F, 3) int, vertices (V, 3) float where positions matter.
 
 An undirected edge {a, b} is identified by the int64 key ``min·V + max``: one 1-D ``np.unique`` over the
-keys is ~4× faster than ``np.unique(axis=0)`` over index pairs and gives the same lexicographic order.
+keys is faster than ``np.unique(axis=0)`` over index pairs and gives the same lexicographic order.
 The 3F face edges are always listed slot by slot — every face's edge (0, 1), then every (1, 2), then every
 (2, 0) — so face ``f``'s edge in slot ``k`` is entry ``k·F + f``.
 """

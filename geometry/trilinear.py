@@ -28,7 +28,7 @@ def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, channels: 
     ``flat`` (N0·N1·N2, C): C grids of ``shape`` (N0, N1, N2), raveled in C order, all channels of a
     grid point adjacent in memory.  ``idx_t`` (3, P): fractional indices, already inside
     [0, N − 1] per axis (callers check or clamp).  Returns (C, P).  One ``np.take`` fetches the 8
-    corner rows of every point (~13× faster than fancy indexing with numpy 2.x); the weights are 8
+    corner rows of every point (much faster than fancy indexing with numpy 2.x); the weights are 8
     products of coordinate arrays.  Shared by :meth:`phantoms.volume.Volume.sample` and the shape-gradient flow's
     inner loop.
 

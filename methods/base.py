@@ -47,7 +47,7 @@ __all__ = [
 
 ENTRY_POINT_GROUP = "levelset_bench.methods"
 #: the plug-ins' entry points per sys.path, scanned once: reading every distribution's metadata is too slow for
-#: each get_method (docs/NOTES.md)
+#: each get_method
 _ENTRY_POINTS: dict[tuple, tuple] = {}
 
 #: built-in methods: name -> "module:Class" (imported lazily so one broken adapter cannot break the rest)

@@ -116,7 +116,7 @@ class CGALMesher(Method):
     }
     requires = {"CGAL": INSTALL}
 
-    #: the cost model (docs/NOTES.md, "The field's reference meshers"): CPU seconds with the default bounds,
+    #: the cost model: CPU seconds with the default bounds,
     #: the clean sphere and bunny at N = 32–96 together (the bunny is the dearer)
     COST = PowerLaw(a=0.14, p=2.0)
 

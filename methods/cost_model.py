@@ -2,9 +2,9 @@
 
 A method may override :meth:`methods.Method.estimate_seconds` (``None``: no model, the default); the grid runner
 refuses a cell whose estimate exceeds its time limit (``bench.run.estimate``) instead of letting it run for an
-hour to be killed.  The built-in models are :class:`PowerLaw` fits of measured run times (docs/NOTES.md,
-"Cost models", and ``python -m bench.perf.cost_models``): a model is an order of magnitude, not a stopwatch —
-the measurements behind them spread by a factor of about 2 with the phantom and the machine's load.
+hour to be killed.  The built-in models are :class:`PowerLaw` fits of run times (``python -m
+bench.perf.cost_models`` measures them): a model is an order of magnitude, not a stopwatch — the measurements
+behind them spread with the phantom and the machine's load.
 """
 
 from __future__ import annotations

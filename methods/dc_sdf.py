@@ -16,8 +16,8 @@ What the adapter changes — nothing of the method:
 * the library's quads are split along their shorter diagonal (:func:`methods.dual_contouring.split_quads`)
   and the faces flipped when the enclosed volume is negative;
 * ``outer_iterations`` defaults to 1, not the library's 100: each outer iteration of gpytoolbox's
-  implementation costs about as much as a whole marching-cubes cell a hundred times over (docs/NOTES.md, "The
-  field's reference meshers"), so the library's defaults do not fit a grid of cells; ``preset = "paper"`` runs
+  implementation costs about as much as a whole marching-cubes cell a hundred times over, so the library's
+  defaults do not fit a grid of cells; ``preset = "paper"`` runs
   them (100 outer × 100 inner iterations), and the cost model lets the grid runner refuse such a cell up
   front when it would pass the cell's time limit.
 
@@ -77,7 +77,7 @@ class DCSDF(Method):
                         type=str, choices=("suite", "paper")),
     }
 
-    #: the cost model (docs/NOTES.md, "The field's reference meshers"): CPU seconds of the initial mesh
+    #: the cost model: CPU seconds of the initial mesh
     #: (``outer_iterations = 0``, N = 32–96) and of one outer iteration of 100 inner ones (the default's fit at
     #: N = 32–64 less the initial mesh), the clean sphere and bunny together (the sphere is the dearer)
     COST_BASE = PowerLaw(a=0.33, p=2.9)

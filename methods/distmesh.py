@@ -186,13 +186,12 @@ class DistMesh(Method):
                                  "stop the nodes from oscillating there)", type=int, min=1, max=20),
         "history": Param(True, "record the max move of every iteration in info['max_move_history']",
                          type=bool),
-        "compiled": Param(True, "run the iterations compiled (methods/distmesh_loop.py, numba; faster: "
-                                "docs/NOTES.md); "
+        "compiled": Param(True, "run the iterations compiled (methods/distmesh_loop.py, numba; faster); "
                                 "False: the numpy form, the reference (the same steps; nodes equal to rounding)",
                           type=bool),
     }
 
-    #: the cost model (docs/NOTES.md, "Cost models"): CPU seconds, fitted to the clean sphere and bunny at
+    #: the cost model: CPU seconds, fitted to the clean sphere and bunny at
     #: N = 24–128 (the nodes grow with the surface: q = 1 is assumed, not fitted)
     COST = PowerLaw(a=0.465, p=2.51, q=1.0)
 

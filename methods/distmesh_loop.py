@@ -3,9 +3,9 @@ projection onto φ = 0 and the stopping tests, point by point.
 
 The numpy form of one iteration (:meth:`methods.distmesh.DistMesh` with ``compiled=False``) is about fifteen array
 operations on ~2,000 nodes, bound by numpy's per-call overhead, and a run takes 1,000–2,000 iterations.  Here an
-iteration is one pass over the bars and one over the nodes (about 40× faster).  Every step is the numpy form's, in the
-same order per node and per bar; sums run in another order, so the nodes agree to rounding (the tests compare both
-forms).
+iteration is one pass over the bars and one over the nodes (no per-call overhead).  Every step is the numpy
+form's, in the same order per node and per bar; sums run in another order, so the nodes agree to rounding (the
+tests compare both forms).
 """
 
 from __future__ import annotations

@@ -29,14 +29,14 @@ sign-changing grid edge uses, in each of its four cells, the vertex of the patch
 Each quad (or the polygon of a quad with a segment vertex) is split into triangles along its shorter
 diagonal (a fan from the segment vertex).
 
-Cost.  gpytoolbox's implementation is slow: its default 100 outer iterations take minutes on a 32³ grid
-(docs/NOTES.md, "Cost models"), growing with the samples and the surface.  Two settings keep it usable:
+Cost.  gpytoolbox's implementation is slow: its default 100 outer iterations take minutes on a 32³ grid,
+growing with the samples and the surface.  Two settings keep it usable:
 
 * ``iterations`` (default 10, the library's 100 is allowed): on the suite's phantoms the vertex error is
   settled after a few iterations (the iterations move the 95th-percentile distance by a few hundredths of h);
 * ``samples = "band"`` (default): the method sees only the sub-box of the grid that holds every sample with
-  |φ| < ``band`` · h (plus one sample of margin) — the cells away from the surface carry no vertex; ≈ 2–5×
-  faster at N = 32–48.  The optimisation does read the samples of that box, so the band changes the result
+  |φ| < ``band`` · h (plus one sample of margin) — the cells away from the surface carry no vertex, so it
+  is several times faster.  The optimisation does read the samples of that box, so the band changes the result
   slightly (a few hundredths of h at N = 24–48); ``samples = "all"`` gives the whole grid as the paper does.
 
 Coordinates: the grid vertices are passed in world coordinates (``origin + index · spacing``, anisotropic
@@ -128,7 +128,7 @@ class DualContouring(Method):
                       min=1.0, max=100.0),
     }
 
-    #: the cost model (docs/NOTES.md, "Cost models"): CPU seconds, fitted to the clean sphere and bunny at
+    #: the cost model: CPU seconds, fitted to the clean sphere and bunny at
     #: N = 24–64 (the vertices, and the global solve, grow with the crossed cells: q = 1 is assumed, not fitted)
     COST = PowerLaw(a=52.6, p=2.67, q=1.0)
 

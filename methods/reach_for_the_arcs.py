@@ -16,7 +16,7 @@ batch_size = 10000`` it returns exactly what ``gpytoolbox.reach_for_the_arcs(U, 
 on an SDF whose cloud stays inside the grid box (tests/test_methods_reach_for_the_arcs.py; the two corrections
 below).
 
-Cost, and the defaults (measured: docs/NOTES.md, "reach_for_the_arcs: cost and defaults").  Called as it is
+Cost, and the defaults.  Called as it is
 on a sphere at N = 33 the library takes minutes and returns 111k vertices.  The time goes to
 
 * the rasterisation, which marks, for every sphere, the cells of a res³ grid inside it: a
@@ -38,8 +38,7 @@ on a sphere at N = 33 the library takes minutes and returns 111k vertices.  The 
   accurate, none is half the time and less accurate;
 * the local searches, whose obstacles are ``batch_size`` spheres drawn at random: on a noisy volume most searches
   fail and run all ``local_search_iters``, and with the library's 10,000 obstacles ``check-method``'s noisy
-  sphere took ten times as long as with 3,000, the default (the clean bunny at N = 32 and 48 2–3× faster,
-  within 0.15 h).
+  sphere took far longer than with 3,000, the default (on the clean bunny faster too, and nearly as close).
 
 Radii (``redistance``).  The spheres need |φ| to be a distance; the adapter reads it and, when it is not one,
 gives the library the distance to φ's zero set instead, exactly as ``reach_for_the_spheres`` does (its module
@@ -52,7 +51,7 @@ there the first step finds "tangency" points off the surface, and PSR closes a s
 (``check_volume``), so the cloud points more than h / 2 outside the grid box are dropped before every PSR solve
 (``info["points_outside_box"]``).
 
-The rasterisation runs on the CPU (``rasterizer = "cpu"``): the library's GPU path (WebGPU) is 4× slower on a
+The rasterisation runs on the CPU (``rasterizer = "cpu"``): the library's GPU path (WebGPU) is slower on a
 machine without a GPU and prints errors; ``"auto"`` lets the library choose.
 
 Reported in ``info``: ``cloud_points`` (after the first step) and ``fine_tuned_points``, ``psr_depth``,
@@ -133,7 +132,7 @@ class ReachForTheArcs(Method):
                                     "same surface)", type=float, min=0.0, max=16.0),
         "fine_tune_iters": Param(1, "fine-tuning iterations, each one screened-Poisson solve and a local search "
                                     "on every sphere the surface crosses or misses (the library's default is 3: "
-                                    "twice the time again, see docs/NOTES.md)", type=int, min=0, max=50),
+                                    "more time for little gain)", type=int, min=0, max=50),
         "batch_size": Param(3000, "spheres drawn at random as the obstacles of each local search and "
                                   "fine-tuning step (the library's batching; its default 10000 is 2-10× the time, "
                                   "most on noisy volumes; 0 = all)", type=int, min=0, max=10**8),

@@ -55,8 +55,7 @@ Noise and patience.  The library stops when every sphere is tangent within ``tol
 progress at the finest edge length.  On a noisy volume the first never happens, so every noisy cell pays the
 100 stalled steps, over which the distances barely change.  ``patience`` stops sooner, at somewhat worse
 distances on the hard shapes, so the grids keep the library's 100; they keep ``tol`` = 0.01 too (a looser one
-stops the clean sphere off the zero set).  The figures behind these choices: docs/NOTES.md,
-"reach_for_the_spheres: the adapter's choices".
+stops the clean sphere off the zero set).
 
 Limits (the library's docstring and the paper): the result has the initial mesh's topology (genus 0); deep,
 narrow concavities (cortical sulci) are reached slowly and may self-intersect.
@@ -179,15 +178,15 @@ class ReachForTheSpheres(Method):
                                "docstring)", type=int, min=1, max=100),
     }
 
-    #: the cost model (docs/NOTES.md, "Cost models"): CPU seconds per flow step, fitted to the runs of the clean
+    #: the cost model: CPU seconds per flow step, fitted to the runs of the clean
     #: sphere and bunny at N = 32–64 and the noisy sphere at N = 64–192; the flow takes ≈ patience + 30 steps
     COST = PowerLaw(a=0.099, p=3.5, q=0.0, floor=0.0933)
     STEPS_OVER_PATIENCE = 30
 
     def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:
         """Steps × seconds per step, the steps those of a surface that is not tangent to every sphere (a noisy
-        volume, a real shape: the flow stops after ``patience`` stalled steps; measured 117–138 with the default
-        100) — the clean sphere and ellipsoid converge by tangency in ≈ 15 steps, several times sooner.  None
+        volume, a real shape: the flow stops about :attr:`STEPS_OVER_PATIENCE` steps after ``patience`` stalled
+        ones) — the clean sphere and ellipsoid converge by tangency in ≈ 15 steps, several times sooner.  None
         with ``samples = 'band'`` or a ``batch_size`` other than its default, which were not measured."""
         if self.config["samples"] != "all" or self.config["batch_size"] != self.params["batch_size"].default:
             return None

@@ -129,8 +129,8 @@ class VDB(Method):
     }
     requires = {"lagrange": INSTALL}
 
-    #: the cost model (docs/NOTES.md, "The field's reference meshers"): CPU seconds, the clean sphere and bunny
-    #: at N = 32–96 together
+    #: the cost model: CPU seconds, fitted to the clean sphere and bunny at N = 32–96 together
+    #: (``python -m bench.perf.cost_models``)
     COST = PowerLaw(a=0.012, p=1.6)
 
     def estimate_seconds(self, shape, n_crossing_cells: int | None = None) -> float | None:

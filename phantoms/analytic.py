@@ -156,7 +156,8 @@ class Ellipsoid(Phantom):
 
         x_i = e_i² y_i / (e_i² + t) with t the root of F(t) = Σ (e_i y_i / (e_i² + t))² − 1 on
         (−min e², ∞), where F is strictly decreasing and convex: safeguarded Newton in a bracket that always
-        holds the root (:meth:`_root`); the point is on the ellipsoid to ~1e-13 (bisection gave ~1e-14, 5× slower).
+        holds the root (:meth:`_root`); the point is on the ellipsoid to ~1e-13 (bisection: slightly closer, but
+        slower).
         The degenerate case (the query lies on the plane(s) of the smallest semi-axis, inside, where the root sits
         at the end of the bracket) is handled in closed form.
         """

@@ -86,12 +86,11 @@ def test_the_remesher_keeps_only_the_tips_the_carved_hull_holds():
     x = np.asarray(ico.vertices, float)
     ops = MeshOperators(np.asarray(ico.faces), len(x))
     geo = ops.geometry(x)
-    settings = SimpleNamespace(keep_tips=False, tip_curvature=0.3)
+    settings = SimpleNamespace(tip_curvature=0.3)
     held = SimpleNamespace(limits=lambda p: np.where(p[:, 0] > 0, 0.0, 1.0))   # held on the side x > 0
     kept = remesh_keep(ops, geo, _H, settings, held)
     assert len(kept) > 0 and np.all(x[kept, 0] > 0) and len(kept) == int((x[:, 0] > 0).sum())
     assert len(remesh_keep(ops, geo, _H, settings, None)) == 0
-    assert len(remesh_keep(ops, geo, _H, SimpleNamespace(keep_tips=True, tip_curvature=0.3), None)) == len(x)
 
 
 def test_a_limb_between_sample_rows_enters_the_start_with_start_level_and_is_kept():

@@ -63,10 +63,9 @@ def test_auto_values_follow_the_volume():
     assert resolve(ShapeGradient(sign_guard=False)).sign_guard is False
 
 
-def test_coarse_to_fine_runs_the_data_term_first():
+def test_one_stage_runs_the_configured_beta_and_edge_length():
     assert resolve(ShapeGradient(edge_length=0.7)).stages == (Stage(1.0, 0.7),)
-    assert resolve(ShapeGradient(coarse_to_fine=True, beta=0.5)).stages == (Stage(0.0, 0.5), Stage(0.5, 0.5))
-    assert len(resolve(ShapeGradient(coarse_to_fine=True, remesh_every=0)).stages) == 1   # fixed connectivity
+    assert resolve(ShapeGradient(beta=0.5, edge_length=0.5)).stages == (Stage(0.5, 0.5),)
 
 
 def test_the_settings_are_frozen_and_the_reported_parameters_a_copy():
@@ -106,16 +105,3 @@ def test_auto_edge_length_is_a_voxel_on_a_mask_and_half_a_voxel_on_a_level_set()
     assert resolve(ShapeGradient(edge_length=0.8), kind="mask").stages[0].edge_length == 0.8   # a number wins
     with pytest.raises(InputError, match="edge_length"):
         ShapeGradient(edge_length=0.05)
-
-
-def test_the_noise_term_of_a_pre_smoothed_phi_is_the_filtered_noise():
-    """With ``presmooth_phi`` the data term reads the filtered volume: its noise variance is the filter's gain
-    squared times σ², measured on drawn noise (the filtered field is correlated: interpolation barely lowers it)."""
-    from scipy.ndimage import gaussian_filter
-
-    st = FlowSettings.resolve(ShapeGradient(presmooth_phi=True).config, h=0.1, clean=False, noise=0.03,
-                              presmooth=1.0, start_smooth=0.0, join_below=0.5, remesh_start=True)
-    noise = np.random.default_rng(0).normal(0.0, 0.03, (64, 64, 64))
-    drawn = float(np.var(gaussian_filter(noise, 1.0, mode="nearest")[8:-8, 8:-8, 8:-8]))
-    assert st.noise_variance == pytest.approx(drawn, rel=0.1)
-    assert st.noise_variance < 0.1 * (2 / 3) ** 3 * 0.03 ** 2

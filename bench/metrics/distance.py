@@ -10,8 +10,7 @@ Two directed distance sets:
 
 The exact point-to-triangle distance is :func:`geometry.closest.point_mesh_distance` (a compiled uniform-grid
 search, float64), not pymeshlab's ``compute_scalar_by_distance_from_another_mesh_per_vertex`` (VCG: float32, and
-slower) nor trimesh's ``proximity.closest_point`` (tens of times slower); the timings and the command that
-measures them are in docs/NOTES.md, "The exact distance query".  The tests compare it with pymeshlab (relative
+slower) nor trimesh's ``proximity.closest_point`` (much slower).  The tests compare it with pymeshlab (relative
 difference ≤ 1e-7, pymeshlab's float32) and with a brute-force numpy distance.
 
 Statistics (see :func:`distance_metrics`): maxima use every point of a set (mesh vertices included, so a

@@ -34,8 +34,8 @@ __all__ = [
 ]
 
 #: at most this many grid samples of the band |φ| < 3h enter the SDF agreement.  Each costs an exact
-#: point-to-mesh distance at up to 3h from the surface (four times an on-surface point's); with 10,000
-#: the block added 15-24 % to a cell's scoring at N = 96 (docs/NOTES.md), with 5,000 about 8 %
+#: point-to-mesh distance at up to 3h from the surface (four times an on-surface point's): the cap keeps the block
+#: a small part of a cell's scoring
 BAND_SAMPLES = 5_000
 #: at most this many of the mesh's surface samples are read for |φ| (i.i.d., so the first ones are a uniform subset)
 MESH_SAMPLES = 25_000

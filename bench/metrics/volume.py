@@ -5,7 +5,7 @@ IoU = |A ∩ B| / |A ∪ B|, A the solid the mesh bounds, B the true solid, esti
 [lo − 2h, hi + 2h], lo/hi the bounds of the mesh vertices and of the truth's surface samples.  The cells of
 one column (fixed i, j) share their point's (x, y) — still one uniform point per cell, so the estimate stays
 unbiased — which lets a closed mesh's inside be read off the column's piercings in one pass
-(:func:`geometry.raster.column_winding`, ~50× faster than a winding-number query per point).
+(:func:`geometry.raster.column_winding`, far cheaper than a winding-number query per point).
 
 * inside the mesh: |winding number| ≥ ½ — for a closed mesh the exact count of the column's piercings above
   the point, else (an open mesh, invalid anyway; its metrics are kept) gpytoolbox's generalised winding

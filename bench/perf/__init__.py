@@ -17,7 +17,7 @@ it (before, between its rounds, after): the speed of a shared virtual machine dr
 
 Wall-clock ratios are not enough on a shared machine: other processes slow a long benchmark and a short
 reference round by different amounts depending on when they run.  CPU time is charged only while the process
-runs, so the CPU-time ratio moves much less under such load (docs/NOTES.md: measured spreads); the gate compares
+runs, so the CPU-time ratio moves much less under such load; the gate compares
 ``cpu_ratio`` (``--metric cpu``, the default) and falls back to ``ratio`` for a benchmark without CPU times on
 both sides.  What CPU time cannot see — time spent waiting — is in the wall-clock column, for information
 (``--metric wall`` gates on it).  The suite runs pinned to one CPU (:func:`run_suite` ``cpus``), with the native

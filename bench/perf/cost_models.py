@@ -8,8 +8,7 @@ One line of JSON per (method, phantom, N): the crossing cells of the clean volum
 time (``method.reconstruct`` alone, in this process, after a warm-up run at N = 16 that pays the one-time
 compilation), its iterations, the model's estimate for the same volume and the load average when the run ended.
 The models are fitted to the CPU time: on a shared machine the wall time of a single-threaded run grows with the
-load (about 4× at a load of 8 on 2 cores), its CPU time much less, and on a quiet machine the two agree.
-docs/NOTES.md ("Cost models") holds a run of it.
+load, its CPU time much less, and on a quiet machine the two agree.
 """
 
 from __future__ import annotations

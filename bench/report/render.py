@@ -3,7 +3,7 @@
 Meshes are drawn with faces coloured by mean curvature (paraboloid fit over a 2h neighbourhood, computed in
 the worker) with a colour strip; the callers share the camera and the colour scale across a table row.
 Rendering is an orthographic painter's algorithm filled by the compiled :func:`bench.report.picture.rasterize`
-(≈ 60× faster than matplotlib's Agg on meshes of 10⁵ faces) and stored as WebP; energy curves are SVG.
+(much faster than matplotlib's Agg on large meshes) and stored as WebP; energy curves are SVG.
 """
 
 from __future__ import annotations

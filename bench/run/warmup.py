@@ -3,8 +3,7 @@
 Every cell runs in a fresh process forked from a server that preloaded the suite.  A fresh process still pays,
 at its first call of each step, for what Python and numba do lazily: numba's typing context and the machine
 code of each compiled kernel (loaded from the on-disk cache), the modules imported inside functions, scipy's
-and scikit-image's lazily loaded parts — more than the whole method on most cells of the paper's grid
-(docs/NOTES.md, "The fork server's warm-up").
+and scikit-image's lazily loaded parts — more than the whole method on most cells of the paper's grid.
 
 Importing this module runs :func:`warm`: the steps of a cell on a tiny volume (N = 24) and on a mesh big enough
 (≥ :data:`geometry.kernels.MIN_SIZE` faces) for the compiled kernels, in the fork server, before it forks the

@@ -35,16 +35,17 @@ One iteration, every step vectorised over all vertices/faces (the only Python lo
 7. **energy** – E of the new mesh (from the accepted trial); stop when its relative change stays below
    ``tol`` or the largest normal move below ``move_tol`` voxels for 3 iterations.
 
-After the last iteration, on clean volumes (``polish='auto'``; ``'on'``/``'off'`` force it), the **crease
-polish** (:func:`crease_polish`) — a geometric post-step, not part of the descent: edges whose endpoints'
-∇φ (at their Newton projections onto φ = 0) differ by more than ``polish_angle`` (45°) cross a sharp crease;
-their endpoints are Newton-projected onto φ = 0 and one endpoint of each such edge is moved onto the crease
-(the dual-contouring quadric of its 1-ring's tangent planes).  Why: the discrete energy prefers to bridge a
-concave crease (near the kink the interpolated ∇φ blends both sides, so faces lying in the groove pay
-β|∇_Γφ|²) — the fused spheres at N = 96 end at 2.5 h without it, 0.70 h with it (marching cubes 0.83 h).
-Smooth surfaces have no crease edges: the polish leaves them untouched.  Off on noisy volumes: at 20–30 dB
-it finds spurious creases and roughens the mesh.  The connectivity never changes; ``info['snapshots']`` are
-flow iterates (before the polish), ``info['polish']`` records what it did (counts, the energy after it).
+After the last iteration, the post-steps (:mod:`.post`; geometric steps, not part of the descent): on clean
+volumes (``polish='auto'``; ``'on'``/``'off'`` force it) the **crease polish** (:func:`crease_polish`) — edges
+whose endpoints' ∇φ (at their Newton projections onto φ = 0) differ by more than ``polish_angle`` (45°) cross a
+sharp crease; their endpoints are Newton-projected onto φ = 0 and one endpoint of each such edge is moved onto
+the crease (the dual-contouring quadric of its 1-ring's tangent planes).  Why: the discrete energy prefers to
+bridge a concave crease (near the kink the interpolated ∇φ blends both sides, so faces lying in the groove pay
+β|∇_Γφ|²), which leaves a fused-spheres shape far off its crease without it.  Smooth surfaces have no crease
+edges: the polish leaves them untouched.  Off on noisy volumes: there it finds spurious creases and roughens the
+mesh.  Then the Newton projection onto φ = 0 (``projection``), the tip extension (``extend_tips``) and, on a
+signed distance, the reach to the samples (``reach_samples``).  ``info['snapshots']`` are flow iterates (before
+the post-steps), ``info['polish']`` records what the polish did (counts, the energy after it).
 
 Stop reasons: ``converged``, ``max_iter``, ``line_search_floor`` (no decrease of E down to a 1e-4-voxel
 move: the gradient no longer predicts a decrease of the discrete energy), ``diverged`` (non-finite

@@ -133,13 +133,13 @@ class CarvedHull:
 
 
 def remesh_keep(ops, geo, h: float, settings, carve: "CarvedHull | None") -> np.ndarray:
-    """The vertices a remesh keeps in place: with ``keep_tips`` every tip of a sharply convex part (mean
-    curvature above ``tip_curvature`` per voxel); with ``hold_carved`` alone the tips the carved hull holds (no
-    inward move allowed: no ball says the space there is empty) — the remesher's collapses would otherwise
-    shorten a thin limb that the flow may not shorten; else none."""
-    if not settings.keep_tips and carve is None:
+    """The vertices a remesh keeps in place: with ``hold_carved`` the tips of sharply convex parts (mean curvature
+    above ``tip_curvature`` per voxel) that the carved hull holds (no inward move allowed: no ball says the space
+    there is empty) — the remesher's collapses would otherwise shorten a thin limb that the flow may not shorten;
+    else none."""
+    if carve is None:
         return np.zeros(0, dtype=np.int64)
     tips = tip_vertices(ops, geo, h, settings.tip_curvature)
-    if settings.keep_tips or len(tips) == 0:
+    if len(tips) == 0:
         return tips
     return tips[carve.limits(geo.vertices[tips]) <= 0.0]

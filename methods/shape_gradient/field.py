@@ -15,7 +15,7 @@ __all__ = ["GridSampler", "FLOAT32_ABOVE_BYTES", "stack_dtype", "as_field", "est
 
 _NOISE: "weakref.WeakKeyDictionary[Volume, float]" = weakref.WeakKeyDictionary()
 
-#: per volume, the channel grids of its pre-smoothed versions {(σ, presmooth_phi): {order: (N, C)}}, so that
+#: per volume, the channel grids of its pre-smoothed versions {σ: {order: (N, C)}}, so that
 #: repeated runs on one volume filter and differentiate it once (freed with the volume)
 _SMOOTHED: "weakref.WeakKeyDictionary[Volume, dict]" = weakref.WeakKeyDictionary()
 
@@ -55,8 +55,8 @@ _N_CHANNELS = {0: 1, 1: 4, 2: 10}   # φ; φ, ∇φ; φ, ∇φ, the Hessian's si
 #: above this many bytes in float64 (N ≈ 150 for a cube) the flow's interpolation grids are stored in single
 #: precision (computed in double): ten grids of N³ are the flow's largest array (1.34 GB in float64 at N = 256,
 #: beside a 0.13 GB volume); rounding them moves a sampled value by 6e-8 of its size, far below trilinear
-#: interpolation's own O(h²) error (docs/NOTES.md: results against float64 grids).  Below it they stay float64:
-#: the compiled gather reads float32 ~30 % slower, and memory is no concern there
+#: interpolation's own O(h²) error.  Below it they stay float64: the compiled gather reads float32 more slowly,
+#: and memory is no concern there
 FLOAT32_ABOVE_BYTES = 2 ** 28
 
 
@@ -148,19 +148,19 @@ def as_field(field):
 
 
 
-def smoothed_field(volume: Volume, sigma: float, presmooth_phi: bool = False) -> GridSampler:
-    """The sampler: the volume itself, or its grids after Gaussian pre-smoothing (σ voxels) — by default
-    only the derivative grids, φ itself stays the data's (``presmooth_phi=False``)."""
+def smoothed_field(volume: Volume, sigma: float) -> GridSampler:
+    """The sampler: the volume itself, or with its derivative grids ∇φ, D²φ computed after Gaussian pre-smoothing
+    (σ voxels); φ itself stays the data's, so the data term sees the data's zero set, not the smoothed volume's
+    shrunken one."""
     if sigma <= 0:
         return GridSampler(volume)
     cache = _SMOOTHED.setdefault(volume, {})
-    key = (float(sigma), bool(presmooth_phi))
+    key = float(sigma)
     if key not in cache:
         from scipy.ndimage import gaussian_filter
         smooth = volume.with_values(gaussian_filter(volume.values, sigma=sigma, mode="nearest"))
         ch2 = smooth.channels(2, dtype=stack_dtype(volume.shape)).reshape(-1, 10)   # owned by ``smooth``
-        if not key[1]:
-            ch2[:, 0] = volume.values.ravel()
+        ch2[:, 0] = volume.values.ravel()
         cache[key] = {2: ch2}
         del smooth                                               # its own cache goes with it
     return GridSampler(volume, channels=cache[key])

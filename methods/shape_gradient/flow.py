@@ -69,7 +69,7 @@ class ShapeGradientFlow:
         self.init_facts: dict = dict(init_facts or {})
         self.iteration = 0
         self.remesh_every = settings.remesh_every
-        self.stages = list(settings.stages)             # coarse to fine: the stages still to come, first first
+        self.stages = list(settings.stages)             # the stages still to come, first first
         self.stage_starts: list[dict] = []
         self._enter_stage(self.stages.pop(0))
         self.state = evaluate_state(field, ops, np.asarray(x, float), self.alpha, self.beta, self.timings,
@@ -85,7 +85,9 @@ class ShapeGradientFlow:
         self._safe = None                               # (x, ops, state) of the last intersection-free check
         self.stop: str | None = None
         self.message = ""
-        self._calm = self._still = 0
+        # the stop tests' counters: consecutive iterations whose relative energy change is below tol, and whose
+        # largest normal move is below move_tol voxels
+        self._flat_energy_iterations = self._small_move_iterations = 0
         self._hold_stop = False                         # no stop test until a remesh (see _remesh_and_guard)
         self.n_backtracks = 0
         self.n_rejected_folds = 0
@@ -126,7 +128,7 @@ class ShapeGradientFlow:
         if not self.stages:
             return self._end(reason, message)
         self._enter_stage(self.stages.pop(0))
-        self._calm = self._still = 0
+        self._flat_energy_iterations = self._small_move_iterations = 0
         self._move_prev, self._grow = self.max_move, False
         if self.remesh_every:
             self._remesh_and_guard(self.iteration)
@@ -268,12 +270,15 @@ class ShapeGradientFlow:
         held = self._hold_stop        # the start kept unremeshed: marching cubes' slivers move slowly until a remesh
         moved = self._normal_move if self._normal_move is not None else move
         self._normal_move = None
-        self._calm, self._still = (0, 0) if held else (self._calm + 1 if rel < st.tol else 0,
-                                                       self._still + 1 if moved < st.move_tol * h else 0)
-        if self._calm >= _CONVERGE_PATIENCE:
+        if held:
+            self._flat_energy_iterations = self._small_move_iterations = 0
+        else:
+            self._flat_energy_iterations = self._flat_energy_iterations + 1 if rel < st.tol else 0
+            self._small_move_iterations = self._small_move_iterations + 1 if moved < st.move_tol * h else 0
+        if self._flat_energy_iterations >= _CONVERGE_PATIENCE:
             return self._settle("converged", f"iteration {it}: relative energy change below tol = {st.tol:g} "
                                           f"for {_CONVERGE_PATIENCE} iterations")
-        if self._still >= _CONVERGE_PATIENCE:
+        if self._small_move_iterations >= _CONVERGE_PATIENCE:
             return self._settle("converged", f"iteration {it}: largest normal move below move_tol = "
                                           f"{st.move_tol:g} voxels for {_CONVERGE_PATIENCE} iterations")
         return True
@@ -320,7 +325,7 @@ class ShapeGradientFlow:
         # all the rounds (marching cubes' slivers); a later mesh is near isotropic: one round
         rounds = self.settings.remesh_iterations if it == 0 else 1
         before = (self.state.x, self.ops, self.state)
-        # keep_tips / hold_carved: (held) tips stay (the start, marching cubes' slivers, is remeshed freely)
+        # hold_carved: held tips stay (the start, marching cubes' slivers, is remeshed freely)
         keep = {"keep": remesh_keep(self.ops, self.state.geo, self.h, self.settings, self.carve)} if it > 0 else {}
         out = remesh(self.state.x, self.ops.faces, self.edge_length, rounds, closed=it > 0, **keep)
         if out is None:
@@ -331,7 +336,7 @@ class ShapeGradientFlow:
             self.remeshes.append((it, len(x)))
             # a new mesh: the line search starts again from the step cap, the stop tests count afresh
             self._move_prev, self._grow, self._hold_stop = self.max_move, False, False
-            self._calm = self._still = 0
+            self._flat_energy_iterations = self._small_move_iterations = 0
         self.timings["remesh"] += time.perf_counter() - t0
         if not self._guard(it) and self._safe is None and out is not None:   # an unrepairable remeshed start:
             self.remesh_refused += 1                                           # the start as grown is safe

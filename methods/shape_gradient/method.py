@@ -31,8 +31,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # a tolerance, so its tables' rows 50 and 100 are reached unless the line search runs out of steps.
     "paper": {"gradient": "paper", "precondition": "none", "relax": 0.0, "presmooth": 0.0,
               "curvature": "paper", "polish": "off", "init": "sphere", "remesh_every": 0, "guard": False,
-              "extend_tips": False,
-              "coarse_to_fine": False, "beta": 1.0,
+              "extend_tips": False, "beta": 1.0,
               "projection": "off", "max_iter": 100, "tol": 0.0, "move_tol": 0.0, "l2_fallback": False,
               "reach_samples": False},
     # the paper's experiment (the same Γ0, β, iteration count and fixed connectivity) run by the suite's
@@ -40,7 +39,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # on clean volumes, the crease polish and final projection — as they were when its rows were measured: no
     # plain-gradient step past the line-search floor and no reach to the samples, which came later (its rows stay
     # comparable)
-    "paper+fixes": {"init": "sphere", "remesh_every": 0, "coarse_to_fine": False, "beta": 1.0,
+    "paper+fixes": {"init": "sphere", "remesh_every": 0, "beta": 1.0,
                     "max_iter": 100, "tol": 0.0, "move_tol": 0.0, "l2_fallback": False,
                     "reach_samples": False},
 }
@@ -105,7 +104,7 @@ class ShapeGradient(Method):
         "beta": Param("auto", "weight β of the alignment term |∇_Γφ|² (wants n ∥ ∇φ); 0 = the paper's ablation; "
                       "'auto' = 1 on clean volumes, 0.01 on noisy ones (estimated noise ≥ 0.05 voxel), where ∇φ is "
                       "read from the pre-smoothed volume: in it voxel-thin parts (the bunny's ears) have merged, and "
-                      "β = 1 pulls them off (the sweep: docs/NOTES.md)", object),
+                      "β = 1 pulls them off", object),
         "gradient": Param("full", "'full': the true shape gradient of E (docs/METHOD.md, with the divergence term); "
                           "'paper': the paper's eq. (dJ_finel) without it", str, choices=("full", "paper")),
         "step": Param("capped", "'capped': largest move capped at max_move voxels, then halved until E "
@@ -133,10 +132,8 @@ class ShapeGradient(Method):
                               "data's own values); 'auto' = the presmooth σ", object),
         "unbias": Param(True, "on noisy volumes, subtract the estimated noise variance from φ² in the data term: "
                         "trilinear φ of noise with std σ has E[φ²] = φ_true² + (2/3)³σ² on average, so ∫αφ² carries "
-                        "(2/3)³ασ² × area, a mean-curvature flow that shrinks thin parts and tips (docs/NOTES.md)",
+                        "(2/3)³ασ² × area, a mean-curvature flow that shrinks thin parts and tips",
                         bool),
-        "presmooth_phi": Param(False, "pre-smooth φ itself too (True: the data term then sees the shrunken "
-                               "level set of the smoothed volume), or only the derivative grids (False)", bool),
         "polish": Param("auto", "crease polish of the final mesh (crease_polish): vertices next to sharp creases "
                         "of the level set are Newton-projected onto φ = 0 and one endpoint of every edge "
                         "crossing a crease is put on the crease; smooth regions are not touched. 'auto': on "
@@ -175,24 +172,20 @@ class ShapeGradient(Method):
         "close_pinholes": Param(True, "init='genus0' on a noisy volume: where noise lifted one sample of a thin sheet "
                                 "(an ear, a wing) above 0, the growth would stop at the pinhole and the start lose "
                                 "the tip beyond it; close such holes — one sample below max(noise std, 1/4 voxel), "
-                                "next to the samples left out (methods.shape_gradient.pinholes; docs/NOTES.md). "
+                                "next to the samples left out (methods.shape_gradient.pinholes). "
                                 "Wider gaps (sulcal banks touching) stay open", bool),
         "sign_guard": Param(True, "with the genus-0 start on a clean volume: at every remesh, count the grid samples "
                             "that are clearly inside or outside (|φ| > h/4, within 3 h of φ = 0) but on the wrong side "
                             "of the surface (inside samples it covered and no longer covers, outside samples it "
                             "covers; inside samples the start missed may be grown into); when the flow puts more "
                             "there than its start did (+2), it is cutting a part of the object (a voxel-thin ear "
-                            "on a coarse grid; docs/NOTES.md), so the mesh goes back to the accepted checkpoint with "
+                            "on a coarse grid), so the mesh goes back to the accepted checkpoint with "
                             "the fewest samples on the wrong side (the latest of equals) and the run stops "
                             "(stop_reason 'sign_guard'); info['sign_guard'] lists (iteration, count)", bool),
         "edge_length": Param("auto", "target edge length of the initial sphere (init='auto') and of the "
                              "remeshing, in voxels (0.1–20); 'auto' = 1 on a binary mask (it resolves nothing finer: "
-                             "as close and half the time on the held-out shapes, docs/NOTES.md), else 0.5, which "
+                             "as close and faster), else 0.5, which "
                              "keeps parts a voxel thin (the bunny's ear tips are lost at 1)", object),
-        "coarse_to_fine": Param(False, "two stages: first the data term alone (β = 0) draws the surface into "
-                                "concavities and sulci (the alignment term resists the intermediate shapes), then "
-                                "the configured β smooths and aligns it; a stage ends when the flow settles. False "
-                                "(or beta = 0, or remesh_every = 0): one stage", bool),
         "remesh_iterations": Param(3, "split/collapse/flip/relax rounds of the start's remesh (marching cubes' "
                                    "slivers); the later remeshes, of a mesh already near isotropic, run one", int,
                                    min=1, max=20),
@@ -213,15 +206,11 @@ class ShapeGradient(Method):
                                "three noise stds (a crevice, a limb's stump, a tip the zero set rounds off), the "
                                "mesh vertex nearest q's foot point q − φ∇φ/|∇φ| moves there; 3 rounds, kept "
                                "back where faces would meet; on a noisy volume only samples with a flagged neighbour "
-                               "pull. The start choice scores each flow before it (docs/NOTES.md)", bool),
-        "keep_tips": Param(False, "the remesher keeps the vertices of sharply convex parts (mean curvature above "
-                           "tip_curvature per voxel) where they are: its collapses otherwise shorten a thin limb's "
-                           "tip by a voxel or more per remesh (better on the development shapes with thin limbs, worse "
-                           "on the N = 32 needle's tip extension; off by default, docs/NOTES.md)", bool),
+                               "pull. The start choice scores each flow before it", bool),
         "hold_carved": Param(False, "the flow moves a vertex inwards only as far as it stays within carve_margin "
                              "voxels of the union of the outside samples' empty balls |x − q| < φ(q)/|∇φ| (carve.py): "
                              "a part thinner than a voxel, which φ shows only as a dip, is not cut where no ball "
-                             "covers it (docs/NOTES.md)", bool),
+                             "covers it", bool),
         "start_level": Param(0.0, "the genus-0 start is grown from φ < start_level voxels (with hold_carved: a part "
                              "thinner than a voxel that φ shows as a dip below that level enters the start, and the "
                              "flow keeps what no empty ball covers)", float, min=0.0, max=2.0),
@@ -231,7 +220,7 @@ class ShapeGradient(Method):
                               "the flow keeps it)", bool),
         "l2_fallback": Param(True, "where the line search along the H¹ direction finds no decrease of E (under "
                              "noise: the direction is the pre-smoothed field's), search along the plain (L²) shape "
-                             "gradient before stopping on the line-search floor (docs/NOTES.md)", bool),
+                             "gradient before stopping on the line-search floor", bool),
         "start_choice": Param("auto", "'auto': on a signed distance whose refined grid fits (N ≤ 128), the flow runs "
                               "from φ < 0 and, where its result lacks a part of the data (a sample lies outside it "
                               "by more than ½ voxel + 3 noise stds past its distance), also from two more genus-0 "
@@ -355,7 +344,7 @@ class ShapeGradient(Method):
         cfg["edge_length"] = edge
         settings = FlowSettings.resolve(cfg, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,
                                         join_below=join_below, remesh_start=init_facts["kind"] == "genus0")
-        field = smoothed_field(volume, sigma, cfg["presmooth_phi"])
+        field = smoothed_field(volume, sigma)
         if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):
             ops = MeshOperators(faces, len(x))
         field.sample_t(np.ascontiguousarray(x[:1].T), 2)     # build the cached derivative grids now (setup)

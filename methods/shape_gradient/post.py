@@ -3,7 +3,7 @@ samples.
 
 Each is a geometric step on the flow's last iterate (nothing here changes where the flow went).  With the guard on,
 a step that makes faces meet keeps those faces' vertices back (the projection; the tip extension halves their moves
-first) or is dropped (the polish: keeping back part of it made the cortex worse, docs/NOTES.md).
+first) or is dropped (the polish: kept back in part, it did worse than dropped).
 """
 
 from __future__ import annotations

@@ -5,8 +5,7 @@ project back onto the mesh as it was: the surface keeps its shape while its tria
 shrinking onto a bunny gains vertices where it must reach into the ears and never stretches or crumples.
 The result is checked — one closed, consistently oriented genus-0 surface — and refused otherwise (the flow
 then keeps its mesh).  Vertices passed as ``keep`` are the remesher's feature vertices: never collapsed or moved
-(the flow passes the tips of sharply convex parts, which the collapses otherwise shorten by a voxel or more at a
-time on a thin limb: docs/NOTES.md).
+(the flow passes the held tips of sharply convex parts, which the collapses otherwise shorten on a thin limb).
 """
 
 from __future__ import annotations

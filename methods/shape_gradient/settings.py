@@ -10,8 +10,6 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .field import noise_after_smoothing
-
 __all__ = ["FlowSettings", "Stage"]
 
 _AUTO_BETA = (1.0, 0.01)      # beta='auto': on clean / noisy volumes
@@ -19,7 +17,7 @@ _INTERP_NOISE_GAIN = (2.0 / 3.0) ** 3   # mean of Σwᵢ² of trilinear weights 
 
 
 #: edge_length='auto': the remeshing's edge length (voxels) on a binary mask, which resolves nothing finer (as close
-#: and half the time on the held-out shapes, docs/NOTES.md), and on every other volume (keeps parts a voxel thin)
+#: and faster), and on every other volume (keeps parts a voxel thin)
 AUTO_EDGE_VOXELS = {"mask": 1.0, "other": 0.5}
 
 
@@ -32,7 +30,7 @@ def edge_length_voxels(value: Any, kind: str) -> float:
 
 @dataclass(frozen=True)
 class Stage:
-    """One stage of the flow (coarse to fine: the data term alone first, then the configured β).
+    """One stage of the flow: the weight β and the remeshing's edge length it runs with.
 
     Parameters
     ----------
@@ -80,9 +78,11 @@ class FlowSettings:
     max_iter : int
         Iteration limit.
     tol : float
-        Relative energy change below which an iteration counts as calm (0 = off).
+        Relative energy change below which an iteration counts towards the
+        ``converged`` stop (0 = off).
     move_tol : float
-        Largest normal move, in voxels, below which an iteration counts as still (0 = off).
+        Largest normal move, in voxels, below which an iteration counts towards the
+        ``converged`` stop (0 = off).
     remesh_every : int
         Remesh every this many iterations (0 = fixed connectivity).
     remesh_iterations : int
@@ -104,13 +104,11 @@ class FlowSettings:
     noise_variance : float
         The noise variance subtracted from φ² in the data term (0 on clean volumes or with ``unbias=False``).
     stages : tuple of Stage
-        The stages, first first (one, or two with ``coarse_to_fine``).
+        The stages, first first (one: the configured β and edge length).
     snapshots : tuple of int
         Iterations whose vertices are kept.
     presmooth, start_smooth : float
         The Gaussian σ (voxels) of the derivative grids and of the start's values, as decided (reported).
-    keep_tips : bool
-        The remesher keeps the tips of sharply convex parts (mean curvature above ``tip_curvature``) in place.
     hold_carved, carve_margin : bool, float
         The flow's inward moves stay within ``carve_margin`` voxels of the union of the outside samples' empty
         balls (carve.py).
@@ -154,12 +152,11 @@ class FlowSettings:
     snapshots: tuple[int, ...]
     presmooth: float
     start_smooth: float
+    hold_carved: bool
+    carve_margin: float
+    l2_fallback: bool
+    reach_samples: bool
     parameters: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
-    keep_tips: bool = False
-    hold_carved: bool = False
-    carve_margin: float = 0.25
-    l2_fallback: bool = True
-    reach_samples: bool = False
 
     @classmethod
     def resolve(cls, config: Mapping[str, Any], *, h: float, clean: bool, noise: float, presmooth: float,
@@ -195,8 +192,6 @@ class FlowSettings:
             beta = _AUTO_BETA[0] if clean else _AUTO_BETA[1]
         edge = edge_length_voxels(config["edge_length"], kind)
         stages = [{"beta": beta, "edge_length": edge}]
-        if config["coarse_to_fine"] and config["remesh_every"] > 0 and beta > 0:
-            stages.insert(0, {"beta": 0.0, "edge_length": edge})
         # the noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise has variance
         # σ²Σwᵢ², on average (∫₀¹ t² + (1 − t)² dt)³ = (2/3)³ of σ² over positions in a cell
         derived = {
@@ -205,42 +200,34 @@ class FlowSettings:
             "join_below_used": join_below,
             "remesh_start": remesh_start,
             "presmooth_used": float(presmooth),
-            "noise_variance": _noise_variance(noise, presmooth, bool(config["presmooth_phi"]))
-            if (config["unbias"] and not clean) else 0.0,
+            "noise_variance": _INTERP_NOISE_GAIN * float(noise) ** 2 if (config["unbias"] and not clean) else 0.0,
             "start_smooth_used": float(start_smooth),
             "polish_used": config["polish"] == "on" or (config["polish"] == "auto" and clean),
             "projection_used": config["projection"] == "on" or (config["projection"] == "auto" and clean),
             "sign_guard_used": bool(config["sign_guard"]) and clean and remesh_start,
         }
-        c = {**config, "beta": beta, **derived}
+        # every parameter is in ``config`` (the Params' defaults filled in): each is read by its key, never with a
+        # fallback of its own that could contradict the declared default
+        cfg = {**config, "beta": beta, **derived}
         return cls(
-            alpha=c["alpha"], beta=beta, gradient=c["gradient"], curvature=c["curvature"], step=c["step"],
-            max_move=c["max_move"], tau=c["tau"], precondition=c["precondition"], s_world=c["s_world"],
-            solver=c["solver"], relax=c["relax"], max_iter=c["max_iter"], tol=c["tol"], move_tol=c["move_tol"],
-            remesh_every=int(c["remesh_every"]), remesh_iterations=int(c["remesh_iterations"]),
-            remesh_start=bool(remesh_start), guard=bool(c["guard"]), sign_guard=bool(c["sign_guard_used"]),
-            polish=bool(c["polish_used"]), polish_angle=c["polish_angle"], polish_weight=c["polish_weight"],
-            projection=bool(c["projection_used"]), extend_tips=bool(c["extend_tips"]),
-            tip_curvature=float(c["tip_curvature"]), noise_variance=float(c["noise_variance"]),
+            alpha=cfg["alpha"], beta=beta, gradient=cfg["gradient"], curvature=cfg["curvature"], step=cfg["step"],
+            max_move=cfg["max_move"], tau=cfg["tau"], precondition=cfg["precondition"], s_world=cfg["s_world"],
+            solver=cfg["solver"], relax=cfg["relax"], max_iter=cfg["max_iter"], tol=cfg["tol"],
+            move_tol=cfg["move_tol"], remesh_every=int(cfg["remesh_every"]),
+            remesh_iterations=int(cfg["remesh_iterations"]), remesh_start=bool(remesh_start), guard=bool(cfg["guard"]),
+            sign_guard=bool(cfg["sign_guard_used"]), polish=bool(cfg["polish_used"]),
+            polish_angle=cfg["polish_angle"], polish_weight=cfg["polish_weight"],
+            projection=bool(cfg["projection_used"]), extend_tips=bool(cfg["extend_tips"]),
+            tip_curvature=float(cfg["tip_curvature"]), noise_variance=float(cfg["noise_variance"]),
             stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),
-            snapshots=tuple(c["snapshots"]), presmooth=c["presmooth_used"], start_smooth=c["start_smooth_used"],
-            parameters=_reported(c), keep_tips=bool(c.get("keep_tips", False)),
-            hold_carved=bool(c["hold_carved"]), carve_margin=float(c["carve_margin"]),
-            l2_fallback=bool(c.get("l2_fallback", True)), reach_samples=bool(c.get("reach_samples", False)))
+            snapshots=tuple(cfg["snapshots"]), presmooth=cfg["presmooth_used"], start_smooth=cfg["start_smooth_used"],
+            hold_carved=bool(cfg["hold_carved"]),
+            carve_margin=float(cfg["carve_margin"]), l2_fallback=bool(cfg["l2_fallback"]),
+            reach_samples=bool(cfg["reach_samples"]), parameters=_reported(cfg))
 
     def reported_parameters(self) -> dict[str, Any]:
         """A fresh copy of :attr:`parameters` (``info['parameters']``), safe to change."""
         return copy.deepcopy(dict(self.parameters))
-
-
-def _noise_variance(noise: float, presmooth: float, presmooth_phi: bool) -> float:
-    """The noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise of std σ has
-    variance (2/3)³σ² on average over a cell; a pre-smoothed φ (``presmooth_phi``, σ_s voxels) carries the
-    filtered noise, whose std is the filter's gain times σ and which interpolation barely lowers (it is
-    correlated over σ_s)."""
-    if presmooth_phi and presmooth > 0:
-        return noise_after_smoothing(float(noise), float(presmooth)) ** 2
-    return _INTERP_NOISE_GAIN * float(noise) ** 2
 
 
 def _reported(config: Mapping[str, Any]) -> dict[str, Any]:

@@ -13,9 +13,8 @@ may grow into a part its start missed, and that growth does not earn it the righ
 the count exceeds the start's by more than 2 + 0.1 % of the samples, the flow stops (``stop_reason =
 "sign_guard"``) and goes back to the accepted checkpoint with the fewest samples on the wrong side, the latest
 among equals: a flow that cuts a part does so over several checks, each within the allowance, so the last
-checkpoint has already lost some of it — on coarse grids that is usually the start itself (the bunny at N = 48:
-Hausdorff 1.49 h from the last checkpoint, 1.05 h from the start; docs/NOTES.md).  The choice reads only the
-volume.
+checkpoint has already lost some of it — on coarse grids the start itself is usually the best of them.  The
+choice reads only the volume.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ _CG_MAXITER = 100
 _DIRECT_MAX_VERTICES = 40_000  # solver='auto': the LU up to this many vertices, multigrid above ...
 _CG_MAX_S_EDGES = 2.0          # ... or CG while s is at most this many squared edge lengths
 _FACTOR_REFRESH = 5            # the direct and multigrid H¹ solvers rebuild their factor every this many iterations
-_AMG_SMOOTH = ("jacobi", {"weighting": "local"})  # row-wise weights: no spectral-radius estimate (docs/NOTES.md)
+_AMG_SMOOTH = ("jacobi", {"weighting": "local"})  # row-wise weights: no spectral-radius estimate
 
 
 class SobolevSolver:
@@ -49,7 +49,7 @@ class SobolevSolver:
         if solver == "direct":
             if self._factor is None or self._factor_age >= _FACTOR_REFRESH:
                 # M + sK is symmetric: a symmetric ordering (minimum degree on A + Aᵀ, diagonal pivots) fills
-                # 40 % less than COLAMD (cortex, 34k vertices: the factorisation a fifth faster, a solve twice as fast)
+                # less than COLAMD, so the factorisation and each solve are faster
                 self._factor = splu(ops.h1_matrix(geo, s)[0].tocsc(), permc_spec="MMD_AT_PLUS_A",
                                     diag_pivot_thresh=0.0, options={"SymmetricMode": True})
                 self._factor_age = 0

@@ -14,7 +14,7 @@ from phantoms import InputError, Volume
 #: the enclosing sphere of init='auto' clears the inside grid points by this many voxels
 _INIT_MARGIN_VOXELS = 2.0
 #: pieces of φ < 0 whose lowest saddle of φ lies below this many voxels are joined by the genus-0 start
-#: (docs/METHOD.md, "The genus-0 start"; measured in docs/NOTES.md)
+#: (docs/METHOD.md, "The genus-0 start")
 JOIN_BELOW_VOXELS = 0.5
 #: the samples of a joining path are set to at most −this many voxels (a tube about a voxel wide)
 JOIN_DEPTH_VOXELS = 0.5

@@ -108,8 +108,8 @@ def sample_gradients(v, idx: np.ndarray, spacing: np.ndarray) -> np.ndarray:
 
 def tip_vertices(ops: MeshOperators, geo, h: float, min_curvature: float) -> np.ndarray:
     """The vertices of sharply convex parts (mean curvature above ``min_curvature`` per voxel, the tip extension's
-    threshold): what ``keep_tips`` has the remesher keep, whose collapses would otherwise shorten a thin leg's
-    hoof (the start's marching-cubes mesh, with its slivers, is remeshed freely)."""
+    threshold): the candidates ``hold_carved`` has the remesher keep, whose collapses would otherwise shorten a thin
+    leg's hoof (the start's marching-cubes mesh, with its slivers, is remeshed freely)."""
     H, _ = ops.curvature(geo)
     return np.flatnonzero(np.isfinite(H) & (H * h > min_curvature))
 

@@ -26,7 +26,7 @@ Exact everywhere a metric or method looks, a documented upper bound everywhere e
 
 Memory: the output (float64) plus an int32 face, an int32 queue and two int8 arrays per grid point —
 about 2.4 times the output array — and the band's points in chunks; nothing else of size N³.
-Time: compiled kernels (:mod:`phantoms.mesh.grid_kernels`), one core (figures: docs/NOTES.md).
+Time: compiled kernels (:mod:`phantoms.mesh.grid_kernels`), one core.
 """
 
 from __future__ import annotations

@@ -119,8 +119,8 @@ class TriangleIndex:
         feature (P,))`` (certified candidate search; see the module docstring).
 
         Memory is bounded by the chunk: a chunk with more than ``max_pairs`` (point, triangle) candidates is
-        split in two.  1M pairs is about 300 MB of work arrays; 3M peaked at 1.06 GB building the N = 64 volume
-        of a plate with long tab triangles (0.64 GB with 1M, 10 % slower)."""
+        split in two.  1M pairs is about 300 MB of work arrays: a larger chunk is only slightly faster and
+        needs much more memory on a mesh with long triangles."""
         p = as_points(points)
         P = len(p)
         out_x = np.empty((P, 3))

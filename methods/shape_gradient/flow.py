@@ -20,7 +20,7 @@ from .post import post_steps, reach_step
 from .remesh import remesh
 from .settings import FlowSettings, Stage
 from .signs import SignGuard
-from .sobolev import SobolevSolver
+from .sobolev import FLOW_SOLVER, SobolevSolver
 
 __all__ = ["ShapeGradientFlow", "STOP_REASONS"]
 
@@ -35,6 +35,9 @@ _OFF_SURFACE_VOXELS = 0.5      # a result whose median |φ| at the vertices exce
 _OFF_SURFACE_NOISE = 1.0       # ... added in quadrature to this many noise stds (on the true surface of a noisy
 #                                volume the median |φ| is already 0.67 std)
 _FOLD_DEGREES = 60.0       # a trial step that turns any face normal by more than this is rejected
+#: split/collapse/flip/relax rounds of the start's remesh (marching cubes' slivers); a later remesh, of a mesh already
+#: near isotropic, runs one
+START_REMESH_ROUNDS = 3
 
 
 class ShapeGradientFlow:
@@ -93,7 +96,7 @@ class ShapeGradientFlow:
         self.n_rejected_folds = 0
         self.n_l2_fallbacks = 0
         self.curvature_fallbacks = 0
-        self.sobolev = SobolevSolver(settings.solver)    # the H¹ solve (its factor, warm start, solver choice)
+        self.sobolev = SobolevSolver(FLOW_SOLVER)    # the H¹ solve (its factor, warm start, solver choice)
         self._move_prev = self.max_move
         self._grow = True
         self.cg_iterations: list[int] = []
@@ -140,8 +143,8 @@ class ShapeGradientFlow:
     def step(self) -> bool:
         """Do one iteration; False when the run has ended (``stop``/``message`` say why).
 
-        The stages: the gradient and the descent direction, the tangential relaxation shift, the step (fixed
-        or an Armijo line search), then accepting the new state (remesh, snapshot) and the convergence tests."""
+        The stages: the gradient and the descent direction, the tangential relaxation shift, the step (an
+        Armijo line search), then accepting the new state (remesh, snapshot) and the convergence tests."""
         if self.stop is not None:
             return False
         if self.iteration >= self.settings.max_iter:
@@ -168,31 +171,19 @@ class ShapeGradientFlow:
         if vmax == 0.0:
             return self._end("converged", f"iteration {it}: the shape gradient vanishes")
         shift = self._relax_shift(geo) if limit is None else self.carve.still(state.x, self._relax_shift(geo), limit)
-        if self.settings.step == "fixed":
-            tau = self.settings.tau
-            x_new = state.x + tau * direction + (0.0 if shift is None else shift)
-            if not np.isfinite(x_new).all():
-                return self._end("diverged", f"iteration {it}: non-finite vertex positions")
-            new = evaluate_state(self.field, self.ops, x_new, self.alpha, self.beta, self.timings,
-                                 density=self.density)
-            if not np.isfinite(new.E):
-                return self._end("diverged", f"iteration {it}: the mesh left the volume box" if new.X is None
-                                 else f"iteration {it}: non-finite energy")
-            move = tau * vmax
-        else:
-            new, move = self._line_search(geo, direction, shift, vmax, slope, limit)
-            if new is None and self.settings.l2_fallback and Vel is not G:
-                Vel2 = G if limit is None else CarvedHull.stopped(G, limit)     # the same limits: same x
-                vmax2, slope2 = float(np.abs(Vel2).max()), dot(b, Vel2)
-                if vmax2 > 0 and slope2 > 0:
-                    self.n_l2_fallbacks += 1
-                    new, move = self._line_search(geo, -Vel2[:, None] * geo.vertex_normals, None, vmax2, slope2,
-                                                  limit)
-            if new is None:
-                return self._settle("line_search_floor",
-                                    f"iteration {it}: no decrease of E for moves down to "
-                                    f"{self.floor_move / self.h:.1g} voxels (the gradient no longer predicts a "
-                                    "decrease of the discrete energy)")
+        new, move = self._line_search(geo, direction, shift, vmax, slope, limit)
+        if new is None and self.settings.l2_fallback and Vel is not G:
+            Vel2 = G if limit is None else CarvedHull.stopped(G, limit)     # the same limits: same x
+            vmax2, slope2 = float(np.abs(Vel2).max()), dot(b, Vel2)
+            if vmax2 > 0 and slope2 > 0:
+                self.n_l2_fallbacks += 1
+                new, move = self._line_search(geo, -Vel2[:, None] * geo.vertex_normals, None, vmax2, slope2,
+                                              limit)
+        if new is None:
+            return self._settle("line_search_floor",
+                                f"iteration {it}: no decrease of E for moves down to "
+                                f"{self.floor_move / self.h:.1g} voxels (the gradient no longer predicts a "
+                                "decrease of the discrete energy)")
         return self._accept(it, new, move)
 
     def _relax_shift(self, geo) -> np.ndarray | None:
@@ -323,10 +314,10 @@ class ShapeGradientFlow:
         t0 = time.perf_counter()
         # the flow's meshes are closed (checked at every remesh); the start is checked here once more, and gets
         # all the rounds (marching cubes' slivers); a later mesh is near isotropic: one round
-        rounds = self.settings.remesh_iterations if it == 0 else 1
+        rounds = START_REMESH_ROUNDS if it == 0 else 1
         before = (self.state.x, self.ops, self.state)
         # hold_carved: held tips stay (the start, marching cubes' slivers, is remeshed freely)
-        keep = {"keep": remesh_keep(self.ops, self.state.geo, self.h, self.settings, self.carve)} if it > 0 else {}
+        keep = {"keep": remesh_keep(self.ops, self.state.geo, self.h, self.carve)} if it > 0 else {}
         out = remesh(self.state.x, self.ops.faces, self.edge_length, rounds, closed=it > 0, **keep)
         if out is None:
             self.remesh_refused += 1

@@ -62,14 +62,14 @@ def _auto_or_number(key: str, value: Any, hi: float) -> "float | str":
     return v
 
 
-def _edge_length_voxels(cfg: dict, x: np.ndarray, faces: np.ndarray, h: float, facts: dict) -> float:
+def _edge_length_voxels(flow_params: dict, x: np.ndarray, faces: np.ndarray, h: float, facts: dict) -> float:
     """The remeshing's edge length (voxels): ``edge_length``, or longer where the surface is so large that
     triangles of that size would exceed ``max_faces`` — the mesh's size follows the surface's area, not the
     grid's (a label map at its native resolution: millions of faces for a smooth organ).  The start's area
     is read before it is remeshed (a staircase overestimates it a little: the cap errs on the coarse side)."""
-    edge = float(cfg["edge_length"])
-    cap = cfg["max_faces"]
-    if cap <= 0 or cfg["remesh_every"] <= 0:
+    edge = float(flow_params["edge_length"])
+    cap = flow_params["max_faces"]
+    if cap <= 0 or flow_params["remesh_every"] <= 0:
         return edge
     tri = x[faces]
     area = 0.5 * float(np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
@@ -79,6 +79,20 @@ def _edge_length_voxels(cfg: dict, x: np.ndarray, faces: np.ndarray, h: float, f
         facts["edge_length_voxels_for_max_faces"] = round(needed, 4)
         return needed
     return edge
+
+
+def _start_values(volume: Volume, flow_params: dict, sigma: float) -> "np.ndarray | None":
+    """The samples the genus-0 start is grown from: the volume's smoothed by ``sigma`` voxels and lowered by the
+    start's ``start_level`` voxels; None (the volume's own) when neither applies or the start is not genus-0."""
+    if flow_params["init"] != "genus0" or flow_params["init_mesh"] is not None:
+        return None
+    values = None
+    if sigma > 0:
+        from scipy.ndimage import gaussian_filter
+        values = gaussian_filter(volume.values, float(sigma), mode="nearest")
+    if flow_params["start_level"]:
+        values = (volume.values if values is None else values) - float(flow_params["start_level"]) * volume.h
+    return values
 
 
 def _refuse_far_topology(topology: dict, max_gap: int) -> None:
@@ -200,47 +214,47 @@ class ShapeGradient(Method):
         :data:`.choose.CANDIDATES`; the rest keep :data:`.choose.USUAL_START`).
         """
         check_volume(volume, self.name)
-        config = {**self.config, **start_settings(start)}
-        cfg = {**config, "edge_length": edge_length_voxels(config["edge_length"], volume.kind)}
+        # this flow's parameters: the method's, the start's private settings, the edge length in voxels
+        flow_params = {**self.config, **start_settings(start)}
+        flow_params["edge_length"] = edge_length_voxels(flow_params["edge_length"], volume.kind)
         t_start = time.perf_counter()
         topology = target_topology(volume)
-        if not topology["compatible"] and cfg["strict_topology"]:
+        if not topology["compatible"] and flow_params["strict_topology"]:
             raise InputError(f"method 'shape_gradient' (strict_topology): {topology['message']}")
         noise = estimate_noise(volume)
         clean = noise < CLEAN_NOISE_VOXELS * volume.h
         # a clean volume's raw reading is reliable; under noise one reading can look compatible by chance
-        if (not topology["compatible"] or not clean) and cfg["init_mesh"] is None:
-            _refuse_far_topology(denoised_topology(volume, noise), cfg["max_topology_gap"])
-        sigma = cfg["presmooth"]
+        if (not topology["compatible"] or not clean) and flow_params["init_mesh"] is None:
+            _refuse_far_topology(denoised_topology(volume, noise), flow_params["max_topology_gap"])
+        sigma = flow_params["presmooth"]
         if sigma == "auto":
             sigma = 0.0 if clean else _AUTO_PRESMOOTH_SIGMA
-        s0 = start_smoothing(noise / volume.h) if cfg["start_smooth"] == "auto" else cfg["start_smooth"]
-        values = None
-        if s0 > 0 and cfg["init"] == "genus0" and cfg["init_mesh"] is None:
-            from scipy.ndimage import gaussian_filter
-            values = gaussian_filter(volume.values, float(s0), mode="nearest")
-        if cfg["start_level"] and cfg["init"] == "genus0" and cfg["init_mesh"] is None:
-            values = (volume.values if values is None else values) - float(cfg["start_level"]) * volume.h
+        s0 = flow_params["start_smooth"]
+        if s0 == "auto":
+            s0 = start_smoothing(noise / volume.h)
+        values = _start_values(volume, flow_params, s0)
         # under noise a saddle is lower by about a noise std (the lowest of many paths' highest samples): the
         # threshold is lowered by σ̂, so the speckles of 30 dB noise (σ̂ ≈ 0.6 voxel) are never joined
-        join_below = float(cfg["join_below"]) if clean else max(float(cfg["join_below"]) - noise / volume.h, 0.0)
+        join_below = float(flow_params["join_below"])
+        if not clean:
+            join_below = max(join_below - noise / volume.h, 0.0)
         pinhole_below = 0.0
-        if cfg["close_pinholes"] and not clean:
+        if flow_params["close_pinholes"] and not clean:
             pinhole_below = max(noise_after_smoothing(noise / volume.h, s0), _PINHOLE_FLOOR_VOXELS)
         x, faces, flipped, init_facts = initial_surface(
-            volume, init=cfg["init"], init_mesh=cfg["init_mesh"], edge_length=cfg["edge_length"],
-            join_below=join_below, init_vertices=cfg["init_vertices"], init_radius=cfg["init_radius"],
-            values=values, pinhole_below=pinhole_below)
+            volume, init=flow_params["init"], init_mesh=flow_params["init_mesh"],
+            edge_length=flow_params["edge_length"], join_below=join_below, init_vertices=flow_params["init_vertices"],
+            init_radius=flow_params["init_radius"], values=values, pinhole_below=pinhole_below)
         if init_facts["kind"] == "genus0":
             init_facts["pinhole_below_voxels"] = round(pinhole_below, 4)
-            if cfg["carved_start"]:
+            if flow_params["carved_start"]:
                 x, faces, init_facts["carved"] = carved_surface(
                     volume, volume.values if values is None else values, x, faces, pinhole_below,
                     0.0 if clean else noise)
-        edge = _edge_length_voxels(cfg, x, faces, volume.h, init_facts)
-        cfg["edge_length"] = edge
-        settings = FlowSettings.resolve(cfg, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,
-                                        join_below=join_below, remesh_start=init_facts["kind"] == "genus0")
+        flow_params["edge_length"] = _edge_length_voxels(flow_params, x, faces, volume.h, init_facts)
+        settings = FlowSettings.resolve(flow_params, h=volume.h, clean=clean, noise=noise, presmooth=sigma,
+                                        start_smooth=s0, join_below=join_below,
+                                        remesh_start=init_facts["kind"] == "genus0")
         field = smoothed_field(volume, sigma)
         if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):
             ops = MeshOperators(faces, len(x))

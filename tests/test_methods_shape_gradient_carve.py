@@ -158,13 +158,13 @@ def test_the_stop_test_reads_the_move_the_limits_let_through():
     few remeshes instead of running to max_iter (the uncut trial move never fell below move_tol)."""
     from types import SimpleNamespace
 
-    from methods.shape_gradient.flow import ShapeGradientFlow
+    from methods.shape_gradient.linesearch import clamped_move
 
     normals = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
     direction = np.array([[-2.0, 0.3, 0], [0, -0.5, 0], [0.1, 0, 0.4]])      # inward 2, inward 0.5, outward 0.4
     geo = SimpleNamespace(vertex_normals=normals)
-    assert ShapeGradientFlow._clamped_move(geo, direction, 0.5, np.array([0.1, 1.0, 0.0])) == pytest.approx(0.25)
-    assert ShapeGradientFlow._clamped_move(geo, direction, 0.5, np.array([2.0, 1.0, 0.0])) == pytest.approx(1.0)
+    assert clamped_move(geo, direction, 0.5, np.array([0.1, 1.0, 0.0])) == pytest.approx(0.25)
+    assert clamped_move(geo, direction, 0.5, np.array([2.0, 1.0, 0.0])) == pytest.approx(1.0)
     n = 48                                                  # here the uncut move ran to max_iter
     g = _LO + (4.0 / (n - 1)) * np.arange(n)
     p = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)

@@ -150,3 +150,16 @@ def test_the_plain_gradient_step_carries_the_flow_past_the_line_search_floor():
     assert fell_back.info["stop_reason"] == "converged" and fell_back.info["n_l2_fallbacks"] >= 1
     err = [np.abs(np.linalg.norm(r.mesh.vertices, axis=1) - ph.params["radius"]).max() for r in (plain, fell_back)]
     assert err[1] <= 1.1 * err[0]
+
+
+def test_the_counters_are_one_stats_record_the_result_reports(sphere32):
+    flow = SG(max_iter=6, tol=0, move_tol=0).prepare(sphere32)
+    info = flow.run().result().info
+    st = flow.stats
+    assert len(st.moves) == info["iterations"] == 6 and st.n_backtracks >= 0
+    for key in ("n_backtracks", "n_rejected_folds", "n_l2_fallbacks", "curvature_fallbacks", "cg_iterations",
+                "remesh_refused"):
+        assert info[key] == getattr(st, key), key
+    assert info["move_history_voxels"] == [m / sphere32.h for m in st.moves]
+    assert info["intersection_repairs"] == st.repairs and info["intersection_rollbacks"] == st.rollbacks
+    assert info["intersections"] == [list(r) for r in st.intersections] and st.intersections[-1][0] == 6

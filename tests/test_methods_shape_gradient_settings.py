@@ -80,7 +80,7 @@ def test_prepare_hands_the_flow_its_settings():
     vol = get_phantom("sphere").volume(n=24)
     flow = ShapeGradient(max_iter=3, guard=False).prepare(vol)
     assert isinstance(flow, ShapeGradientFlow) and isinstance(flow.settings, FlowSettings)
-    assert flow.settings.guard is False and flow.guard is False and flow.settings.beta == 1.0
+    assert flow.settings.guard is False and flow.settings.beta == 1.0
     rec = flow.run().result()
     assert rec.info["iterations"] <= 3 and rec.info["parameters"] == flow.settings.reported_parameters()
     assert rec.info["parameters"]["guard"] is False and rec.info["beta_used"] == 1.0

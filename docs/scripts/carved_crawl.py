@@ -40,7 +40,7 @@ def main(argv=None) -> None:
         x = flow.state.x
         made = (float(np.abs(np.einsum("vd,vd->v", x - x0, flow.state.geo.vertex_normals)).max()) / flow.h
                 if x.shape == x0.shape else float("nan"))                   # nan: a remesh changed the vertices
-        trial = flow.moves[-1] / flow.h if flow.moves else float("nan")
+        trial = flow.stats.moves[-1] / flow.h if flow.stats.moves else float("nan")
         held = flow.carve.held if flow.carve else 0
         rows.append(f"{flow.iteration} E={flow.state.E:.4e} trial={trial:.4f} made={made:.4f} "
                     f"dE/E={abs(e0 - flow.state.E) / abs(e0):.1e} V={len(x)} held={held}")

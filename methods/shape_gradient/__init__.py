@@ -12,10 +12,12 @@ One iteration (:meth:`ShapeGradientFlow.step`), the paper's four steps, vectoris
    divergence term as the paper prints it);
 3. **precondition** – the Sobolev velocity V = (M + sK)⁻¹ M G (:mod:`.sobolev`), or V = G;
 4. **step** – the largest move capped at ``max_move`` voxels, halved until the discrete energy decreases with
-   no folded face (Armijo), plus the tangential relaxation; then the remesh and the stop tests.
+   no folded face (Armijo, :mod:`.linesearch`), plus the tangential relaxation; then the remesh and the stop
+   tests (:mod:`.convergence`).
 
-The named additions the flow calls: the carve limit (:mod:`.carve`), the L² fallback of the line search, the
-stages, the sign guard (:mod:`.signs`) and the intersection guard (:mod:`.guard`).  After the last iteration
+The named additions the flow calls: the carve limit (:mod:`.carve`), the L² fallback of the line search
+(:mod:`.linesearch`), the stages (:mod:`.convergence`), the sign guard (:mod:`.signs`) and the intersection guard
+(:mod:`.guard`).  After the last iteration
 the post-steps (:mod:`.post`): the crease polish, the Newton projection, the tip extension (:mod:`.tips`) and
 the reach to the samples (:mod:`.reach`).
 

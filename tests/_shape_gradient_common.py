@@ -8,6 +8,12 @@ from phantoms import Sample
 from methods.shape_gradient import ShapeGradient, face_energies, shape_gradient
 
 
+def one_flow(volume, start: dict | None = None, **params):
+    """The Reconstruction of one flow of ``ShapeGradient(**params)`` from the start ``start`` (the start's private
+    settings, as a candidate of the start choice sets them; None: the usual start), without the choice."""
+    return ShapeGradient(**params).prepare(volume, start=start).run().result()
+
+
 class EllipsoidPolynomial:
     """The paper's ellipsoid level set φ = x²/a² + y²/b² + z²/c² − 1 with exact derivatives."""
 

@@ -15,6 +15,7 @@ from _shape_gradient_common import SG, h_std, hausdorff, marching_cubes, roughne
 from geometry.operators import MeshOperators
 from geometry.sphere import fibonacci_sphere
 from methods.shape_gradient import STOP_REASONS, ShapeGradient, prepare_init_mesh
+from methods.shape_gradient.sobolev import SobolevSolver
 from phantoms import InputError, add_noise, get_phantom
 
 
@@ -97,7 +98,7 @@ def test_info_contents(clean_run):
     for phase in ("setup", "interpolation", "curvature", "gradient", "preconditioner", "energy", "relax", "total"):
         assert info["timings"][phase] >= 0
     assert info["presmooth_used"] == 0.0 and info["noise_estimate_voxels"] < 0.01
-    assert p["solver"] == "auto" and len(info["cg_iterations"]) == it    # auto: CG on this coarse sphere
+    assert len(info["cg_iterations"]) == it          # the solver picks CG on this coarse sphere
     # the crease polish runs on clean volumes ('auto') and does nothing on a smooth surface
     assert info["polish"]["used"] and info["polish"]["crease_edges"] == 0 and info["polish"]["snapped"] == 0
     assert info["timings"]["polish"] >= 0
@@ -152,14 +153,18 @@ def test_heavy_noise_is_not_mistaken_for_an_off_surface_result():
 
 
 def test_amg_solver_reaches_the_direct_solvers_surface():
-    """solver='amg' (CG preconditioned by pyamg's smoothed aggregation, row-wise Jacobi weights) ends where the
+    """The 'amg' solver (CG preconditioned by pyamg's smoothed aggregation, row-wise Jacobi weights) ends where the
     sparse LU ends: the H¹ solve differs only within CG's tolerance."""
     from bench.metrics import evaluate
 
     ph = get_phantom("sphere")
     vol = ph.volume(n=32)
-    direct = ShapeGradient(solver="direct").reconstruct(vol)
-    amg = ShapeGradient(solver="amg").reconstruct(vol)
+    def flow_with(solver):
+        flow = ShapeGradient().prepare(vol)
+        flow.sobolev = SobolevSolver(solver)
+        return flow.run().result()
+
+    direct, amg = flow_with("direct"), flow_with("amg")
     hd = evaluate(direct.mesh, ph, vol.h, n_samples=20000)["hausdorff_h"]
     ha = evaluate(amg.mesh, ph, vol.h, n_samples=20000)["hausdorff_h"]
     assert ha <= max(1.1 * hd, hd + 0.02) and ha < 0.2

@@ -11,6 +11,8 @@ from methods.shape_gradient import ShapeGradient
 from methods.shape_gradient.carve import CarvedHull, ball_depth, ball_depth_numpy
 from phantoms import Volume
 
+from _shape_gradient_common import one_flow
+
 _N, _LO = 32, -2.0
 _H = 4.0 / (_N - 1)
 
@@ -36,7 +38,7 @@ def limb():
 def test_a_sub_voxel_limb_is_kept_with_hold_carved_and_cut_without(limb):
     vol, tip = limb
     plain = ShapeGradient(start_choice="off", reach_samples=False).reconstruct(vol)   # the flow alone: no post-step
-    held = ShapeGradient(hold_carved=True, reach_samples=False).reconstruct(vol)      # reaching for the limb
+    held = one_flow(vol, {"hold_carved": True}, reach_samples=False)                  # reaching for the limb
     short_plain = (tip - plain.mesh.vertices[:, 0].max()) / _H
     short_held = (tip - held.mesh.vertices[:, 0].max()) / _H
     assert short_plain > 1.0                       # the flow shortens the limb by more than a voxel ...
@@ -67,9 +69,11 @@ def test_the_clamp_cuts_only_the_inward_normal_part():
     assert np.allclose(out, [[-0.5, 1.0, 0.0], [-0.1, 0.0, 1.0], [3.0, 0.0, 0.0]])
 
 
-def test_off_by_default_and_in_the_paper_preset():
-    assert ShapeGradient().config["hold_carved"] is False
-    assert ShapeGradient(preset="paper").config["hold_carved"] is False
+def test_off_by_default_and_in_the_paper_preset(limb):
+    vol, _ = limb
+    assert ShapeGradient(max_iter=0).prepare(vol).carve is None
+    assert ShapeGradient(preset="paper", max_iter=0).prepare(vol).carve is None
+    assert ShapeGradient(max_iter=0).prepare(vol, start={"hold_carved": True}).carve is not None
 
 
 def test_the_remesher_keeps_only_the_tips_the_carved_hull_holds():
@@ -86,11 +90,10 @@ def test_the_remesher_keeps_only_the_tips_the_carved_hull_holds():
     x = np.asarray(ico.vertices, float)
     ops = MeshOperators(np.asarray(ico.faces), len(x))
     geo = ops.geometry(x)
-    settings = SimpleNamespace(tip_curvature=0.3)
     held = SimpleNamespace(limits=lambda p: np.where(p[:, 0] > 0, 0.0, 1.0))   # held on the side x > 0
-    kept = remesh_keep(ops, geo, _H, settings, held)
+    kept = remesh_keep(ops, geo, _H, held)
     assert len(kept) > 0 and np.all(x[kept, 0] > 0) and len(kept) == int((x[:, 0] > 0).sum())
-    assert len(remesh_keep(ops, geo, _H, settings, None)) == 0
+    assert len(remesh_keep(ops, geo, _H, None)) == 0
 
 
 def test_a_limb_between_sample_rows_enters_the_start_with_start_level_and_is_kept():
@@ -105,14 +108,13 @@ def test_a_limb_between_sample_rows_enters_the_start_with_start_level_and_is_kep
     values = np.minimum(np.linalg.norm(p, axis=-1) - 0.8, capsule)
     assert values[(p[..., 0] > 0.9) & (p[..., 0] < 1.5)].min() > 0.1 * _H      # no sample inside along the limb
     vol, tip = Volume(values, [_LO] * 3, _H), 1.6 + r
-    plain = ShapeGradient(hold_carved=True, reach_samples=False).reconstruct(vol)   # the starts and the flow alone
-    grown = ShapeGradient(hold_carved=True, start_level=0.25).reconstruct(vol)
+    plain = one_flow(vol, {"hold_carved": True}, reach_samples=False)        # the starts and the flow alone
+    grown = one_flow(vol, {"hold_carved": True, "start_level": 0.25})
     assert (tip - plain.mesh.vertices[:, 0].max()) / _H > 4.0                   # no limb at all
     assert abs(tip - grown.mesh.vertices[:, 0].max()) / _H < 1.0                # the limb, within a voxel
-    alone = ShapeGradient(start_level=0.25, reach_samples=False).reconstruct(vol)
+    alone = one_flow(vol, {"start_level": 0.25}, reach_samples=False)
     assert (tip - alone.mesh.vertices[:, 0].max()) / _H > 1.5                   # without hold_carved: shortened
     assert grown.mesh.is_watertight and grown.mesh.euler_number == 2
-    assert ShapeGradient().config["start_level"] == 0.0
 
 
 def test_a_held_vertex_keeps_a_relaxation_that_does_not_leave_the_balls():
@@ -156,17 +158,16 @@ def test_the_stop_test_reads_the_move_the_limits_let_through():
     few remeshes instead of running to max_iter (the uncut trial move never fell below move_tol)."""
     from types import SimpleNamespace
 
-    from methods.shape_gradient.flow import ShapeGradientFlow
+    from methods.shape_gradient.linesearch import clamped_move
 
     normals = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
     direction = np.array([[-2.0, 0.3, 0], [0, -0.5, 0], [0.1, 0, 0.4]])      # inward 2, inward 0.5, outward 0.4
     geo = SimpleNamespace(vertex_normals=normals)
-    assert ShapeGradientFlow._clamped_move(geo, direction, 0.5, np.array([0.1, 1.0, 0.0])) == pytest.approx(0.25)
-    assert ShapeGradientFlow._clamped_move(geo, direction, 0.5, np.array([2.0, 1.0, 0.0])) == pytest.approx(1.0)
+    assert clamped_move(geo, direction, 0.5, np.array([0.1, 1.0, 0.0])) == pytest.approx(0.25)
+    assert clamped_move(geo, direction, 0.5, np.array([2.0, 1.0, 0.0])) == pytest.approx(1.0)
     n = 48                                                  # here the uncut move ran to max_iter
     g = _LO + (4.0 / (n - 1)) * np.arange(n)
     p = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)
     vol = Volume(np.linalg.norm(p, axis=-1) - 1.2, [_LO] * 3, 4.0 / (n - 1))
-    rec = ShapeGradient(start_choice="off", carved_start=True, hold_carved=True, carve_margin=0.1,
-                        max_iter=150).reconstruct(vol)
+    rec = one_flow(vol, {"carved_start": True, "hold_carved": True, "carve_margin": 0.1}, max_iter=150)
     assert rec.info["stop_reason"] == "converged" and rec.info["iterations"] < 60

@@ -11,7 +11,7 @@ from methods.shape_gradient import ShapeGradient
 from methods.shape_gradient.carved_start import FINE_MAX_SAMPLES, between_inside, carved_values
 from phantoms import Volume
 
-from _shape_gradient_common import far_limb_volume
+from _shape_gradient_common import far_limb_volume, one_flow
 
 _N, _LO = 32, -2.0
 _H = 4.0 / (_N - 1)
@@ -77,8 +77,8 @@ def far_limb():
 
 def test_a_limb_every_sample_misses_is_in_the_carved_start(far_limb):
     vol, tip = far_limb
-    level = ShapeGradient(start_level=0.25).prepare(vol)
-    carved = ShapeGradient(carved_start=True).prepare(vol)
+    level = ShapeGradient().prepare(vol, start={"start_level": 0.25})
+    carved = ShapeGradient().prepare(vol, start={"carved_start": True})
     assert (tip - level.state.x[:, 0].max()) / _H > 4.0                         # start_level: no limb
     assert abs(tip - carved.state.x[:, 0].max()) / _H < 1.0                      # the carved start: the limb
     facts = carved.init_facts["carved"]
@@ -88,10 +88,9 @@ def test_a_limb_every_sample_misses_is_in_the_carved_start(far_limb):
 
 def test_the_limb_is_kept_by_the_flow_with_hold_carved(far_limb):
     vol, tip = far_limb
-    rec = ShapeGradient(carved_start=True, hold_carved=True, carve_margin=0.1).reconstruct(vol)
+    rec = one_flow(vol, {"carved_start": True, "hold_carved": True, "carve_margin": 0.1})
     assert abs(tip - rec.mesh.vertices[:, 0].max()) / _H < 1.0
     assert rec.mesh.is_watertight and rec.mesh.euler_number == 2
-    assert ShapeGradient().config["carved_start"] is False
 
 
 def test_two_balls_a_few_voxels_apart_are_not_joined_through_the_carved_region():
@@ -101,7 +100,7 @@ def test_two_balls_a_few_voxels_apart_are_not_joined_through_the_carved_region()
     gap = 3.0 * _H
     c = 0.5 * gap + 0.7
     values = np.minimum(np.linalg.norm(p - [c, 0, 0], axis=-1), np.linalg.norm(p + [c, 0, 0], axis=-1)) - 0.7
-    flow = ShapeGradient(carved_start=True).prepare(Volume(values, [_LO] * 3, _H))
+    flow = ShapeGradient().prepare(Volume(values, [_LO] * 3, _H), start={"carved_start": True})
     x = flow.state.x[:, 0]
     assert flow.init_facts["carved"]["used"] and flow.init_facts["carved"]["fine_pieces"] == 2
     assert (x.min() > 0) or (x.max() < 0)                                          # one ball, no tube

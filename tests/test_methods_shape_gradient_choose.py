@@ -9,8 +9,9 @@ import pytest
 import trimesh
 
 from methods.shape_gradient import ShapeGradient
-from methods.shape_gradient.choose import (AGREE_NOISE_STDS, AGREE_VOXELS, CANDIDATES, PREFER_USUAL, lacks_a_part,
-                                           data_errors, data_residual, pick, start_candidates)
+from methods.shape_gradient.choose import (AGREE_NOISE_STDS, AGREE_VOXELS, CANDIDATES, PREFER_USUAL, USUAL_START,
+                                          data_errors, data_residual, lacks_a_part, pick, start_candidates,
+                                          start_settings)
 from phantoms import Volume
 
 from _shape_gradient_common import far_limb_volume
@@ -84,20 +85,21 @@ def test_pick_keeps_the_usual_start_unless_another_is_clearly_better():
     assert pick({"usual": u}) == "usual"
 
 
-def test_the_choice_runs_only_where_it_can_and_the_user_left_the_start_alone():
+def test_the_choice_runs_only_where_it_can():
     vol = _sphere_volume()
     cfg = ShapeGradient().config
-    assert start_candidates(cfg, set(), vol) == CANDIDATES
+    assert start_candidates(cfg, vol) == CANDIDATES
     assert CANDIDATES[0] == ("usual", {})
-    assert start_candidates({**cfg, "start_choice": "off"}, set(), vol) == ()
-    assert start_candidates(cfg, {"carved_start"}, vol) == ()
-    assert start_candidates(cfg, {"start_level"}, vol) == ()
-    assert start_candidates({**cfg, "init": "sphere"}, set(), vol) == ()
+    assert start_candidates({**cfg, "start_choice": "off"}, vol) == ()
+    assert start_candidates({**cfg, "init": "sphere"}, vol) == ()
     mask = Volume(vol.values, vol.origin, vol.spacing, kind="mask", raw=(vol.values < 0).astype(float), level=0.5)
-    assert start_candidates(cfg, set(), mask) == ()
+    assert start_candidates(cfg, mask) == ()
     big = Volume(np.ones((130, 130, 130)), [0.0] * 3, 1.0)           # refines to 259³ > 2²⁴ samples
-    assert start_candidates(cfg, set(), big) == ()
-    assert ShapeGradient(hold_carved=True).explicit == {"hold_carved"}
+    assert start_candidates(cfg, big) == ()
+    assert all(set(start) <= set(USUAL_START) for _, start in CANDIDATES)
+    assert start_settings({"start_level": 0.25}) == {**USUAL_START, "start_level": 0.25}
+    with pytest.raises(ValueError, match="unknown start settings"):
+        start_settings({"hold": True})
 
 
 def test_the_choice_keeps_a_limb_only_the_carved_start_has():
@@ -137,23 +139,23 @@ def test_a_failed_usual_flow_leaves_the_choice_to_the_carved_starts(monkeypatch)
     method = ShapeGradient()
     real = ShapeGradient.prepare
 
-    def usual_fails(self, volume, *, ops=None, overrides=None):
-        if not overrides:
+    def usual_fails(self, volume, *, ops=None, start=None):
+        if not start:
             raise ReconstructionFailed("the usual flow collapsed (test)")
-        return real(self, volume, ops=ops, overrides=overrides)
+        return real(self, volume, ops=ops, start=start)
     monkeypatch.setattr(ShapeGradient, "prepare", usual_fails)
     rec = method.reconstruct(vol)
     choice = rec.info["start_choice"]
     assert choice["candidates"]["usual"]["error"].startswith("the usual flow collapsed")
     assert choice["chosen"] != "usual" and abs(tip - rec.mesh.vertices[:, 0].max()) / vol.h < 1.0
 
-    def all_fail(self, volume, *, ops=None, overrides=None):
-        raise ReconstructionFailed("collapsed: " + ("usual" if not overrides else "carved"))
+    def all_fail(self, volume, *, ops=None, start=None):
+        raise ReconstructionFailed("collapsed: " + ("usual" if not start else "carved"))
     monkeypatch.setattr(ShapeGradient, "prepare", all_fail)
     with pytest.raises(ReconstructionFailed, match="collapsed: usual"):
         method.reconstruct(vol)
 
-    def bad_input(self, volume, *, ops=None, overrides=None):
+    def bad_input(self, volume, *, ops=None, start=None):
         raise InputError("far from one genus-0 surface (test)")
     monkeypatch.setattr(ShapeGradient, "prepare", bad_input)
     with pytest.raises(InputError, match="far from"):

@@ -66,11 +66,12 @@ def test_an_unrepairable_remeshed_start_falls_back_to_the_start_as_grown(monkeyp
     method = ShapeGradient(max_iter=4, remesh_every=3, sign_guard=False)
     grown = method.prepare(vol).snapshots[0]
     flow = method.prepare(vol)
-    assert flow.remesh_refused == 1 and flow.intersections[0][1] > 0 and tuple(flow.intersections[-1]) == (0, 0)
-    assert np.array_equal(flow.state.x, grown[0]) and flow._hold_stop
+    stats = flow.stats
+    assert stats.remesh_refused == 1 and stats.intersections[0][1] > 0 and tuple(stats.intersections[-1]) == (0, 0)
+    assert np.array_equal(flow.state.x, grown[0]) and flow.convergence.held
     flow.run()
     assert count_intersections(flow.state.x, flow.ops.faces)[0] == 0
-    assert flow.remeshes and not flow._hold_stop      # the remesh at iteration 3 released the stop tests
+    assert stats.remeshes and not flow.convergence.held      # the remesh at iteration 3 released the stop tests
 
 
 _CHILD = """

@@ -22,7 +22,7 @@ def sphere32():
 def test_registry_and_parameters():
     m = get_method("shape_gradient", alpha="3", max_iter="7")
     assert isinstance(m, ShapeGradient) and m.config["alpha"] == 3.0 and m.config["max_iter"] == 7
-    for p in ("alpha", "beta", "gradient", "step", "max_move", "precondition", "s", "relax", "presmooth",
+    for p in ("alpha", "beta", "gradient", "max_move", "precondition", "s", "relax", "presmooth",
               "max_iter", "tol", "init_radius", "init_vertices", "init_mesh", "snapshots", "preset"):
         assert p in ShapeGradient.params and ShapeGradient.params[p].doc
     with pytest.raises(InputError):
@@ -34,13 +34,11 @@ def test_registry_and_parameters():
     with pytest.raises(InputError):
         SG(snapshots="1,x")
     with pytest.raises(InputError):
-        SG(init_center="1 2")
-    with pytest.raises(InputError):
         SG(bogus=1)
     with pytest.raises(InputError):
         SG(polish="maybe")
     with pytest.raises(InputError):
-        SG(polish_angle=0)
+        SG(max_move=0)
 
 
 def test_paper_preset():
@@ -73,7 +71,7 @@ def test_noisy_volumes_subtract_the_noise_variance(sphere32):
     assert SG(max_iter=2, guard=False).reconstruct(sphere32).info["parameters"]["noise_variance"] == 0   # clean
 
 
-def test_user_init_mesh_and_centre(sphere32):
+def test_user_init_mesh_and_the_sphere_about_the_grid_centre(sphere32):
     ico = trimesh.creation.icosphere(subdivisions=3, radius=1.6)
     r = SG(init_mesh=ico).reconstruct(sphere32)
     assert len(r.mesh.vertices) == len(ico.vertices)
@@ -81,9 +79,9 @@ def test_user_init_mesh_and_centre(sphere32):
     # an inward-oriented mesh is flipped, a (vertices, faces) pair works too
     r2 = SG(init_mesh=(ico.vertices, ico.faces[:, ::-1]), max_iter=2).reconstruct(sphere32)
     assert r2.info["init_flipped"] and r2.mesh.volume > 0
-    r3 = SG(init_center="0.1 0 0", init_radius=1.5, max_iter=0, guard=False, projection="off",
+    r3 = SG(init="sphere", init_radius=1.5, max_iter=0, guard=False, projection="off",
             reach_samples=False).reconstruct(sphere32)
-    np.testing.assert_allclose(r3.mesh.vertices.mean(0), [0.1, 0, 0], atol=1e-3)
+    np.testing.assert_allclose(r3.mesh.vertices.mean(0), 0.5 * (sphere32.lower + sphere32.upper), atol=1e-3)
 
 
 def test_rejects_volumes_that_do_not_contain_the_initial_surface(sphere32):

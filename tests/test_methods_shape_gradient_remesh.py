@@ -106,12 +106,12 @@ def test_the_guard_finds_a_step_built_to_intersect_and_undoes_it():
     n, _ = count_intersections(x, flow.ops.faces)
     assert n > 0
     flow._set_mesh(x, flow.ops)
-    max_move = flow.max_move
+    max_move = flow.line.max_move
     assert flow._guard(1)
     assert count_intersections(flow.state.x, flow.ops.faces)[0] == 0
-    assert flow.repairs + flow.rollbacks == 1 and flow.intersections[-1] == (1, n)
-    if flow.rollbacks:
-        assert flow.max_move == pytest.approx(0.5 * max_move) and np.allclose(flow.state.x, flow._safe[0])
+    assert flow.stats.repairs + flow.stats.rollbacks == 1 and flow.stats.intersections[-1] == (1, n)
+    if flow.stats.rollbacks:
+        assert flow.line.max_move == pytest.approx(0.5 * max_move) and np.allclose(flow.state.x, flow._safe[0])
 
 
 # ---------------------------------------------------------------------------------------------- the start

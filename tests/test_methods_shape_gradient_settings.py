@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from methods.shape_gradient import ShapeGradient, ShapeGradientFlow
+from methods.shape_gradient.choose import USUAL_START, start_settings
 from methods.shape_gradient.settings import FlowSettings, Stage
 from phantoms import InputError, add_noise, get_phantom
 
@@ -19,8 +20,9 @@ DERIVED = ["stages", "s_world", "join_below_used", "remesh_start", "presmooth_us
 
 def resolve(method: ShapeGradient, *, clean: bool = True, noise: float = 0.0, h: float = 0.1,
             remesh_start: bool = True, kind: str = "sdf") -> FlowSettings:
-    return FlowSettings.resolve(method.config, h=h, clean=clean, noise=noise, presmooth=0.0, start_smooth=0.0,
-                                join_below=0.5 if clean else 0.0, remesh_start=remesh_start, kind=kind)
+    return FlowSettings.resolve({**method.config, **start_settings()}, h=h, clean=clean, noise=noise, presmooth=0.0,
+                                start_smooth=0.0, join_below=0.5 if clean else 0.0, remesh_start=remesh_start,
+                                kind=kind)
 
 
 def test_the_defaults_are_the_params_defaults():
@@ -29,25 +31,19 @@ def test_the_defaults_are_the_params_defaults():
     m = ShapeGradient()
     st = resolve(m)
     assert st.guard is True and st.sign_guard is True
-    for name in ("alpha", "gradient", "curvature", "step", "max_move", "tau", "precondition", "solver", "relax",
-                 "max_iter", "tol", "move_tol", "remesh_every", "remesh_iterations", "polish_angle",
-                 "polish_weight"):
+    for name in ("alpha", "gradient", "curvature", "max_move", "precondition", "relax", "max_iter", "tol",
+                 "move_tol", "remesh_every"):
         assert getattr(st, name) == ShapeGradient.params[name].default, name
     assert st.snapshots == (1, 50, 100)
 
 
 def test_every_parameter_given_reaches_the_settings():
-    m = ShapeGradient(alpha=2.0, gradient="paper", curvature="paper", step="fixed", max_move=0.5, tau=0.3,
-                      precondition="none", s=8.0, solver="cg", relax=0.0, max_iter=7, tol=0.0, move_tol=0.0,
-                      remesh_every=0, remesh_iterations=2, guard=False, polish_angle=30.0, polish_weight=0.2,
-                      snapshots="2,4")
+    m = ShapeGradient(alpha=2.0, gradient="paper", curvature="paper", max_move=0.5, precondition="none", s=8.0,
+                      relax=0.0, max_iter=7, tol=0.0, move_tol=0.0, remesh_every=0, guard=False, snapshots="2,4")
     st = resolve(m, h=0.5)
-    assert (st.alpha, st.gradient, st.curvature, st.step, st.max_move, st.tau) == (2.0, "paper", "paper", "fixed",
-                                                                                     0.5, 0.3)
-    assert (st.precondition, st.solver, st.relax, st.max_iter, st.tol, st.move_tol) == ("none", "cg", 0.0, 7, 0.0,
-                                                                                          0.0)
-    assert (st.remesh_every, st.remesh_iterations, st.guard, st.polish_angle, st.polish_weight) == (0, 2, False,
-                                                                                                     30.0, 0.2)
+    assert (st.alpha, st.gradient, st.curvature, st.max_move) == (2.0, "paper", "paper", 0.5)
+    assert (st.precondition, st.relax, st.max_iter, st.tol, st.move_tol) == ("none", 0.0, 7, 0.0, 0.0)
+    assert (st.remesh_every, st.guard) == (0, False)
     assert st.s_world == 8.0 * 0.5 ** 2 and st.snapshots == (2, 4)
 
 
@@ -73,7 +69,7 @@ def test_the_settings_are_frozen_and_the_reported_parameters_a_copy():
     with pytest.raises(dataclasses.FrozenInstanceError):
         st.guard = False
     reported = st.reported_parameters()
-    assert list(reported) == list(ShapeGradient.params) + DERIVED
+    assert list(reported) == list(ShapeGradient.params) + list(USUAL_START) + DERIVED     # the start's too
     assert reported["beta"] == 1.0 and reported["stages"] == [{"beta": 1.0, "edge_length": 0.5}]
     reported["stages"][0]["beta"] = 9.0
     assert st.reported_parameters()["stages"][0]["beta"] == 1.0
@@ -84,7 +80,7 @@ def test_prepare_hands_the_flow_its_settings():
     vol = get_phantom("sphere").volume(n=24)
     flow = ShapeGradient(max_iter=3, guard=False).prepare(vol)
     assert isinstance(flow, ShapeGradientFlow) and isinstance(flow.settings, FlowSettings)
-    assert flow.settings.guard is False and flow.guard is False and flow.settings.beta == 1.0
+    assert flow.settings.guard is False and flow.settings.beta == 1.0
     rec = flow.run().result()
     assert rec.info["iterations"] <= 3 and rec.info["parameters"] == flow.settings.reported_parameters()
     assert rec.info["parameters"]["guard"] is False and rec.info["beta_used"] == 1.0

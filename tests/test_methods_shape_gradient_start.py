@@ -14,6 +14,8 @@ from methods.shape_gradient.start import genus0_surface
 from phantoms import InputError, add_noise, get_phantom
 from phantoms.base import grid_volume
 
+from _shape_gradient_common import one_flow
+
 
 def test_the_start_of_a_torus_is_the_torus_cut_open():
     ph = get_phantom("torus")
@@ -155,7 +157,7 @@ def test_the_crease_polish_does_not_snap_onto_the_far_meeting_point_at_a_saddle(
     lobes the ring's planes are nearly parallel and meet far out — a crease point 2 voxels off the surface; the
     polish does not snap a vertex there (|φ| > a voxel), so the surface stays within a voxel of the truth."""
     vol, sdf, h, (c, rn) = _lobes(40, None, 0.6)
-    r = ShapeGradient(carved_start=True, hold_carved=True, carve_margin=0.1, start_level=0.25).reconstruct(vol)
+    r = one_flow(vol, {"carved_start": True, "hold_carved": True, "carve_margin": 0.1, "start_level": 0.25})
     assert r.info["init"]["carved"]["used"] and r.info["polish"]["off_zero_set"] > 0
     assert is_sphere_like(r.mesh.faces, len(r.mesh.vertices)) and _hausdorff_h(r.mesh, sdf, h, c, rn) <= 1.0
 

@@ -17,6 +17,7 @@ import numpy as np
 
 def main(argv=None) -> None:
     from methods import get_method
+    from methods.shape_gradient.choose import CANDIDATES
     from phantoms import add_noise, get_phantom
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -30,16 +31,16 @@ def main(argv=None) -> None:
     vol = ph.volume(n=args.n)
     if args.noise != "none":
         vol, _ = add_noise(vol, args.noise, ph.paper_snr_db, seed=0)
-    carved = {} if args.usual else {"carved_start": True, "hold_carved": True, "carve_margin": 0.1}
+    carved = None if args.usual else dict(CANDIDATES)["carved"]
     t0 = time.process_time()
-    flow = get_method("shape_gradient", start_choice="off", max_iter=args.max_iter, **carved).prepare(vol)
+    flow = get_method("shape_gradient", max_iter=args.max_iter).prepare(vol, start=carved)
     x0, e0, rows = flow.state.x.copy(), flow.state.E, []
     while True:
         going = flow.step()
         x = flow.state.x
         made = (float(np.abs(np.einsum("vd,vd->v", x - x0, flow.state.geo.vertex_normals)).max()) / flow.h
                 if x.shape == x0.shape else float("nan"))                   # nan: a remesh changed the vertices
-        trial = flow.moves[-1] / flow.h if flow.moves else float("nan")
+        trial = flow.stats.moves[-1] / flow.h if flow.stats.moves else float("nan")
         held = flow.carve.held if flow.carve else 0
         rows.append(f"{flow.iteration} E={flow.state.E:.4e} trial={trial:.4f} made={made:.4f} "
                     f"dE/E={abs(e0 - flow.state.E) / abs(e0):.1e} V={len(x)} held={held}")

@@ -3,8 +3,8 @@ reason) and each candidate's Hausdorff distance when forced alone — to see whe
 
     python docs/scripts/start_candidates.py /work/shapes/dev/falconstatue.obj --noise none --seed 0
 
-Each candidate is forced with ``start_choice=off`` and its overrides from
-``methods.shape_gradient.choose.CANDIDATES``; one JSON line per cell. Reads the truth: development only.
+Each candidate is flowed alone from its start settings in ``methods.shape_gradient.choose.CANDIDATES``
+(``prepare(volume, start=...)``); one JSON line per cell. Reads the truth: development only.
 """
 from __future__ import annotations
 
@@ -30,11 +30,11 @@ def main(argv=None) -> None:
         vol, _ = add_noise(vol, "gaussian", float(args.noise), seed=args.seed)
     facts = get_method("shape_gradient").reconstruct(vol).info["start_choice"]
     out = {"cell": f"{args.mesh} {args.noise} {args.seed}", "chosen": facts["chosen"]}
-    for name, overrides in CANDIDATES:
+    for name, start in CANDIDATES:
         fact = facts["candidates"].get(name)
         if fact is None or "error" in fact:
             continue
-        rec = get_method("shape_gradient", **{**overrides, "start_choice": "off"}).reconstruct(vol)
+        rec = get_method("shape_gradient").prepare(vol, start=start).run().result()
         m = evaluate(rec.mesh, ph, vol.h)
         out[name] = {"residual_voxels": fact["residual_voxels"], "stop_reason": fact["stop_reason"],
                      "hausdorff_h": round(m["hausdorff_h"], 3), "mean_dist_h": round(m["mean_dist_h"], 4)}

@@ -13,8 +13,7 @@ move of at most max(b(x) + margin, 0) keeps b ≥ −margin.  Where the surface 
 retreats freely; where it lies on the carved hull (a thin limb, a tip) it holds.  Outward moves are never limited.
 A vertex with no allowance left also gets no tangential relaxation (at a thin part's rim the shift toward the
 1-ring's centre shortens the part as an inward move would), and the remesher keeps such vertices where they are
-tips (:func:`remesh_keep`).  The limits clamp the trial moves of the capped line search (``step='capped'``, the
-default); with ``step='fixed'`` only the zeroed velocity and the held relaxation act.
+tips (:func:`remesh_keep`).  The limits clamp the trial moves of the capped line search.
 
 b is read from the 4×4×4 samples around each vertex (the balls that reach a point near the surface are those of
 the samples next to it; a far sample's ball missed only makes the limit stricter), d(q) = φ(q)/g with g the
@@ -28,7 +27,7 @@ import numpy as np
 
 from geometry import kernels
 
-from .tips import distance_scale, near_samples, tip_vertices
+from .tips import TIP_CURVATURE, distance_scale, near_samples, tip_vertices
 
 __all__ = ["CarvedHull", "ball_depth", "ball_depth_numpy", "remesh_keep"]
 
@@ -132,14 +131,14 @@ class CarvedHull:
         return step + cut[:, None] * normals
 
 
-def remesh_keep(ops, geo, h: float, settings, carve: "CarvedHull | None") -> np.ndarray:
-    """The vertices a remesh keeps in place: with ``hold_carved`` the tips of sharply convex parts (mean curvature
-    above ``tip_curvature`` per voxel) that the carved hull holds (no inward move allowed: no ball says the space
-    there is empty) — the remesher's collapses would otherwise shorten a thin limb that the flow may not shorten;
-    else none."""
+def remesh_keep(ops, geo, h: float, carve: "CarvedHull | None") -> np.ndarray:
+    """The vertices a remesh keeps in place: with ``hold_carved`` the tips of sharply convex parts (mean
+    curvature above :data:`~.tips.TIP_CURVATURE` per voxel) that the carved hull holds (no inward move allowed: no
+    ball says the space there is empty) — the remesher's collapses would otherwise shorten a thin limb that the flow
+    may not shorten; else none."""
     if carve is None:
         return np.zeros(0, dtype=np.int64)
-    tips = tip_vertices(ops, geo, h, settings.tip_curvature)
+    tips = tip_vertices(ops, geo, h, TIP_CURVATURE)
     if len(tips) == 0:
         return tips
     return tips[carve.limits(geo.vertices[tips]) <= 0.0]

@@ -40,7 +40,8 @@ from phantoms import Volume
 from .carved_start import fine_grid_fits
 
 __all__ = ["band_samples", "mesh_distances", "data_errors", "data_residual", "rms", "lacks_a_part",
-           "CANDIDATES", "BAND_VOXELS", "PREFER_USUAL", "AGREE_VOXELS", "agree_limit", "AGREE_NOISE_STDS",
+           "CANDIDATES", "USUAL_START", "start_settings",
+           "BAND_VOXELS", "PREFER_USUAL", "AGREE_VOXELS", "agree_limit", "AGREE_NOISE_STDS",
            "start_candidates", "pick"]
 
 #: the band of samples the residual reads: |φ| below this many voxels
@@ -55,24 +56,34 @@ AGREE_NOISE_STDS = 3.0
 #: tie (a sphere, an ellipsoid under noise) the usual start's mesh is the smoother one (no held vertices)
 PREFER_USUAL = 0.05
 
-#: (name, parameter overrides) of the starts tried, the usual one first
+#: the start's private settings (no parameter of the method: only the choice sets them) and their usual values:
+#: ``carved_start`` grows the genus-0 start from the carved hull (carved_start.py); ``hold_carved`` keeps the flow's
+#: inward moves within ``carve_margin`` voxels of the outside samples' empty balls (carve.py); ``start_level``
+#: grows the genus-0 start from φ < ``start_level`` voxels
+USUAL_START: dict = {"carved_start": False, "hold_carved": False, "carve_margin": 0.25, "start_level": 0.0}
+
+#: (name, start settings replacing :data:`USUAL_START`'s) of the starts tried, the usual one first
 CANDIDATES: tuple[tuple[str, dict], ...] = (
     ("usual", {}),
     ("carved", {"carved_start": True, "hold_carved": True, "carve_margin": 0.1}),
     ("carved_level", {"carved_start": True, "hold_carved": True, "carve_margin": 0.1, "start_level": 0.25}),
 )
 
-#: the parameters a candidate sets: a user who sets any of them chooses the start, and one flow runs
-_START_KEYS = ("carved_start", "hold_carved", "carve_margin", "start_level")
+
+def start_settings(start: dict | None = None) -> dict:
+    """:data:`USUAL_START` with ``start``'s values (a candidate's); an unknown key is a programming error."""
+    unknown = set(start or {}) - set(USUAL_START)
+    if unknown:
+        raise ValueError(f"unknown start settings: {sorted(unknown)}")
+    return {**USUAL_START, **(start or {})}
 
 
-def start_candidates(config: dict, explicit: set, volume: Volume) -> tuple[tuple[str, dict], ...]:
-    """The candidates :func:`CANDIDATES` to flow for ``volume`` with ``config``, or () for one flow as
-    configured: the choice needs ``start_choice='auto'``, the genus-0 start of a signed distance (the carved
-    hull reads distances), the refined grid within :data:`~.carved_start.FINE_MAX_SAMPLES`, and none of the
-    start's parameters set by the user (``explicit``)."""
+def start_candidates(config: dict, volume: Volume) -> tuple[tuple[str, dict], ...]:
+    """The candidates :func:`CANDIDATES` to flow for ``volume`` with ``config``, or () for one flow from the
+    usual start: the choice needs ``start_choice='auto'``, the genus-0 start of a signed distance (the carved
+    hull reads distances) and the refined grid within :data:`~.carved_start.FINE_MAX_SAMPLES`."""
     if (config["start_choice"] != "auto" or config["init"] != "genus0" or config["init_mesh"] is not None
-            or volume.kind != "sdf" or explicit & set(_START_KEYS)):
+            or volume.kind != "sdf"):
         return ()
     return CANDIDATES if fine_grid_fits(volume.shape) else ()
 

@@ -14,7 +14,7 @@ from phantoms import InputError, Volume
 from ..base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
 from .field import CLEAN_NOISE_VOXELS, estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
 from .carved_start import carved_surface
-from .choose import data_errors, lacks_a_part, pick, rms, start_candidates
+from .choose import data_errors, lacks_a_part, pick, rms, start_candidates, start_settings
 from .flow import ShapeGradientFlow
 from .settings import FlowSettings, edge_length_voxels
 from .start import denoised_topology, initial_surface, parse_snapshots, target_topology, topology_gap
@@ -25,8 +25,8 @@ __all__ = ["ShapeGradient", "PRESETS"]
 PRESETS: dict[str, dict[str, Any]] = {
     "none": {},
     # the paper's algorithm as printed: no divergence term, plain (unpreconditioned) descent, the paper's
-    # paraboloid fit, no relaxation, no pre-smoothing.  The step stays capped + backtracked: taken literally
-    # (step='fixed', tau=0.1) the first step throws Γ0 past the target and the mesh tangles.
+    # paraboloid fit, no relaxation, no pre-smoothing.  The step stays capped + backtracked: the printed fixed
+    # step τ = 0.1 throws Γ0 past the target at once and the mesh tangles (docs/METHOD.md).
     # the paper runs a fixed number of iterations (100; 150 on the fused spheres) at α = 5, β = 1: no stop on
     # a tolerance, so its tables' rows 50 and 100 are reached unless the line search runs out of steps.
     "paper": {"gradient": "paper", "precondition": "none", "relax": 0.0, "presmooth": 0.0,
@@ -62,14 +62,14 @@ def _auto_or_number(key: str, value: Any, hi: float) -> "float | str":
     return v
 
 
-def _edge_length_voxels(cfg: dict, x: np.ndarray, faces: np.ndarray, h: float, facts: dict) -> float:
+def _edge_length_voxels(flow_params: dict, x: np.ndarray, faces: np.ndarray, h: float, facts: dict) -> float:
     """The remeshing's edge length (voxels): ``edge_length``, or longer where the surface is so large that
     triangles of that size would exceed ``max_faces`` — the mesh's size follows the surface's area, not the
     grid's (a label map at its native resolution: millions of faces for a smooth organ).  The start's area
     is read before it is remeshed (a staircase overestimates it a little: the cap errs on the coarse side)."""
-    edge = float(cfg["edge_length"])
-    cap = cfg["max_faces"]
-    if cap <= 0 or cfg["remesh_every"] <= 0:
+    edge = float(flow_params["edge_length"])
+    cap = flow_params["max_faces"]
+    if cap <= 0 or flow_params["remesh_every"] <= 0:
         return edge
     tri = x[faces]
     area = 0.5 * float(np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
@@ -79,6 +79,20 @@ def _edge_length_voxels(cfg: dict, x: np.ndarray, faces: np.ndarray, h: float, f
         facts["edge_length_voxels_for_max_faces"] = round(needed, 4)
         return needed
     return edge
+
+
+def _start_values(volume: Volume, flow_params: dict, sigma: float) -> "np.ndarray | None":
+    """The samples the genus-0 start is grown from: the volume's smoothed by ``sigma`` voxels and lowered by the
+    start's ``start_level`` voxels; None (the volume's own) when neither applies or the start is not genus-0."""
+    if flow_params["init"] != "genus0" or flow_params["init_mesh"] is not None:
+        return None
+    values = None
+    if sigma > 0:
+        from scipy.ndimage import gaussian_filter
+        values = gaussian_filter(volume.values, float(sigma), mode="nearest")
+    if flow_params["start_level"]:
+        values = (volume.values if values is None else values) - float(flow_params["start_level"]) * volume.h
+    return values
 
 
 def _refuse_far_topology(topology: dict, max_gap: int) -> None:
@@ -101,172 +115,78 @@ class ShapeGradient(Method):
                    "from the volume (full gradient, H¹ preconditioning, capped backtracking)")
     params = {
         "alpha": Param(5.0, "weight α of the data term φ² (pulls Γ onto φ = 0)", float, min=0.0),
-        "beta": Param("auto", "weight β of the alignment term |∇_Γφ|² (wants n ∥ ∇φ); 0 = the paper's ablation; "
-                      "'auto' = 1 on clean volumes, 0.01 on noisy ones (estimated noise ≥ 0.05 voxel), where ∇φ is "
-                      "read from the pre-smoothed volume: in it voxel-thin parts (the bunny's ears) have merged, and "
-                      "β = 1 pulls them off", object),
-        "gradient": Param("full", "'full': the true shape gradient of E (docs/METHOD.md, with the divergence term); "
-                          "'paper': the paper's eq. (dJ_finel) without it", str, choices=("full", "paper")),
-        "step": Param("capped", "'capped': largest move capped at max_move voxels, then halved until E "
-                      "decreases (Armijo); 'fixed': x ← x − τVn with τ = tau, unguarded (the paper's loop)",
-                      str, choices=("capped", "fixed")),
-        "max_move": Param(1.0, "step cap: the largest vertex move per iteration, in voxels (step='capped')",
-                          float, min=1e-3, max=10.0),
-        "tau": Param(0.1, "the constant step τ of step='fixed' (world units per unit of G)", float, min=0.0),
-        "precondition": Param("h1", "'h1': Sobolev velocity V = (M + sK)⁻¹MG (M lumped areas, K cotangent "
-                              "stiffness; Jacobi-preconditioned CG); 'none': V = G", str, choices=("h1", "none")),
-        "s": Param(18.0, "H¹ smoothing weight s in voxels² (s·h² world units²; precondition='h1'); 18 is "
-                   "0.05 world units² at the paper's N = 96", float, min=0.0),
-        "solver": Param("auto", "how the H¹ system is solved: 'direct' = sparse LU of M + sK refreshed every 5 "
-                        "iterations and at every remesh; 'amg' = CG preconditioned by a multigrid hierarchy "
-                        "(pyamg) refreshed likewise; 'cg' = Jacobi-preconditioned CG every iteration (the "
-                        "slowest for large s); 'auto' = cg while s ≤ 2 squared edge lengths (coarse meshes), "
-                        "else direct up to 40,000 vertices, amg above", str,
-                        choices=("auto", "direct", "amg", "cg")),
-        "relax": Param(0.5, "tangential relaxation weight per iteration (move toward the 1-ring centroid "
-                       "within the tangent plane); 0 = off", float, min=0.0, max=1.0),
-        "presmooth": Param("auto", "Gaussian pre-smoothing of the volume the derivative grids ∇φ, D²φ are "
-                           "computed from, σ in voxels (0 = off); 'auto': σ = 1 voxel when the estimated noise "
-                           "(robust std of 4th differences) is at least 0.05 voxel, else off", object),
-        "start_smooth": Param("auto", "Gaussian σ in voxels of the values the genus-0 start is grown from (0 = the "
-                              "data's own values); 'auto' = the presmooth σ", object),
-        "unbias": Param(True, "on noisy volumes, subtract the estimated noise variance from φ² in the data term: "
-                        "trilinear φ of noise with std σ has E[φ²] = φ_true² + (2/3)³σ² on average, so ∫αφ² carries "
-                        "(2/3)³ασ² × area, a mean-curvature flow that shrinks thin parts and tips",
+        "beta": Param("auto", "weight β of the alignment term |∇_Γφ|² (n ∥ ∇φ); 'auto' = 1 on clean volumes, "
+                      "0.01 on noisy ones; 0 = the paper's ablation", object),
+        "gradient": Param("full", "'full': the shape gradient of E with the divergence term; 'paper': the paper's "
+                          "eq. (dJ_finel) without it", str, choices=("full", "paper")),
+        "max_move": Param(1.0, "step cap: the largest vertex move per iteration, in voxels", float, min=1e-3,
+                          max=10.0),
+        "precondition": Param("h1", "'h1': the Sobolev velocity V = (M + sK)⁻¹MG; 'none': V = G", str,
+                              choices=("h1", "none")),
+        "s": Param(18.0, "H¹ smoothing weight s, in voxels² (s·h² world units²)", float, min=0.0),
+        "relax": Param(0.5, "tangential relaxation weight per iteration (toward the 1-ring centroid); 0 = off", float,
+                       min=0.0, max=1.0),
+        "presmooth": Param("auto", "Gaussian σ (voxels) of the volume ∇φ and D²φ are computed from; 'auto' = 1 on "
+                           "noisy volumes, 0 on clean ones", object),
+        "start_smooth": Param("auto", "Gaussian σ (voxels) of the values the genus-0 start is grown from; 'auto' = "
+                              "the least that brings the noise below one voxel", object),
+        "unbias": Param(True, "on noisy volumes, subtract the estimated noise variance from φ² in the data term",
                         bool),
-        "polish": Param("auto", "crease polish of the final mesh (crease_polish): vertices next to sharp creases "
-                        "of the level set are Newton-projected onto φ = 0 and one endpoint of every edge "
-                        "crossing a crease is put on the crease; smooth regions are not touched. 'auto': on "
-                        "for clean volumes (estimated noise below 0.05 voxel, i.e. no pre-smoothing), off on "
-                        "noisy ones (projection onto the noisy level set would roughen the mesh)", str,
-                        choices=("auto", "on", "off")),
-        "polish_angle": Param(45.0, "crease polish: an edge crosses a crease when ∇φ at its two (projected) "
-                              "endpoints differs by more than this many degrees", float, min=1.0, max=179.0),
-        "polish_weight": Param(0.1, "crease polish: weight w of |y − p_i|² in the crease-point quadric "
-                               "(relative to one plane; smaller = sharper but less stable)", float, min=1e-6),
-        "curvature": Param("tilted", "paraboloid fit for H: 'tilted' adds linear terms (robust to a tilted "
-                           "vertex normal), 'paper' is z = A/2x² + Bxy + C/2y² as printed", str,
+        "polish": Param("auto", "crease polish of the final mesh (vertices put on sharp creases of φ = 0); 'auto' = "
+                        "on clean volumes only", str, choices=("auto", "on", "off")),
+        "curvature": Param("tilted", "paraboloid fit for H: 'tilted' with linear terms, 'paper' as printed", str,
                            choices=("tilted", "paper")),
-        "max_iter": Param(300, "maximum number of iterations (paper: 100; 150 for the fused spheres)", int,
-                          min=0, max=100000),
-        "tol": Param(1e-4, "stop ('converged') when the relative energy change stays below tol for 3 "
-                     "iterations (0 = off)", float, min=0.0),
-        "move_tol": Param(0.01, "stop ('converged') when the largest normal move per iteration stays below "
-                          "move_tol voxels for 3 iterations (0 = off): the surface has stopped and the energy "
-                          "only changes by the tangential relaxation", float, min=0.0),
-        "init": Param("genus0", "initial surface: 'genus0' = a genus-0 surface of the volume itself: the region "
-                      "φ < 0 (pre-smoothed on noisy volumes) grown from its deepest sample keeping only simple points "
-                      "(one component, no handle, no cavity: where sulcal banks or thin parts merge at grid "
-                      "resolution the growth stops at the thinnest place), then marching cubes with its ambiguous "
-                      "cells resolved to that topology (falls back to 'auto' if that fails); 'auto' = a sphere "
-                      "enclosing the region φ < 0 (its bounding sphere plus 2 voxels) meshed at edge_length; "
-                      "'sphere' = the Fibonacci sphere of init_radius / init_vertices / init_center (the paper's "
-                      "Γ0); init_mesh overrides all", str, choices=("genus0", "auto", "sphere")),
-        "join_below": Param(0.5, "init='genus0': where the region φ < 0 falls apart into pieces at grid resolution, "
-                            "join the pieces whose lowest saddle of φ is below this many voxels (a part thinner than "
-                            "a voxel: a neck 0.6 voxel thick has its saddle at 0.41 voxel at worst; two objects d "
-                            "voxels apart at d/2) through a path of samples at that saddle, so the start grows into "
-                            "all of them; farther pieces: the largest is kept, with the topology warning. Under "
-                            "noise the threshold is lowered by the noise std σ̂ (a saddle read through noise is about "
-                            "σ̂ lower; 30 dB speckles are never joined). 0 = never join", float, min=0.0, max=10.0),
-        "close_pinholes": Param(True, "init='genus0' on a noisy volume: where noise lifted one sample of a thin sheet "
-                                "(an ear, a wing) above 0, the growth would stop at the pinhole and the start lose "
-                                "the tip beyond it; close such holes — one sample below max(noise std, 1/4 voxel), "
-                                "next to the samples left out (methods.shape_gradient.pinholes). "
-                                "Wider gaps (sulcal banks touching) stay open", bool),
-        "sign_guard": Param(True, "with the genus-0 start on a clean volume: at every remesh, count the grid samples "
-                            "that are clearly inside or outside (|φ| > h/4, within 3 h of φ = 0) but on the wrong side "
-                            "of the surface (inside samples it covered and no longer covers, outside samples it "
-                            "covers; inside samples the start missed may be grown into); when the flow puts more "
-                            "there than its start did (+2), it is cutting a part of the object (a voxel-thin ear "
-                            "on a coarse grid), so the mesh goes back to the accepted checkpoint with "
-                            "the fewest samples on the wrong side (the latest of equals) and the run stops "
-                            "(stop_reason 'sign_guard'); info['sign_guard'] lists (iteration, count)", bool),
-        "edge_length": Param("auto", "target edge length of the initial sphere (init='auto') and of the "
-                             "remeshing, in voxels (0.1–20); 'auto' = 1 on a binary mask (it resolves nothing finer: "
-                             "as close and faster), else 0.5, which "
-                             "keeps parts a voxel thin (the bunny's ear tips are lost at 1)", object),
-        "remesh_iterations": Param(3, "split/collapse/flip/relax rounds of the start's remesh (marching cubes' "
-                                   "slivers); the later remeshes, of a mesh already near isotropic, run one", int,
-                                   min=1, max=20),
-        "remesh_every": Param(5, "isotropic remeshing (Botsch–Kobbelt, gpytoolbox) toward edge_length every this "
-                              "many iterations; 0 = fixed connectivity (the paper)", int, min=0, max=100000),
-        "guard": Param(True, "keep the surface free of self-intersections: check at every remesh and at the end, "
-                       "repair by local smoothing or roll back (and halve the step cap); a collapsed or "
+        "max_iter": Param(300, "maximum number of iterations", int, min=0, max=100000),
+        "tol": Param(1e-4, "stop ('converged') when the relative energy change stays below this for 3 iterations; "
+                     "0 = off", float, min=0.0),
+        "move_tol": Param(0.01, "stop ('converged') when the largest normal move stays below this many voxels for 3 "
+                          "iterations; 0 = off", float, min=0.0),
+        "init": Param("genus0", "initial surface: 'genus0' = grown from the region φ < 0 as one genus-0 solid; "
+                      "'auto' = an enclosing sphere; 'sphere' = the paper's Fibonacci sphere", str,
+                      choices=("genus0", "auto", "sphere")),
+        "join_below": Param(0.5, "genus-0 start: join the pieces of φ < 0 whose lowest saddle is below this many "
+                            "voxels; 0 = never", float, min=0.0, max=10.0),
+        "close_pinholes": Param(True, "genus-0 start on a noisy volume: close the one-sample holes noise made in a "
+                                "thin sheet", bool),
+        "sign_guard": Param(True, "genus-0 start on a clean volume: stop and roll back when the flow puts more grid "
+                            "samples on the wrong side than its start did", bool),
+        "edge_length": Param("auto", "target edge length of the remeshing (and of init='auto'), in voxels; 'auto' = "
+                             "1 on a binary mask, else 0.5", object),
+        "remesh_every": Param(5, "isotropic remeshing every this many iterations; 0 = fixed connectivity", int,
+                              min=0, max=100000),
+        "guard": Param(True, "keep the surface free of self-intersections (repair or roll back); a collapsed or "
                        "off-surface result is an error", bool),
-        "projection": Param("auto", "final Newton projection of the vertices onto φ = 0 (3 steps of at most 0.5 "
-                            "voxel; kept only if it makes no faces intersect). 'auto': on for clean volumes, off "
-                            "on noisy ones (like polish)", str, choices=("auto", "on", "off")),
-        "extend_tips": Param(True, "tip extension of the final mesh (tips.py): vertices of sharply convex parts "
-                             "(mean curvature above tip_curvature per voxel) move outwards along their normal, up "
-                             "to a voxel, until they touch the empty ball |x − q| < φ(q)/|∇φ(q)| of an outside "
-                             "sample q; halved, then kept back, where faces would meet", bool),
-        "reach_samples": Param(True, "last post-step on a signed distance (reach.py): where a sample q in the band "
-                               "|φ| < 1.5 voxels is farther from the mesh than |φ(q)| by more than half a voxel plus "
-                               "three noise stds (a crevice, a limb's stump, a tip the zero set rounds off), the "
-                               "mesh vertex nearest q's foot point q − φ∇φ/|∇φ| moves there; 3 rounds, kept "
-                               "back where faces would meet; on a noisy volume only samples with a flagged neighbour "
-                               "pull. The start choice scores each flow before it", bool),
-        "hold_carved": Param(False, "the flow moves a vertex inwards only as far as it stays within carve_margin "
-                             "voxels of the union of the outside samples' empty balls |x − q| < φ(q)/|∇φ| (carve.py): "
-                             "a part thinner than a voxel, which φ shows only as a dip, is not cut where no ball "
-                             "covers it", bool),
-        "start_level": Param(0.0, "the genus-0 start is grown from φ < start_level voxels (with hold_carved: a part "
-                             "thinner than a voxel that φ shows as a dip below that level enters the start, and the "
-                             "flow keeps what no empty ball covers)", float, min=0.0, max=2.0),
-        "carved_start": Param(False, "the genus-0 start is grown from the carved hull — the region, read on a grid "
-                              "twice as fine, that no outside sample's empty ball reaches (carved_start.py) — so a "
-                              "part thinner than a voxel that every sample misses is in the start (with hold_carved "
-                              "the flow keeps it)", bool),
-        "l2_fallback": Param(True, "where the line search along the H¹ direction finds no decrease of E (under "
-                             "noise: the direction is the pre-smoothed field's), search along the plain (L²) shape "
-                             "gradient before stopping on the line-search floor", bool),
-        "start_choice": Param("auto", "'auto': on a signed distance whose refined grid fits (N ≤ 128), the flow runs "
-                              "from φ < 0 and, where its result lacks a part of the data (a sample lies outside it "
-                              "by more than ½ voxel + 3 noise stds past its distance), also from two more genus-0 "
-                              "starts — the carved hull (carved_start, hold_carved, "
-                              "carve_margin = 0.1) and the carved hull read at φ < ¼ voxel (start_level = 0.25) — "
-                              "and keeps the result whose signed distance agrees best with the samples (rms of "
-                              "d_Γ − φ over |φ| < 1.5 voxels; choose.py; info['start_choice']); 'off', or any of "
-                              "those four parameters set: one flow as configured", str, choices=("auto", "off")),
-        "carve_margin": Param(0.25, "hold_carved: how far, in voxels, the surface may retreat past the union of the "
-                              "empty balls", float, min=0.0, max=10.0),
-        "tip_curvature": Param(0.3, "tip extension: the least mean curvature, per voxel, of a vertex that may move",
-                               float, min=0.0),
-        "strict_topology": Param(False, "refuse (error) when the region φ < 0 is not compatible with one genus-0 "
-                                 "surface (several components, handles, cavities); otherwise info['topology'] "
-                                 "and a warning say so", bool),
-        "max_faces": Param(1_000_000, "the remeshing keeps about this many faces at most: where the surface's area "
-                           "needs more triangles of edge_length, the edge length grows (info['init']); 0 = no cap",
+        "projection": Param("auto", "final Newton projection of the vertices onto φ = 0; 'auto' = on clean volumes "
+                            "only", str, choices=("auto", "on", "off")),
+        "extend_tips": Param(True, "final tip extension: sharply convex vertices move out to the outside samples' "
+                             "empty balls (at most a voxel)", bool),
+        "reach_samples": Param(True, "last post-step on a signed distance: vertices move to band samples the mesh "
+                               "lies farther from than their distance says", bool),
+        "l2_fallback": Param(True, "where the H¹ direction's line search finds no decrease, search along the plain "
+                             "(L²) gradient before stopping", bool),
+        "start_choice": Param("auto", "'auto': where the usual start's result lacks a part of the data, also flow "
+                              "from the carved starts and keep the best fit; 'off': one flow", str,
+                              choices=("auto", "off")),
+        "strict_topology": Param(False, "refuse (error) a volume whose region φ < 0 is not one genus-0 solid; "
+                                 "otherwise a warning", bool),
+        "max_faces": Param(1_000_000, "about the most faces the remeshing keeps (the edge length grows); 0 = no cap",
                            int, min=0),
-        "max_topology_gap": Param(5, "refuse (error, before any iteration) a volume whose region φ < 0, read after "
-                                  "smoothing (σ ≥ 1 voxel; noise below 0.1 voxel), is farther than this from one "
-                                  "genus-0 solid: (components − 1) + |χ − 1| at its most favourable level and "
-                                  "connectivity — about "
-                                  "the number of handles (a torus 1; a skull with openings many); one genus-0 "
-                                  "surface cannot follow such data (the development and held-out shapes read 0–2 "
-                                  "at 20–40 dB)", int, min=0),
-        "init_radius": Param(PAPER_SPHERE_RADIUS, "radius of the initial Fibonacci sphere (world units)",
-                             float, min=1e-9),
-        "init_vertices": Param(PAPER_SPHERE_VERTICES, "vertices of the initial sphere (1,896 → 3,788 "
-                               "triangles, the paper's Γ0)", int, min=12, max=5_000_000),
-        "init_center": Param(None, "centre of the initial sphere, 3 numbers (default: centre of the grid box)",
-                             object),
-        "init_mesh": Param(None, "any closed genus-0 mesh to start from instead of the sphere (trimesh.Trimesh, "
-                           "(vertices, faces) or a file path)", object),
-        "snapshots": Param("1,50,100", "iterations whose vertices are kept in info['snapshots'] (0, the "
-                           "initial surface, is always kept)", object),
-        "preset": Param("none", "'paper': the paper's algorithm as printed (gradient='paper', "
-                        "precondition='none', curvature='paper', relax=0, presmooth=0, the radius-2 sphere of "
-                        "1,896 vertices, fixed connectivity, β = 1, 100 iterations with no tolerance stop); "
-                        "'paper+fixes': the same experiment (Γ0, β, iterations, fixed connectivity) with the "
-                        "suite's flow (full gradient, H¹, capped backtracking, guard); explicitly passed "
-                        "parameters still win", str, choices=tuple(PRESETS)),
+        "max_topology_gap": Param(5, "refuse (error) a volume whose smoothed region φ < 0 is farther than this from "
+                                  "one genus-0 solid ((components − 1) + |χ − 1|)", int, min=0),
+        "init_radius": Param(PAPER_SPHERE_RADIUS, "radius of the initial Fibonacci sphere (init='sphere'), world "
+                             "units", float, min=1e-9),
+        "init_vertices": Param(PAPER_SPHERE_VERTICES, "vertices of the initial Fibonacci sphere (init='sphere')",
+                               int, min=12, max=5_000_000),
+        "init_mesh": Param(None, "a closed genus-0 mesh to start from instead (trimesh.Trimesh, (vertices, faces) or "
+                           "a file path)", object),
+        "snapshots": Param("1,50,100", "iterations whose vertices are kept in info['snapshots'] (0 always)",
+                           object),
+        "preset": Param("none", "'paper': the paper's algorithm as printed; 'paper+fixes': its experiment run by "
+                        "the suite's flow; explicit parameters win", str, choices=tuple(PRESETS)),
     }
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
-        self.explicit = set(params)
         preset = PRESETS[self.config["preset"]]
         for key, value in preset.items():
             if key not in params:
@@ -277,16 +197,6 @@ class ShapeGradient(Method):
         if self.config["edge_length"] != "auto" and self.config["edge_length"] < 0.1:
             raise InputError("method 'shape_gradient', parameter 'edge_length': expected 'auto' or a number in "
                              f"[0.1, 20]; got {self.config['edge_length']!r}")
-        c = self.config["init_center"]
-        if c is not None:
-            try:
-                c = np.asarray(
-                    [float(t) for t in c.replace(",", " ").split()] if isinstance(c, str) else c, dtype=float)
-            except (TypeError, ValueError):
-                c = None
-            if c is None or c.shape != (3,) or not np.isfinite(c).all():
-                raise InputError("method 'shape_gradient', parameter 'init_center': expected 3 finite numbers")
-            self.config["init_center"] = c
 
     @property
     def relative_cost(self) -> float:
@@ -295,55 +205,56 @@ class ShapeGradient(Method):
         return 2.0 if self.config["remesh_every"] == 0 and self.config["init"] == "sphere" else 12.0
 
     def prepare(self, volume: Volume, *, ops: MeshOperators | None = None,
-                overrides: dict | None = None) -> "ShapeGradientFlow":
+                start: dict | None = None) -> "ShapeGradientFlow":
         """Check the input, build the initial surface, the (pre-smoothed) field and the operators, and
         return the flow before its first iteration (``reconstruct`` = ``prepare(volume).run()`` + packing).
 
         ``ops`` reuses a :class:`MeshOperators` built for the same initial connectivity (benchmarks);
-        ``overrides`` replaces parameters for this flow only (a start of the start choice).
+        ``start`` sets the start's private settings for this flow (a candidate of the start choice,
+        :data:`.choose.CANDIDATES`; the rest keep :data:`.choose.USUAL_START`).
         """
         check_volume(volume, self.name)
-        config = {**self.config, **(overrides or {})}
-        cfg = {**config, "edge_length": edge_length_voxels(config["edge_length"], volume.kind)}
+        # this flow's parameters: the method's, the start's private settings, the edge length in voxels
+        flow_params = {**self.config, **start_settings(start)}
+        flow_params["edge_length"] = edge_length_voxels(flow_params["edge_length"], volume.kind)
         t_start = time.perf_counter()
         topology = target_topology(volume)
-        if not topology["compatible"] and cfg["strict_topology"]:
+        if not topology["compatible"] and flow_params["strict_topology"]:
             raise InputError(f"method 'shape_gradient' (strict_topology): {topology['message']}")
         noise = estimate_noise(volume)
         clean = noise < CLEAN_NOISE_VOXELS * volume.h
         # a clean volume's raw reading is reliable; under noise one reading can look compatible by chance
-        if (not topology["compatible"] or not clean) and cfg["init_mesh"] is None:
-            _refuse_far_topology(denoised_topology(volume, noise), cfg["max_topology_gap"])
-        sigma = cfg["presmooth"]
+        if (not topology["compatible"] or not clean) and flow_params["init_mesh"] is None:
+            _refuse_far_topology(denoised_topology(volume, noise), flow_params["max_topology_gap"])
+        sigma = flow_params["presmooth"]
         if sigma == "auto":
             sigma = 0.0 if clean else _AUTO_PRESMOOTH_SIGMA
-        s0 = start_smoothing(noise / volume.h) if cfg["start_smooth"] == "auto" else cfg["start_smooth"]
-        values = None
-        if s0 > 0 and cfg["init"] == "genus0" and cfg["init_mesh"] is None:
-            from scipy.ndimage import gaussian_filter
-            values = gaussian_filter(volume.values, float(s0), mode="nearest")
-        if cfg["start_level"] and cfg["init"] == "genus0" and cfg["init_mesh"] is None:
-            values = (volume.values if values is None else values) - float(cfg["start_level"]) * volume.h
+        s0 = flow_params["start_smooth"]
+        if s0 == "auto":
+            s0 = start_smoothing(noise / volume.h)
+        values = _start_values(volume, flow_params, s0)
         # under noise a saddle is lower by about a noise std (the lowest of many paths' highest samples): the
         # threshold is lowered by σ̂, so the speckles of 30 dB noise (σ̂ ≈ 0.6 voxel) are never joined
-        join_below = float(cfg["join_below"]) if clean else max(float(cfg["join_below"]) - noise / volume.h, 0.0)
+        join_below = float(flow_params["join_below"])
+        if not clean:
+            join_below = max(join_below - noise / volume.h, 0.0)
         pinhole_below = 0.0
-        if cfg["close_pinholes"] and not clean:
+        if flow_params["close_pinholes"] and not clean:
             pinhole_below = max(noise_after_smoothing(noise / volume.h, s0), _PINHOLE_FLOOR_VOXELS)
         x, faces, flipped, init_facts = initial_surface(
-            volume, init=cfg["init"], init_mesh=cfg["init_mesh"], edge_length=cfg["edge_length"],
-            join_below=join_below, init_vertices=cfg["init_vertices"], init_radius=cfg["init_radius"],
-            init_center=cfg["init_center"], values=values, pinhole_below=pinhole_below)
+            volume, init=flow_params["init"], init_mesh=flow_params["init_mesh"],
+            edge_length=flow_params["edge_length"], join_below=join_below, init_vertices=flow_params["init_vertices"],
+            init_radius=flow_params["init_radius"], values=values, pinhole_below=pinhole_below)
         if init_facts["kind"] == "genus0":
             init_facts["pinhole_below_voxels"] = round(pinhole_below, 4)
-            if cfg["carved_start"]:
+            if flow_params["carved_start"]:
                 x, faces, init_facts["carved"] = carved_surface(
                     volume, volume.values if values is None else values, x, faces, pinhole_below,
                     0.0 if clean else noise)
-        edge = _edge_length_voxels(cfg, x, faces, volume.h, init_facts)
-        cfg["edge_length"] = edge
-        settings = FlowSettings.resolve(cfg, h=volume.h, clean=clean, noise=noise, presmooth=sigma, start_smooth=s0,
-                                        join_below=join_below, remesh_start=init_facts["kind"] == "genus0")
+        flow_params["edge_length"] = _edge_length_voxels(flow_params, x, faces, volume.h, init_facts)
+        settings = FlowSettings.resolve(flow_params, h=volume.h, clean=clean, noise=noise, presmooth=sigma,
+                                        start_smooth=s0, join_below=join_below,
+                                        remesh_start=init_facts["kind"] == "genus0")
         field = smoothed_field(volume, sigma)
         if ops is None or ops.n_vertices != len(x) or not np.array_equal(ops.faces, faces):
             ops = MeshOperators(faces, len(x))
@@ -352,7 +263,7 @@ class ShapeGradient(Method):
                                  init_flipped=flipped, noise=noise, topology=topology, init_facts=init_facts)
 
     def reconstruct(self, volume: Volume) -> Reconstruction:
-        candidates = start_candidates(self.config, self.explicit, volume)
+        candidates = start_candidates(self.config, volume)
         if not candidates:
             flow = self.prepare(volume)
             flow.run()
@@ -366,10 +277,10 @@ class ShapeGradient(Method):
         left out — the usual one's failure is the method's only when every candidate fails; an error about the
         input (InputError) from the usual start is raised at once."""
         results, residuals, facts, first_error = {}, {}, {}, None
-        for k, (name, overrides) in enumerate(candidates):
+        for k, (name, start) in enumerate(candidates):
             t0 = time.perf_counter()
             try:
-                flow = self.prepare(volume, overrides=overrides)
+                flow = self.prepare(volume, start=start)
                 flow.run()
                 rec = flow.result()
             except (InputError, ReconstructionFailed) as exc:

@@ -7,11 +7,16 @@ import numpy as np
 from geometry import levelset
 from geometry.operators import MeshOperators
 
-__all__ = ["newton_project", "crease_polish"]
+__all__ = ["newton_project", "crease_polish", "CREASE_ANGLE_DEGREES", "CREASE_WEIGHT"]
 
 _POLISH_NEWTON_STEPS = 3      # Newton projections x ← x − φ∇φ/|∇φ|² of the crease-zone vertices
 _POLISH_MAX_ROUNDS = 50       # rounds of the vectorised greedy choice of the vertices put on the crease
 _CREASE_OFF_ZERO_VOXELS = 1.0  # a crease point where |φ| exceeds this many voxels is not on the surface: not snapped
+
+#: an edge crosses a crease where ∇φ at its two (projected) endpoints differs by more than this many degrees
+CREASE_ANGLE_DEGREES = 45.0
+#: weight of |y − p_i|² in the crease-point quadric, relative to one tangent plane (smaller: sharper, less stable)
+CREASE_WEIGHT = 0.1
 
 
 def newton_project(field, x: np.ndarray, steps: int = _POLISH_NEWTON_STEPS, max_step: float = np.inf,
@@ -33,8 +38,8 @@ def newton_project(field, x: np.ndarray, steps: int = _POLISH_NEWTON_STEPS, max_
     return xt.T.copy(), nu.T.copy()
 
 
-def crease_polish(field, ops: MeshOperators, x: np.ndarray, h: float, *, angle: float = 45.0,
-                  weight: float = 0.1) -> tuple[np.ndarray, dict]:
+def crease_polish(field, ops: MeshOperators, x: np.ndarray, h: float, *, angle: float = CREASE_ANGLE_DEGREES,
+                  weight: float = CREASE_WEIGHT) -> tuple[np.ndarray, dict]:
     """Put vertices on the sharp creases of the level set (run once on the final mesh; ``polish``).
 
     Why: on a concave crease (the fused spheres' groove) the discrete energy prefers a bridge over the

@@ -65,7 +65,7 @@ def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSetti
     polish = {"used": st.polish}
     if polish["used"]:
         t0 = time.perf_counter()
-        xp, stats = crease_polish(field, ops, x, h, angle=st.polish_angle, weight=st.polish_weight)
+        xp, stats = crease_polish(field, ops, x, h)
         polish.update(stats)
         moved = np.flatnonzero(np.any(xp != x, axis=1))        # x was checked: only the polished patch can meet
         if guard and stats["zone_vertices"] and count_intersections(xp, ops.faces, moved=moved)[0]:
@@ -84,7 +84,7 @@ def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSetti
     tips = {"used": st.extend_tips and hasattr(field, "volume")}     # it reads the samples: not on a callable field
     if tips["used"]:
         t0 = time.perf_counter()
-        xt, stats = extend_tips(field, ops, x, h, min_curvature=st.tip_curvature)
+        xt, stats = extend_tips(field, ops, x, h)
         tips.update(stats)
         x, tips = _kept(ops, xt, x, h, guard, tips, local=True, halve=_TIP_HALVINGS)
         timings["tips"] = timings.get("tips", 0.0) + time.perf_counter() - t0

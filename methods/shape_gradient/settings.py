@@ -61,18 +61,12 @@ class FlowSettings:
         Which shape gradient is descended.
     curvature : {'tilted', 'paper'}
         The paraboloid fit for H.
-    step : {'capped', 'fixed'}
-        The step rule.
     max_move : float
-        Step cap (``step='capped'``): the largest vertex move per iteration, in voxels.
-    tau : float
-        The constant step of ``step='fixed'``.
+        Step cap: the largest vertex move per iteration, in voxels.
     precondition : {'h1', 'none'}
         Whether the velocity is the H¹ (Sobolev) gradient.
     s_world : float
         The H¹ smoothing weight in world units² (the parameter ``s`` times h²).
-    solver : {'auto', 'direct', 'amg', 'cg'}
-        How the H¹ system is solved.
     relax : float
         Tangential relaxation weight per iteration.
     max_iter : int
@@ -85,8 +79,6 @@ class FlowSettings:
         ``converged`` stop (0 = off).
     remesh_every : int
         Remesh every this many iterations (0 = fixed connectivity).
-    remesh_iterations : int
-        Rounds of the start's remesh.
     remesh_start : bool
         The start is a marching-cubes mesh (the genus-0 start): remesh it before the first iteration.
     guard : bool
@@ -95,12 +87,10 @@ class FlowSettings:
         The sign guard runs (the parameter on, a clean volume and the genus-0 start).
     polish : bool
         The crease polish runs on the final mesh.
-    polish_angle, polish_weight : float
-        The crease polish's angle (degrees) and quadric weight.
     projection : bool
         The final Newton projection onto φ = 0 runs.
-    extend_tips, tip_curvature : bool, float
-        The tip extension runs on the final mesh; the least mean curvature (per voxel) of a vertex it moves.
+    extend_tips : bool
+        The tip extension runs on the final mesh.
     noise_variance : float
         The noise variance subtracted from φ² in the data term (0 on clean volumes or with ``unbias=False``).
     stages : tuple of Stage
@@ -111,7 +101,7 @@ class FlowSettings:
         The Gaussian σ (voxels) of the derivative grids and of the start's values, as decided (reported).
     hold_carved, carve_margin : bool, float
         The flow's inward moves stay within ``carve_margin`` voxels of the union of the outside samples' empty
-        balls (carve.py).
+        balls (carve.py); the start's private settings (:data:`.choose.USUAL_START`), not parameters.
     l2_fallback : bool
         Where the H¹ direction's line search finds no decrease, search along the plain (L²) gradient before
         stopping on the line-search floor.
@@ -126,27 +116,20 @@ class FlowSettings:
     beta: float
     gradient: str
     curvature: str
-    step: str
     max_move: float
-    tau: float
     precondition: str
     s_world: float
-    solver: str
     relax: float
     max_iter: int
     tol: float
     move_tol: float
     remesh_every: int
-    remesh_iterations: int
     remesh_start: bool
     guard: bool
     sign_guard: bool
     polish: bool
-    polish_angle: float
-    polish_weight: float
     projection: bool
     extend_tips: bool
-    tip_curvature: float
     noise_variance: float
     stages: tuple[Stage, ...]
     snapshots: tuple[int, ...]
@@ -210,15 +193,14 @@ class FlowSettings:
         # fallback of its own that could contradict the declared default
         cfg = {**config, "beta": beta, **derived}
         return cls(
-            alpha=cfg["alpha"], beta=beta, gradient=cfg["gradient"], curvature=cfg["curvature"], step=cfg["step"],
-            max_move=cfg["max_move"], tau=cfg["tau"], precondition=cfg["precondition"], s_world=cfg["s_world"],
-            solver=cfg["solver"], relax=cfg["relax"], max_iter=cfg["max_iter"], tol=cfg["tol"],
+            alpha=cfg["alpha"], beta=beta, gradient=cfg["gradient"], curvature=cfg["curvature"],
+            max_move=cfg["max_move"], precondition=cfg["precondition"], s_world=cfg["s_world"],
+            relax=cfg["relax"], max_iter=cfg["max_iter"], tol=cfg["tol"],
             move_tol=cfg["move_tol"], remesh_every=int(cfg["remesh_every"]),
-            remesh_iterations=int(cfg["remesh_iterations"]), remesh_start=bool(remesh_start), guard=bool(cfg["guard"]),
+            remesh_start=bool(remesh_start), guard=bool(cfg["guard"]),
             sign_guard=bool(cfg["sign_guard_used"]), polish=bool(cfg["polish_used"]),
-            polish_angle=cfg["polish_angle"], polish_weight=cfg["polish_weight"],
             projection=bool(cfg["projection_used"]), extend_tips=bool(cfg["extend_tips"]),
-            tip_curvature=float(cfg["tip_curvature"]), noise_variance=float(cfg["noise_variance"]),
+            noise_variance=float(cfg["noise_variance"]),
             stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),
             snapshots=tuple(cfg["snapshots"]), presmooth=cfg["presmooth_used"], start_smooth=cfg["start_smooth_used"],
             hold_carved=bool(cfg["hold_carved"]),

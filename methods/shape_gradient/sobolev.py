@@ -9,7 +9,7 @@ from scipy.sparse.linalg import cg, splu
 
 from geometry.operators import MeshOperators, dot, jacobi_cg
 
-__all__ = ["SobolevSolver"]
+__all__ = ["SobolevSolver", "FLOW_SOLVER"]
 
 _CG_RTOL = 1e-3            # relative residual of the H¹ solve (an inexact solve is still a descent direction)
 _CG_MAXITER = 100
@@ -17,6 +17,10 @@ _DIRECT_MAX_VERTICES = 40_000  # solver='auto': the LU up to this many vertices,
 _CG_MAX_S_EDGES = 2.0          # ... or CG while s is at most this many squared edge lengths
 _FACTOR_REFRESH = 5            # the direct and multigrid H¹ solvers rebuild their factor every this many iterations
 _AMG_SMOOTH = ("jacobi", {"weighting": "local"})  # row-wise weights: no spectral-radius estimate
+
+
+#: the flow's H¹ solver: 'auto' picks CG, the LU or multigrid per mesh (:meth:`SobolevSolver._auto`)
+FLOW_SOLVER = "auto"
 
 
 class SobolevSolver:

@@ -117,8 +117,8 @@ def prepare_init_mesh(mesh) -> tuple[np.ndarray, np.ndarray, bool]:
 
 
 def initial_surface(volume: Volume, *, init: str, init_mesh, edge_length: float, join_below: float,
-                    init_vertices: int, init_radius: float, init_center: np.ndarray | None = None,
-                    values: np.ndarray | None = None, pinhole_below: float = 0.0):
+                    init_vertices: int, init_radius: float, values: np.ndarray | None = None,
+                    pinhole_below: float = 0.0):
     """(vertices, faces, flipped, facts) of the initial surface the parameters ask for, checked to lie in the grid.
 
     Parameters
@@ -128,7 +128,7 @@ def initial_surface(volume: Volume, *, init: str, init_mesh, edge_length: float,
     init : {'genus0', 'auto', 'sphere'}
         ``'genus0'``: :func:`genus0_surface` of ``values``, or the enclosing sphere if that fails; ``'auto'``:
         :func:`enclosing_sphere` at ``edge_length``; ``'sphere'``: the Fibonacci sphere of ``init_vertices`` /
-        ``init_radius`` / ``init_center``.
+        ``init_radius`` about the centre of the grid box.
     init_mesh : object or None
         A user's closed genus-0 mesh (:func:`prepare_init_mesh`); given, it is the start whatever ``init`` says.
     edge_length : float
@@ -139,8 +139,6 @@ def initial_surface(volume: Volume, *, init: str, init_mesh, edge_length: float,
         Vertices of the Fibonacci sphere.
     init_radius : float
         Radius of the Fibonacci sphere (world units).
-    init_center : array of 3 floats, optional
-        Centre of the Fibonacci sphere (default: the centre of the grid box).
     values : ndarray, optional
         The samples the genus-0 start is grown from (default: the volume's; the method passes pre-smoothed
         samples on noisy volumes).
@@ -165,10 +163,7 @@ def initial_surface(volume: Volume, *, init: str, init_mesh, edge_length: float,
         x, faces, more = enclosing_sphere(volume, edge_length * volume.h, _INIT_MARGIN_VOXELS * volume.h)
         facts.update(more)
     else:
-        center = init_center
-        if center is None:
-            center = 0.5 * (volume.lower + volume.upper)
-        x, faces = fibonacci_sphere(init_vertices, init_radius, center)
+        x, faces = fibonacci_sphere(init_vertices, init_radius, 0.5 * (volume.lower + volume.upper))
     inside = volume.contains(x)
     if not inside.all():
         raise InputError(

@@ -21,7 +21,10 @@ import numpy as np
 
 from geometry.operators import MeshOperators
 
-__all__ = ["extend_tips", "tip_vertices", "near_samples", "distance_scale", "sample_gradients"]
+__all__ = ["extend_tips", "tip_vertices", "near_samples", "distance_scale", "sample_gradients", "TIP_CURVATURE"]
+
+#: the least mean curvature, per voxel, of a vertex the tip extension moves (and of a tip the held remesh keeps)
+TIP_CURVATURE = 0.3
 
 _BLOCK = 16384        # vertices per block: (block, 64) arrays of the nearby samples
 _OFFSETS = np.stack(np.meshgrid(*[np.arange(-1, 3)] * 3, indexing="ij"), -1).reshape(-1, 3)   # the 4×4×4
@@ -32,7 +35,7 @@ _SCALE_POINTS = 20_000   # vertices (at most, evenly strided) where the distance
 _BISECTIONS = 8       # of the move where φ would pass max_phi: to 1/256 of it
 
 
-def extend_tips(field, ops: MeshOperators, x: np.ndarray, h: float, *, min_curvature: float = 0.3,
+def extend_tips(field, ops: MeshOperators, x: np.ndarray, h: float, *, min_curvature: float = TIP_CURVATURE,
                 max_move: float = 1.0, max_phi: float = 0.25) -> tuple[np.ndarray, dict]:
     """Move the vertices where the mean curvature exceeds ``min_curvature``/h outwards along their normal, up
     to ``max_move`` voxels, until each touches the empty ball of an outside sample among the 4×4×4 samples

@@ -74,7 +74,7 @@ def test_one_iteration_at_100k_vertices(benchmark, sphere_volume):
     flow, before = flows[-1]
     assert flow.iteration == 2 and len(flow.state.x) == 100_000
     benchmark.extra_info.update({f"{p}_s": round(flow.timings[p] - before[p], 4) for p in PHASES})
-    benchmark.extra_info["cg_iterations"] = flow.cg_iterations[-1] if flow.cg_iterations else 0
+    benchmark.extra_info["cg_iterations"] = flow.stats.cg_iterations[-1] if flow.stats.cg_iterations else 0
 
 
 @pytest.fixture(scope="module")

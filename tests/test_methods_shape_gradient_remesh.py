@@ -189,3 +189,19 @@ def test_a_result_off_the_zero_set_is_an_error_never_converged():
     with pytest.raises(ReconstructionFailed, match="collapsed"):
         ShapeGradient(init_mesh=trimesh.creation.icosphere(2, radius=0.05), max_iter=0,
                       projection="off").reconstruct(vol)
+
+
+def test_needs_remesh_reads_the_remeshers_thresholds():
+    """An icosphere at its own mean edge length needs no remesh; stretched past 4/3 (splits due), shrunk below
+    4/5 (collapses due) or with a sliver it does."""
+    from methods.shape_gradient.remesh import needs_remesh
+
+    ico = trimesh.creation.icosphere(subdivisions=3)
+    x, f = np.asarray(ico.vertices, float), np.asarray(ico.faces)
+    ell = float(ico.edges_unique_length.mean())
+    assert not needs_remesh(x, f, ell)
+    assert needs_remesh(x * 1.5, f, ell) and needs_remesh(x * 0.6, f, ell)
+    sliver = x.copy()
+    a, b, c = f[0]
+    sliver[c] = 0.5 * (sliver[a] + sliver[b]) + 1e-3 * (sliver[c] - 0.5 * (sliver[a] + sliver[b]))
+    assert needs_remesh(sliver, f, ell)

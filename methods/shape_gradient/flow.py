@@ -21,7 +21,7 @@ from .energy import evaluate_state, gradient_from_state
 from .guard import count_intersections, repair_intersections
 from .linesearch import LineSearch, l2_fallback_direction
 from .post import post_steps, reach_step
-from .remesh import remesh
+from .remesh import needs_remesh, remesh
 from .settings import FlowSettings
 from .signs import SignGuard
 from .sobolev import FLOW_SOLVER, SobolevSolver
@@ -53,6 +53,7 @@ class FlowStats:
     moves: list = dataclass_field(default_factory=list)            # the accepted trial moves (world units)
     remeshes: list = dataclass_field(default_factory=list)         # (iteration, vertices after the remesh)
     remesh_refused: int = 0            # remeshes given up (the remesher's result or its intersections refused)
+    remesh_skipped: int = 0            # remesh points where the triangles were still the remesher's (none done)
     intersections: list = dataclass_field(default_factory=list)    # (iteration, intersecting faces found there)
     repairs: int = 0                   # intersections repaired
     rollbacks: int = 0                 # intersections undone by going back to the last safe mesh
@@ -262,11 +263,18 @@ class ShapeGradientFlow:
     def _remesh_point(self, it: int) -> bool:
         """Remesh and check; False when the sign guard rolled the mesh back (the flow must stop).  The sign
         guard looks before the remesh (a flow that already cut a part is not worth remeshing) and after it
-        (the remesher's collapses can cut a voxel-thin tip too)."""
-        back = self.signs.check(it, self.state.x, self.ops, keep=False) if self.signs is not None else None
-        if back is None:
-            self._remesh_and_guard(it)
+        (the remesher's collapses can cut a voxel-thin tip too).  Where the triangles are still near the
+        remesher's (:func:`.remesh.needs_remesh`: a surface that moved a fraction of a voxel keeps them), the
+        remesh is skipped and the mesh only checked."""
+        if not needs_remesh(self.state.x, self.ops.faces, self.stages.edge_length):
+            self.stats.remesh_skipped += 1
+            self._guard(it)
             back = self.signs.check(it, self.state.x, self.ops) if self.signs is not None else None
+        else:
+            back = self.signs.check(it, self.state.x, self.ops, keep=False) if self.signs is not None else None
+            if back is None:
+                self._remesh_and_guard(it)
+                back = self.signs.check(it, self.state.x, self.ops) if self.signs is not None else None
         if back is not None:
             self._set_mesh(*back)
             return False
@@ -414,6 +422,7 @@ class ShapeGradientFlow:
             "remeshes": [list(r) for r in stats.remeshes],
             "stages": [dict(r) for r in self.stages.starts],
             "remesh_refused": int(stats.remesh_refused),
+            "remesh_skipped": int(stats.remesh_skipped),
             "intersections": [list(r) for r in stats.intersections],
             "intersection_repairs": int(stats.repairs),
             "intersection_rollbacks": int(stats.rollbacks),

@@ -16,7 +16,15 @@ import numpy as np
 
 from geometry.topology import is_sphere_like
 
-__all__ = ["remesh", "is_sphere_like"]
+__all__ = ["remesh", "is_sphere_like", "needs_remesh"]
+
+#: a periodic remesh is due when more than this share of the edges is longer than 4/3 of the target (what the
+#: remesher splits) ...
+LONG_EDGE_SHARE = 0.01
+#: ... or more than this share shorter than 4/5 of it (what the remesher collapses; a fresh remesh leaves 5–10 %) ...
+SHORT_EDGE_SHARE = 0.2
+#: ... or a triangle has an angle below this many degrees
+MIN_ANGLE_DEGREES = 15.0
 
 
 def _botsch(V: np.ndarray, F: np.ndarray, iterations: int, edge_length: float, gpytoolbox, closed: bool = False,
@@ -67,3 +75,22 @@ def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iteratio
     if not np.isfinite(U).all() or not is_sphere_like(G, len(U)):
         return None
     return U, G
+
+
+def needs_remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float) -> bool:
+    """Whether the mesh has drifted from the isotropic mesh the remesher makes: more than :data:`LONG_EDGE_SHARE`
+    of its edges longer than 4/3 ``edge_length`` (the remesher's split threshold), more than
+    :data:`SHORT_EDGE_SHARE` shorter than 4/5 of it (its collapse threshold: a shrinking surface), or an angle below
+    :data:`MIN_ANGLE_DEGREES`.  A flow whose surface moves a fraction of a voxel keeps its triangles; a remesh
+    of such a mesh moves every vertex a little and costs as much as several iterations, for nothing."""
+    P = vertices[faces]
+    E = np.stack([P[:, 2] - P[:, 1], P[:, 0] - P[:, 2], P[:, 1] - P[:, 0]], axis=1)     # edge opposite corner k
+    L2 = np.einsum("fkd,fkd->fk", E, E)
+    if np.mean(L2 > (4.0 / 3.0 * edge_length) ** 2) > LONG_EDGE_SHARE:   # each edge counted from both faces
+        return True
+    if np.mean(L2 < (0.8 * edge_length) ** 2) > SHORT_EDGE_SHARE:
+        return True
+    # the angle at corner k: cos = −(e_{k+1} · e_{k+2}) / (|e_{k+1}| |e_{k+2}|)
+    dots = -np.einsum("fkd,fkd->fk", np.roll(E, -1, axis=1), np.roll(E, -2, axis=1))
+    cos = dots / np.sqrt(np.roll(L2, -1, axis=1) * np.roll(L2, -2, axis=1))
+    return bool(np.nanmax(cos) > np.cos(np.radians(MIN_ANGLE_DEGREES)))

@@ -17,14 +17,16 @@ _INTERP_NOISE_GAIN = (2.0 / 3.0) ** 3   # mean of Σwᵢ² of trilinear weights 
 
 
 #: edge_length='auto': the remeshing's edge length (voxels) on a binary mask, which resolves nothing finer (as close
-#: and faster), and on every other volume (keeps parts a voxel thin)
-AUTO_EDGE_VOXELS = {"mask": 1.0, "other": 0.5}
+#: and faster); on a noisy volume, whose zero set the noise blurs by more than the difference (and every step
+#: scales with the face count); and on a clean one (keeps parts a voxel thin)
+AUTO_EDGE_VOXELS = {"mask": 1.0, "noisy": 0.7, "other": 0.5}
 
 
-def edge_length_voxels(value: Any, kind: str) -> float:
-    """``edge_length`` in voxels: the number given, or for ``'auto'`` :data:`AUTO_EDGE_VOXELS` of the volume's kind."""
+def edge_length_voxels(value: Any, kind: str, clean: bool = True) -> float:
+    """``edge_length`` in voxels: the number given, or for ``'auto'`` :data:`AUTO_EDGE_VOXELS` of the volume's kind
+    (``clean``: the volume's estimated noise is below :data:`.field.CLEAN_NOISE_VOXELS`)."""
     if value == "auto":
-        return AUTO_EDGE_VOXELS["mask" if kind == "mask" else "other"]
+        return AUTO_EDGE_VOXELS["mask" if kind == "mask" else "other" if clean else "noisy"]
     return float(value)
 
 
@@ -173,7 +175,7 @@ class FlowSettings:
         beta = config["beta"]
         if beta == "auto":
             beta = _AUTO_BETA[0] if clean else _AUTO_BETA[1]
-        edge = edge_length_voxels(config["edge_length"], kind)
+        edge = edge_length_voxels(config["edge_length"], kind, clean)
         stages = [{"beta": beta, "edge_length": edge}]
         # the noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise has variance
         # σ²Σwᵢ², on average (∫₀¹ t² + (1 − t)² dt)³ = (2/3)³ of σ² over positions in a cell

@@ -53,7 +53,7 @@ from geometry.mesh import mesh_facts
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
 from .cost_model import PowerLaw
-from .marching_cubes import orient_outward
+from .isosurface import orient_outward
 
 __all__ = ["CGALMesher", "write_inr", "read_off_surface", "INSTALL"]
 

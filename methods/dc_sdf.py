@@ -48,7 +48,7 @@ from geometry.topology import directed_edge_repeats, edge_face_counts
 from .base import Method, Param, Reconstruction, check_volume
 from .cost_model import PowerLaw
 from .dual_contouring import library_grid, split_quads
-from .marching_cubes import orient_outward
+from .isosurface import orient_outward
 
 __all__ = ["DCSDF", "PAPER_ITERATIONS", "edge_counts"]
 

@@ -48,7 +48,7 @@ from phantoms import InputError, Volume
 from . import distmesh_loop
 from .base import Method, Param, Reconstruction, check_volume
 from .cost_model import PowerLaw
-from .marching_cubes import marching_cubes_mesh, orient_outward
+from .isosurface import marching_cubes_mesh, orient_outward
 
 __all__ = ["DistMesh", "flip_edges", "triangle_quality"]
 

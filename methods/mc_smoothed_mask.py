@@ -19,7 +19,7 @@ from scipy import ndimage
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction
-from .labelmap import closed_mesh
+from .isosurface import closed_mesh
 
 __all__ = ["MCSmoothedMask"]
 

@@ -17,7 +17,7 @@ from geometry.mesh import mesh_facts
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, check_volume
-from .marching_cubes import marching_cubes_mesh, orient_outward
+from .isosurface import marching_cubes_mesh, orient_outward
 
 __all__ = ["MCTaubin"]
 

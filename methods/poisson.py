@@ -26,7 +26,7 @@ from geometry.mesh import ScoredMesh, mesh_facts
 from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, check_volume
-from .marching_cubes import clean_mesh, marching_cubes_mesh
+from .isosurface import clean_mesh, marching_cubes_mesh
 
 __all__ = ["ScreenedPoisson", "zero_set_points"]
 

@@ -73,7 +73,7 @@ from phantoms import InputError, Volume
 
 from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
 from .cost_model import PowerLaw
-from .marching_cubes import marching_cubes_mesh, orient_outward
+from .isosurface import marching_cubes_mesh, orient_outward
 
 __all__ = ["ReachForTheSpheres", "grid_samples", "distance_reading", "zero_set_distance", "initial_ellipsoid"]
 

@@ -51,7 +51,9 @@ from phantoms import InputError, Volume
 
 from geometry.mesh import mesh_facts
 
-from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction, ReconstructionFailed
+from .params import Param
 from .cost_model import PowerLaw
 from .isosurface import orient_outward
 

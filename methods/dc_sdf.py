@@ -45,7 +45,9 @@ from phantoms import InputError, Volume
 
 from geometry.topology import directed_edge_repeats, edge_face_counts
 
-from .base import Method, Param, Reconstruction, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction
+from .params import Param
 from .cost_model import PowerLaw
 from .dual_contouring import library_grid, split_quads
 from .isosurface import orient_outward

@@ -55,7 +55,9 @@ from geometry.levelset import newton_project
 from geometry.mesh import mesh_facts
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction, ReconstructionFailed
+from .params import Param
 from .cost_model import PowerLaw
 from .dc_manifold import (
     TUNNEL_CUBES,

@@ -22,7 +22,9 @@ import trimesh
 
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction
+from .params import Param
 from .isosurface import from_vtk, nudge_zeros, orient_outward, require_vtk, vtk_image
 
 __all__ = ["FlyingEdges", "flying_edges_arrays"]

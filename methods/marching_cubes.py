@@ -14,7 +14,9 @@ import time
 from geometry.mesh import mesh_facts
 from phantoms import Volume
 
-from .base import Method, Param, Reconstruction, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction
+from .params import Param
 from .isosurface import marching_cubes_mesh
 
 __all__ = ["MarchingCubes"]

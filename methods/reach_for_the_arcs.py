@@ -75,7 +75,9 @@ import trimesh
 from geometry.mesh import mesh_facts
 from phantoms import Volume
 
-from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction, ReconstructionFailed
+from .params import Param
 from .isosurface import orient_outward
 from .reach_for_the_spheres import distance_reading, zero_set_distance
 

@@ -71,7 +71,9 @@ import trimesh
 from geometry.mesh import mesh_facts
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction, ReconstructionFailed
+from .params import Param
 from .cost_model import PowerLaw
 from .isosurface import marching_cubes_mesh, orient_outward
 

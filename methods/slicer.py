@@ -35,7 +35,9 @@ import time
 
 from phantoms import Volume
 
-from .base import Method, Param, Reconstruction
+from .base import Method
+from .contract import Reconstruction
+from .params import Param
 from .isosurface import closed_mesh, from_vtk, require_vtk, vtk_image
 from .labelmap import padded_labels
 

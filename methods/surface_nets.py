@@ -26,7 +26,9 @@ import numpy as np
 
 from phantoms import Volume
 
-from .base import Method, Param, Reconstruction, ReconstructionFailed
+from .base import Method
+from .contract import Reconstruction, ReconstructionFailed
+from .params import Param
 from .isosurface import closed_mesh, from_vtk, require_vtk, vtk_image
 from .labelmap import close_seams, fill_edge_contacts, padded_labels
 

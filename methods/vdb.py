@@ -28,7 +28,9 @@ import trimesh
 
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction
+from .params import Param
 from .cost_model import PowerLaw
 from .dual_contouring import split_quads
 from .isosurface import nudge_zeros, orient_outward

@@ -18,7 +18,9 @@ import numpy as np
 
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction
+from .base import Method
+from .contract import Reconstruction
+from .params import Param
 from .isosurface import closed_mesh
 from .labelmap import padded_labels
 

@@ -12,7 +12,7 @@ from geometry.mesh import signed_volume
 from geometry.operators import MeshOperators, dot
 from phantoms import InputError
 
-from ..base import Reconstruction, ReconstructionFailed
+from ..contract import Reconstruction, ReconstructionFailed
 from .carve import CarvedHull, remesh_keep
 from .energy import evaluate_state, gradient_from_state, no_fold
 from .guard import count_intersections, repair_intersections

@@ -22,11 +22,8 @@ EXITS_AT_IMPORT = {"exits_zero": "import sys\nsys.exit(0)\n",
 
 
 @pytest.fixture()
-def exiting_modules(tmp_path, monkeypatch):
-    for name, text in EXITS_AT_IMPORT.items():
-        (tmp_path / f"{name}.py").write_text(text)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    return tmp_path
+def exiting_modules(modules_on_path):
+    return modules_on_path(EXITS_AT_IMPORT)
 
 
 @pytest.mark.parametrize("module, says", [("exits_zero", "it called sys.exit(0) at import"),

@@ -47,8 +47,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geometry.mesh import mesh_facts
-from methods import (MethodSkipped, Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction,
-                     check_skip, run_reconstruct, run_warm_up)
+from methods.contract import (MethodSkipped, Reconstruction, ReconstructionFailed, WrongReturnType, as_reconstruction,
+                              check_skip, run_reconstruct, run_warm_up)
 from phantoms import InputError, Volume, add_noise, get_phantom
 
 from .metrics.validity import check_mesh

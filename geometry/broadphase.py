@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kernels import AVAILABLE, _jit, wanted
+from .compiled import jit
 
-__all__ = ["box_pairs", "wanted", "AVAILABLE"]
+__all__ = ["box_pairs"]
 
 
-@_jit
+@jit
 def _cell_entries(c_lo, c_hi, dims):
     """(cell key, face) of every cell each face's box touches, in face order."""
     F = c_lo.shape[0]
@@ -39,7 +39,7 @@ def _cell_entries(c_lo, c_hi, dims):
     return keys, owner
 
 
-@_jit
+@jit
 def _pairs_in_cells(lo, hi, faces, keys, owner, origin, cell, dims):
     """Within each cell: pairs with overlapping boxes and no shared vertex, reported only in the cell that
     holds the lower corner of the two boxes' intersection (so each pair once)."""

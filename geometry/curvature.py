@@ -182,15 +182,16 @@ def radius_curvature(vertices, faces, radius: float, normals=None, *, linear: bo
     ``normals``: unit outward vertex normals (default :func:`geometry.mesh.vertex_normals`).
     ``compiled``: fit with :func:`geometry.kernels.ring_curvature` (the same arithmetic vertex by vertex, sums
     in another order: equal to rounding) instead of :func:`paraboloid_curvature`; None: from
-    :data:`geometry.kernels.MIN_SIZE` vertices on.  ``edges``: :func:`geometry.topology.edges_unique` of
+    :data:`geometry.compiled.MIN_SIZE` vertices on.  ``edges``: :func:`geometry.topology.edges_unique` of
     ``faces``, when computed already (a :class:`geometry.mesh.ScoredMesh` keeps them).
     """
     from . import kernels
+    from .compiled import wanted
     from .mesh import MAX_NEIGHBORS, NEIGHBOR_BLOCK, radius_neighbor_blocks, vertex_normals
 
     vertices = np.asarray(vertices, float)
     normals = vertex_normals(vertices, faces) if normals is None else np.asarray(normals, float)
-    compiled = kernels.wanted(len(vertices)) if compiled is None else compiled
+    compiled = wanted(len(vertices)) if compiled is None else compiled
     n_t = np.ascontiguousarray(normals.T) if compiled else None
     H = np.full(len(vertices), np.nan)
     K = np.full(len(vertices), np.nan)

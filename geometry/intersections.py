@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from . import broadphase
 from .arrays import unique_ints
+from .compiled import wanted
 
 __all__ = ["self_intersection_pairs", "intersecting_faces", "crossing_pairs"]
 
@@ -200,7 +201,7 @@ def self_intersection_pairs(vertices: np.ndarray, faces: np.ndarray, chunk: int 
         Candidate pairs tested per block (bounds the memory of the exact test).
     compiled : bool, optional
         True: the broad phase of :mod:`geometry.broadphase` (numba) instead of the numpy/cKDTree one; None:
-        compiled from :data:`geometry.kernels.MIN_SIZE` faces on.  The same pairs either way.
+        compiled from :data:`geometry.compiled.MIN_SIZE` faces on.  The same pairs either way.
 
     Returns
     -------
@@ -213,7 +214,7 @@ def self_intersection_pairs(vertices: np.ndarray, faces: np.ndarray, chunk: int 
         return np.zeros((0, 2), dtype=np.int64)
     tri = v[f]
     lo, hi = tri.min(axis=1), tri.max(axis=1)
-    compiled = broadphase.wanted(len(f)) if compiled is None else compiled
+    compiled = wanted(len(f)) if compiled is None else compiled
     cand = broadphase.box_pairs(lo, hi, f) if compiled else _candidate_pairs(tri)
     found = []
     for s in range(0, len(cand), chunk):

@@ -1,4 +1,4 @@
-"""Compiled (numba) kernels of the shape-gradient flow's inner loop.
+"""Compiled (numba) forms of the mesh operators, the curvature fit, the trilinear sampler and the Jacobi-CG.
 
 Each kernel computes what a numpy function of the suite computes — that function stays the reference and
 the tests compare both (``tests/test_geometry_kernels.py``):
@@ -14,16 +14,13 @@ the tests compare both (``tests/test_geometry_kernels.py``):
   :class:`geometry.operators.MeshGeometry` (cross products, normals, areas, centroids; vertex normal and
   area sums) in one pass each, without the (3, 3, F) corner array;
 * :func:`ring_mean3` — :meth:`geometry.operators.MeshOperators.ring_mean_t` (3 rows) without its
-  (W, V) temporaries;
-* :func:`ball_depth` — the shape gradient's carved hull depth (``methods.shape_gradient.carve.ball_depth_numpy``)
-  point by point, without its (P, 64, 3) gather of the 4×4×4 samples around each point;
+  (W, V) temporaries.
 
-Why: at 100k vertices one flow iteration is ~80 CG iterations whose numpy form is bound by passes over
-memory, and a paraboloid fit whose numpy form streams dozens of (W, V) temporaries; numpy alone stays
-above the 0.1 s target.  The kernels are compiled on first use and cached on disk (``cache=True``), and
-run only on arrays of at least :data:`MIN_SIZE` elements (:func:`wanted`).
-Sums run in a different order than numpy's (results equal to rounding).  ``AVAILABLE`` is False when
-numba cannot be imported; the callers then use the numpy reference.
+Why: at 100k vertices one iteration of the shape-gradient flow (their main user) is ~80 CG iterations whose numpy
+form is bound by passes over memory, and a paraboloid fit whose numpy form streams dozens of (W, V) temporaries;
+numpy alone stays above the 0.1 s target.  The callers run the kernels on arrays of at least
+:data:`geometry.compiled.MIN_SIZE` elements (:func:`geometry.compiled.wanted`) and the numpy reference otherwise
+(also when numba is missing).  Sums run in a different order than numpy's (results equal to rounding).
 """
 
 from __future__ import annotations
@@ -32,32 +29,10 @@ import math
 
 import numpy as np
 
-try:
-    import numba
-    AVAILABLE = True
-except ImportError:  # pragma: no cover - numba is a dependency; the numpy reference still works
-    numba = None
-    AVAILABLE = False
+from .compiled import jit
 
-#: the kernels run on arrays of at least this many vertices, faces or points (:func:`wanted`): a process
-#: loads each kernel's cached machine code once (a fraction of a second; the benchmark's cells come from a fork
-#: server that has loaded them); below this size numpy's per-call overhead is small enough (the paper's
-#: 1,896-vertex flow is already faster compiled)
-MIN_SIZE = 1000
-
-__all__ = ["AVAILABLE", "MIN_SIZE", "wanted", "cg_csr", "ring_curvature", "trilinear", "trilinear_point",
-           "face_geometry", "vertex_sums", "face_edges", "ring_mean3", "ball_depth"]
-
-
-def wanted(n: int) -> bool:
-    """True when the kernels should run on arrays of ``n`` elements (numba present, n ≥ MIN_SIZE)."""
-    return AVAILABLE and n >= MIN_SIZE
-
-
-def _jit(fn=None, **flags):
-    if fn is None:
-        return lambda f: _jit(f, **flags)
-    return numba.njit(cache=True, nogil=True, **flags)(fn) if AVAILABLE else fn
+__all__ = ["cg_csr", "ring_curvature", "trilinear", "trilinear_point", "face_geometry", "vertex_sums", "face_edges",
+           "ring_mean3"]
 
 
 # ---------------------------------------------------------------------------------------------- CG
@@ -70,7 +45,7 @@ def _jit(fn=None, **flags):
 _ELL_BLOCK = 8
 
 
-@_jit
+@jit
 def _csr_to_ell(data, indices, indptr, width):
     n = indptr.shape[0] - 1
     d = np.zeros((n, width))
@@ -87,7 +62,7 @@ def _csr_to_ell(data, indices, indptr, width):
     return d, idx
 
 
-@_jit(fastmath={"reassoc"})
+@jit(fastmath={"reassoc"})
 def _ell_matvec_dot(d, idx, p, Ap):
     """Ap = A p and p·Ap."""
     pAp = 0.0
@@ -102,7 +77,7 @@ def _ell_matvec_dot(d, idx, p, Ap):
     return pAp
 
 
-@_jit(fastmath={"reassoc"})
+@jit(fastmath={"reassoc"})
 def _cg_ell(d, idx, b, diag, x, use_x0, rtol, maxiter):
     n = b.shape[0]
     inv = np.empty(n)
@@ -170,7 +145,7 @@ def cg_csr(A, b: np.ndarray, diag: np.ndarray, x0: np.ndarray | None, rtol: floa
 
 
 # ------------------------------------------------------------------------------------ curvature
-@_jit
+@jit
 def _solve_fit(m, cnt, linear):
     """(H, K) from the ring moments ``m`` of one vertex: fit_ring's closed form, scalar by scalar."""
     q11, q12, q13 = 0.25 * m[0], 0.5 * m[1], 0.25 * m[2]
@@ -230,7 +205,7 @@ def _solve_fit(m, cnt, linear):
     return -0.5 * (A + C), A * C - B * B
 
 
-@_jit
+@jit
 def _ring_curvature(x, n, ring, count, linear, H, K, start):
     for r in range(ring.shape[0]):
         i = start + r                                    # row r holds the neighbours of vertex start + r
@@ -293,7 +268,7 @@ def ring_curvature(x: np.ndarray, n: np.ndarray, ring: np.ndarray, count: np.nda
 
 
 # ------------------------------------------------------------------------------------ trilinear
-@_jit(inline="always")      # inlined by numba: a compiled call per point is slower than the sum itself
+@jit(inline="always")      # inlined by numba: a compiled call per point is slower than the sum itself
 def trilinear_point(flat, n0, n1, n2, fx, fy, fz, out, p):
     """The first ``out.shape[0]`` channels of the stacked grids ``flat`` (N, C) at one fractional index (fx,
     fy, fz), inside [0, n − 1] per axis, into column ``p`` of ``out``: the one trilinear sum of the compiled
@@ -312,7 +287,7 @@ def trilinear_point(flat, n0, n1, n2, fx, fy, fz, out, p):
                      + w6 * flat[b + sx + n2, c] + w7 * flat[b + sx + n2 + 1, c])
 
 
-@_jit
+@jit
 def _trilinear(flat, n0, n1, n2, idx_t, out):
     for p in range(idx_t.shape[1]):
         fx, fy, fz = idx_t[0, p], idx_t[1, p], idx_t[2, p]
@@ -335,7 +310,7 @@ def trilinear(flat: np.ndarray, shape, idx_t: np.ndarray, channels: int | None =
 
 
 # ------------------------------------------------------------------------------------- geometry
-@_jit
+@jit
 def _face_geometry(x, faces, cross_t, normals_t, areas, centroids_t):
     for f in range(faces.shape[0]):
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
@@ -366,7 +341,7 @@ def face_geometry(x: np.ndarray, faces: np.ndarray):
     return cross_t, normals_t, areas, centroids_t
 
 
-@_jit
+@jit
 def _vertex_sums(faces, cross_t, areas, vn, va):
     for f in range(faces.shape[0]):
         a3 = areas[f] / 3.0
@@ -388,7 +363,7 @@ def vertex_sums(faces: np.ndarray, cross_t: np.ndarray, areas: np.ndarray, n_ver
 
 
 # ------------------------------------------------------------------------------------ ring mean
-@_jit
+@jit
 def _ring_mean(xt, ring, out):
     for i in range(xt.shape[1]):
         cnt = 0
@@ -413,7 +388,7 @@ def ring_mean3(xt: np.ndarray, ring: np.ndarray) -> np.ndarray:
     return out
 
 
-@_jit
+@jit
 def _face_edges(x, faces, E):
     for f in range(faces.shape[0]):
         for k in range(3):
@@ -429,37 +404,3 @@ def face_edges(x: np.ndarray, faces: np.ndarray) -> np.ndarray:
     E = np.empty((3, 3, len(faces)))
     _face_edges(np.ascontiguousarray(x, dtype=np.float64), faces, E)
     return E
-
-
-# ---------------------------------------------------------------------------------------------- ball depth
-@_jit
-def _ball_depth(values, origin, spacing, points, scale, out):
-    n0, n1, n2 = values.shape
-    for p in range(points.shape[0]):
-        x, y, z = points[p, 0], points[p, 1], points[p, 2]
-        i0 = int(math.floor((x - origin[0]) / spacing[0]))
-        j0 = int(math.floor((y - origin[1]) / spacing[1]))
-        k0 = int(math.floor((z - origin[2]) / spacing[2]))
-        best = -np.inf
-        for i in range(max(i0 - 1, 0), min(i0 + 3, n0)):
-            dx = x - (origin[0] + i * spacing[0])
-            for j in range(max(j0 - 1, 0), min(j0 + 3, n1)):
-                dy = y - (origin[1] + j * spacing[1])
-                for k in range(max(k0 - 1, 0), min(k0 + 3, n2)):
-                    v = values[i, j, k]
-                    if v > 0:
-                        dz = z - (origin[2] + k * spacing[2])
-                        d = v / scale - math.sqrt(dx * dx + dy * dy + dz * dz)
-                        if d > best:
-                            best = d
-        out[p] = best
-
-
-def ball_depth(values: np.ndarray, origin: np.ndarray, spacing: np.ndarray, points: np.ndarray,
-               scale: float) -> np.ndarray:
-    """max over the positive samples q among the 4×4×4 around each point x (those on the grid) of
-    values(q)/scale − |x − q|, −inf where none; ``values`` on the grid ``origin + index·spacing``."""
-    out = np.empty(len(points))
-    _ball_depth(np.ascontiguousarray(values), np.asarray(origin, float) * np.ones(3),
-                np.asarray(spacing, float) * np.ones(3), np.ascontiguousarray(points, dtype=float), float(scale), out)
-    return out

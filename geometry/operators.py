@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from . import kernels
+from . import compiled, kernels
 from .arrays import unique_ints
 from .curvature import fit_ring, tangent_frames_t
 from .mesh import lumped_vertex_areas, one_ring
@@ -146,14 +146,14 @@ def jacobi_cg(matvec, b: np.ndarray, diag: np.ndarray, x0: np.ndarray | None = N
 
     ``matvec(x)`` applies the matrix — or ``matvec`` is the matrix itself (anything with ``@``, e.g. the
     CSR matrix of :meth:`MeshOperators.h1_matrix`, one sparse product per iteration; from
-    :data:`geometry.kernels.MIN_SIZE` unknowns on, a CSR matrix runs the compiled
+    :data:`geometry.compiled.MIN_SIZE` unknowns on, a CSR matrix runs the compiled
     :func:`geometry.kernels.cg_csr`, the same iteration); ``diag`` is its diagonal.  Stops when
     ‖r‖ ≤ rtol‖b‖ or after ``maxiter`` iterations (the loop is over CG iterations, each a few vectorised
     operations, updates in place, dot products on one thread: :func:`dot`).
     """
     if not callable(matvec):
         A = matvec
-        if kernels.wanted(len(b)) and sp.issparse(A) and A.format == "csr":
+        if compiled.wanted(len(b)) and sp.issparse(A) and A.format == "csr":
             return kernels.cg_csr(A, b, diag, x0, rtol, maxiter)
         matvec = A.__matmul__
     bnorm = float(np.sqrt(dot(b, b)))
@@ -220,7 +220,7 @@ class MeshGeometry:
         self.vertices = vertices                                            # (V, 3)
         self.vertices_t = xt = np.ascontiguousarray(vertices.T)             # (3, V)
         self._vertex_areas = self._vertex_normals_t = self._edges_t = None
-        self._kernels = kernels.wanted(len(vertices)) and not reference and vertices.dtype == np.float64
+        self._kernels = compiled.wanted(len(vertices)) and not reference and vertices.dtype == np.float64
         if self._kernels:                            # one compiled pass over the faces (same numbers)
             self._corners_t = None
             self.cross_t, self.normals_t, self.face_areas, self.centroids_t = \
@@ -423,7 +423,7 @@ class MeshOperators:
     def ring_mean_t(self, xt: np.ndarray, *, reference: bool = False) -> np.ndarray:
         """Mean of the 1-ring neighbours of per-vertex vectors stored by coordinate (C, V) → (C, V)
         (3 rows with numba: :func:`geometry.kernels.ring_mean3`, unless ``reference``)."""
-        if kernels.wanted(xt.shape[1]) and not reference and len(xt) == 3:
+        if compiled.wanted(xt.shape[1]) and not reference and len(xt) == 3:
             return kernels.ring_mean3(xt, self.ring)
         w = self.ring_weight_t
         cnt = np.maximum(self.ring_count, 1)
@@ -444,7 +444,7 @@ class MeshOperators:
         missing or ``reference`` asks for the numpy form.
         """
         n = geo.vertex_normals_t if normals is None else np.asarray(normals, float).T
-        if kernels.wanted(self.n_vertices) and not reference:
+        if compiled.wanted(self.n_vertices) and not reference:
             return kernels.ring_curvature(geo.vertices, n, self.ring, self.ring_count, linear)
         t1, t2 = tangent_frames_t(n)
         xt = geo.vertices_t

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels
+from . import compiled, kernels
 
 __all__ = ["trilinear_channels"]
 
@@ -43,7 +43,7 @@ def trilinear_channels(flat: np.ndarray, shape, idx_t: np.ndarray, *, channels: 
     With numba, the compiled :func:`geometry.kernels.trilinear` (the same sum, point by point) runs
     instead; ``reference=True`` keeps this numpy form.
     """
-    if (kernels.wanted(idx_t.shape[1]) and not reference and flat.dtype in (np.float64, np.float32)
+    if (compiled.wanted(idx_t.shape[1]) and not reference and flat.dtype in (np.float64, np.float32)
             and flat.flags.c_contiguous):
         return kernels.trilinear(flat, shape, idx_t, channels)
     if channels is not None:

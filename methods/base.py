@@ -1,78 +1,47 @@
-"""The one small interface every reconstruction method implements, and the method registry.
+"""The method author's interface: :class:`Method`, the class every reconstruction method subclasses, and
+:func:`check_volume`, the input check every method needs.
 
-A method is a subclass of :class:`Method` with
+Required of a subclass:
 
 * ``name`` – the registry name (``python -m bench methods`` lists it);
 * ``description`` – one line;
-* ``params`` – a dict ``name -> Param(default, doc, ...)``: every tunable parameter, documented, with its default;
+* ``params`` – a dict ``name -> Param(default, doc, ...)`` (:class:`methods.params.Param`): every tunable
+  parameter, documented, with its default; the resolved values are ``self.config``;
 * ``reconstruct(volume) -> Reconstruction`` – a closed, outward-oriented triangle mesh in world coordinates
-  (what it must return, and the checks of it: :mod:`methods.contract`, re-exported here);
-* optionally ``skip_reason(volume)`` (an input the method cannot take: the cell is ``skipped``, not failed) and
-  ``warm_up()`` (one-off costs such as compiling kernels, paid before ``reconstruct`` is timed).
+  (what it must return and how the suite checks it: :mod:`methods.contract`); abstract here.
 
-Methods never import the benchmark (``bench``): they see a :class:`phantoms.Volume` and return a mesh.
-User methods are found through the entry-point group ``levelset_bench.methods`` (see README, "Adding a
-method"); each entry point names a :class:`Method` subclass.
+Optional (each with a default that does nothing or asks nothing):
+
+* ``skip_reason(volume)`` – one line when the method cannot take an input by design (the cell is ``skipped``,
+  not failed);
+* ``warm_up()`` – one-off costs (compiling kernels, loading a model) paid before ``reconstruct`` is timed;
+* ``imports`` – modules ``reconstruct`` imports lazily, imported by the suite before the timed call;
+* ``requires`` – optional packages and the command that installs each (:meth:`Method.missing`,
+  :meth:`Method.require`);
+* ``estimate_seconds(shape, n_crossing_cells)`` – a cost model (:class:`methods.cost_model.PowerLaw`), so a grid
+  refuses a cell that cannot finish in its time limit;
+* ``relative_cost`` – the run's cost relative to marching cubes, for scheduling;
+* ``imports_surface`` – True for a method that reads a surface made elsewhere instead of reconstructing.
+
+Methods never import the benchmark (``bench``): they see a :class:`phantoms.Volume` and return a mesh.  A
+method is registered with :func:`methods.register_method` or installed as an entry point of group
+``levelset_bench.methods`` (:mod:`methods.registry`; README, "Adding a method").
 """
 
 from __future__ import annotations
 
-import importlib
-import sys
-from importlib import metadata
+import abc
 from typing import Any, ClassVar
 
 from phantoms import InputError, Volume
 
-from .contract import (
-    INFO_KEYS,
-    MethodSkipped,
-    Reconstruction,
-    ReconstructionFailed,
-    WrongReturnType,
-    as_reconstruction,
-    check_info,
-    check_skip,
-    run_reconstruct,
-    run_warm_up,
-)
+from .contract import Reconstruction
 from .params import Param
 
-__all__ = [
-    "Param", "Method", "Reconstruction", "ReconstructionFailed", "WrongReturnType", "as_reconstruction", "check_info",
-    "run_reconstruct", "INFO_KEYS",
-    "MethodSkipped", "check_skip", "run_warm_up", "ENTRY_POINT_GROUP", "BUILTIN_METHODS",
-    "available_methods", "get_method", "register_method", "method_names", "check_volume",
-]
-
-ENTRY_POINT_GROUP = "levelset_bench.methods"
-#: the plug-ins' entry points per sys.path, scanned once: reading every distribution's metadata is too slow for
-#: each get_method
-_ENTRY_POINTS: dict[tuple, tuple] = {}
-
-#: built-in methods: name -> "module:Class" (imported lazily so one broken adapter cannot break the rest)
-BUILTIN_METHODS: dict[str, str] = {
-    "shape_gradient": "methods.shape_gradient:ShapeGradient",
-    "marching_cubes": "methods.marching_cubes:MarchingCubes",
-    "mc_taubin": "methods.mc_taubin:MCTaubin",
-    "distmesh": "methods.distmesh:DistMesh",
-    "poisson": "methods.poisson:ScreenedPoisson",
-    "reach_for_the_spheres": "methods.reach_for_the_spheres:ReachForTheSpheres",
-    "reach_for_the_arcs": "methods.reach_for_the_arcs:ReachForTheArcs",
-    "dual_contouring": "methods.dual_contouring:DualContouring",
-    "dc_sdf": "methods.dc_sdf:DCSDF",
-    "cgal_mesher": "methods.cgal_mesher:CGALMesher",
-    "vdb": "methods.vdb:VDB",
-    "flying_edges": "methods.flying_edges:FlyingEdges",
-    "surface_nets": "methods.surface_nets:SurfaceNets",
-    "slicer": "methods.slicer:Slicer",
-    "mc_smoothed_mask": "methods.mc_smoothed_mask:MCSmoothedMask",
-    "zmesh": "methods.zmesh_mc:ZMesh",
-    "mesh_file": "methods.mesh_file:MeshFile",
-}
+__all__ = ["Method", "check_volume"]
 
 
-class Method:
+class Method(abc.ABC):
     """Base class of the reconstruction methods (see the module docstring).
 
     A subclass sets ``name``, ``description`` and ``params`` and implements :meth:`reconstruct`; the resolved
@@ -102,6 +71,7 @@ class Method:
         for key, spec in self.params.items():
             self.config[key] = spec.convert(self.name, key, params[key]) if key in params else spec.default
 
+    @abc.abstractmethod
     def reconstruct(self, volume: Volume) -> Reconstruction:  # pragma: no cover - abstract
         """Reconstruct the zero level set of ``volume``.
 
@@ -186,7 +156,7 @@ class Method:
 
     #: modules :meth:`reconstruct` imports lazily (a library such as VTK takes seconds to import): the suite
     #: imports them, with those of :attr:`requires`, before the timed :meth:`reconstruct`
-    #: (:func:`methods.run_warm_up`), so a method's time is its computation, not its imports
+    #: (:func:`methods.contract.run_warm_up`), so a method's time is its computation, not its imports
     imports: ClassVar[tuple[str, ...]] = ()
 
     #: rough cost of one run relative to marching cubes + scoring at the same N (the runner starts the dearest
@@ -233,174 +203,3 @@ def check_volume(volume: Volume, method: str) -> None:
             f"method {method!r}: the zero level set is open — it reaches the boundary of the grid "
             "(values <= 0 on a boundary face); enlarge the grid so the surface is closed inside it"
         )
-
-
-_REGISTERED: dict[str, type[Method]] = {}
-
-
-def register_method(cls: type[Method] | None = None, *, replace: bool = False):
-    """Register a :class:`Method` subclass under ``cls.name``; usable as a decorator (``@register_method`` or
-    ``@register_method(replace=True)``).
-
-    Registered methods are listed after the built-ins and entry points (:func:`available_methods`).  A name that
-    is already taken is never taken over silently: a built-in's name is refused unless ``replace=True`` says
-    the replacement is meant, and a name registered earlier by another class is replaced with a warning naming
-    both (the same class registered again, e.g. its module reloaded, is no change).
-
-    Parameters
-    ----------
-    cls : type
-        A :class:`Method` subclass with a ``name``.
-    replace : bool
-        Replace a built-in method of the same name (e.g. a patched marching cubes under the built-in's name).
-
-    Returns
-    -------
-    type
-        ``cls`` itself (or, called with ``replace`` only, the decorator).
-
-    Raises
-    ------
-    InputError
-        ``cls`` is not a :class:`Method` subclass with a name, or it takes a built-in's name without
-        ``replace=True`` (one line naming both classes).
-    """
-    if cls is None:
-        return lambda c: register_method(c, replace=replace)
-    if not (isinstance(cls, type) and issubclass(cls, Method)) or not cls.name:
-        raise InputError(f"{cls!r} is not a Method subclass with a name")
-    if cls.name in BUILTIN_METHODS and not replace:
-        raise InputError(f"method {cls.name!r} of {_where(cls)} would replace the built-in "
-                         f"{BUILTIN_METHODS[cls.name]}: choose another name, or register_method(cls, "
-                         "replace=True) to mean it")
-    earlier = _REGISTERED.get(cls.name)
-    if earlier is not None and _where(earlier) != _where(cls):
-        import warnings
-
-        warnings.warn(f"method {cls.name!r} of {_where(cls)} replaces the one registered by {_where(earlier)}",
-                      stacklevel=2)
-    _REGISTERED[cls.name] = cls
-    return cls
-
-
-def _where(cls: type) -> str:
-    """A class as ``module:qualname`` (how the built-ins and entry points name theirs)."""
-    return f"{cls.__module__}:{cls.__qualname__}"
-
-
-def import_plugins(modules) -> None:
-    """Import each module named in ``modules`` (in order), e.g. ones that call :func:`register_method`.
-
-    Parameters
-    ----------
-    modules : iterable of str
-        Importable module names.
-
-    Raises
-    ------
-    InputError
-        ``cannot import module 'name': <the error>`` for any failure to import (a missing module, an exception
-        the module raises, a ``sys.exit()`` at import — which would otherwise end the command silently with
-        the module's exit code): it is the user's to fix.  The error is one line.
-    """
-    for mod in modules:
-        try:
-            importlib.import_module(mod)
-        except SystemExit as exc:  # not a command-line exit: the plug-in's own, at import
-            raise InputError(f"cannot import module {mod!r}: it called sys.exit({exc.code!r}) at import "
-                             "(a plug-in module must not exit)") from None
-        except Exception as exc:  # noqa: BLE001 - whatever the module raised, the user names the module
-            raise InputError(f"cannot import module {mod!r}: {_one_line(exc)}") from None
-
-
-def _one_line(exc: BaseException) -> str:
-    """An exception's text on one line (a message with newlines joined by spaces), or its type if it has none."""
-    return " ".join(str(exc).split()) or type(exc).__name__
-
-
-def _load(target: str) -> type[Method]:
-    module, _, attr = target.partition(":")
-    return getattr(importlib.import_module(module), attr)
-
-
-def available_methods() -> dict[str, type[Method]]:
-    """Every method: the built-ins, then entry points of group ``levelset_bench.methods``, then registered ones.
-
-    A built-in or plug-in that fails to import is skipped with a warning rather than breaking the others; so is
-    an entry point named as a built-in (the built-in is used; ``python -m bench methods`` prints the warning).
-    A method registered with ``register_method(cls, replace=True)`` replaces the built-in of its name.
-
-    Returns
-    -------
-    dict of str to type
-        Method name → :class:`Method` subclass.
-    """
-    import warnings
-
-    out: dict[str, type[Method]] = {}
-    for name, target in BUILTIN_METHODS.items():
-        try:
-            out[name] = _load(target)
-        except (ImportError, AttributeError) as exc:
-            warnings.warn(f"built-in method {name!r} unavailable: {exc}", stacklevel=2)
-    key = tuple(sys.path)
-    if key not in _ENTRY_POINTS:
-        _ENTRY_POINTS[key] = tuple(metadata.entry_points(group=ENTRY_POINT_GROUP))
-    for ep in _ENTRY_POINTS[key]:
-        try:
-            cls = ep.load()
-        except SystemExit as exc:  # sys.exit() at import must not end the command silently either
-            warnings.warn(f"plug-in method {ep.name!r} ({ep.value}) failed to load: it called "
-                          f"sys.exit({exc.code!r}) at import", stacklevel=2)
-            continue
-        except Exception as exc:  # a broken plug-in must not take the suite down
-            warnings.warn(f"plug-in method {ep.name!r} ({ep.value}) failed to load: {_one_line(exc)}",
-                          stacklevel=2)
-            continue
-        if isinstance(cls, type) and issubclass(cls, Method):
-            name = cls.name or ep.name
-            if name in BUILTIN_METHODS:   # the built-in stays: a name's meaning must not depend on what is installed
-                warnings.warn(f"plug-in method {ep.name!r} ({ep.value}) is not used: its name {name!r} is the "
-                              f"built-in {BUILTIN_METHODS[name]}'s (rename it, or register it with "
-                              "register_method(cls, replace=True) from a module given to --import)", stacklevel=2)
-                continue
-            out[name] = cls
-        else:
-            warnings.warn(f"plug-in {ep.name!r} ({ep.value}) is not a methods.Method subclass", stacklevel=2)
-    out.update(_REGISTERED)
-    return out
-
-
-def method_names() -> list[str]:
-    """The names of every available method (:func:`available_methods`), in its order.
-
-    Returns
-    -------
-    list of str
-    """
-    return list(available_methods())
-
-
-def get_method(name: str, **params: Any) -> Method:
-    """An instance of the method called ``name``.
-
-    Parameters
-    ----------
-    name : str
-        A method name (:func:`method_names`).
-    **params
-        Non-default parameter values.
-
-    Returns
-    -------
-    Method
-
-    Raises
-    ------
-    InputError
-        An unknown name (listing the valid ones), or a parameter the method refuses.
-    """
-    methods = available_methods()
-    if name not in methods:
-        raise InputError(f"unknown method {name!r}; valid methods: {', '.join(methods)}")
-    return methods[name](**params)

@@ -51,9 +51,11 @@ from phantoms import InputError, Volume
 
 from geometry.mesh import mesh_facts
 
-from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction, ReconstructionFailed
+from .params import Param
 from .cost_model import PowerLaw
-from .marching_cubes import orient_outward
+from .isosurface import orient_outward
 
 __all__ = ["CGALMesher", "write_inr", "read_off_surface", "INSTALL"]
 

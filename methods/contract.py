@@ -2,8 +2,9 @@
 reads (:data:`INFO_KEYS`, type-checked by :func:`check_info`), the checks of a returned value
 (:func:`as_reconstruction`), the guarded call (:func:`run_reconstruct`) and the two optional hooks the suite
 calls first: :meth:`Method.skip_reason <methods.base.Method.skip_reason>` (:func:`check_skip`) and
-:meth:`Method.warm_up <methods.base.Method.warm_up>` (:func:`run_warm_up`).  :mod:`methods.base` re-exports
-every name here.
+:meth:`Method.warm_up <methods.base.Method.warm_up>` (:func:`run_warm_up`).  The suite imports its calls from
+here; the package :mod:`methods` exports only what a method author uses (:class:`Reconstruction`, the exceptions a
+method raises, :data:`INFO_KEYS`).
 """
 
 from __future__ import annotations

@@ -45,10 +45,12 @@ from phantoms import InputError, Volume
 
 from geometry.topology import directed_edge_repeats, edge_face_counts
 
-from .base import Method, Param, Reconstruction, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction
+from .params import Param
 from .cost_model import PowerLaw
 from .dual_contouring import library_grid, split_quads
-from .marching_cubes import orient_outward
+from .isosurface import orient_outward
 
 __all__ = ["DCSDF", "PAPER_ITERATIONS", "edge_counts"]
 

@@ -46,9 +46,11 @@ from geometry.topology import edges_unique
 from phantoms import InputError, Volume
 
 from . import distmesh_loop
-from .base import Method, Param, Reconstruction, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction
+from .params import Param
 from .cost_model import PowerLaw
-from .marching_cubes import marching_cubes_mesh, orient_outward
+from .isosurface import marching_cubes_mesh, orient_outward
 
 __all__ = ["DistMesh", "flip_edges", "triangle_quality"]
 

@@ -14,14 +14,15 @@ import math
 
 import numpy as np
 
-from geometry.kernels import AVAILABLE, _jit, trilinear_point
+from geometry.compiled import AVAILABLE, jit
+from geometry.kernels import trilinear_point
 
 __all__ = ["AVAILABLE", "RETRIANGULATE", "CONVERGED", "DIVERGED", "MAX_ITER", "relax"]
 
 RETRIANGULATE, CONVERGED, DIVERGED, MAX_ITER = 0, 1, 2, 3
 
 
-@_jit
+@jit
 def _sample(flat, n0, n1, n2, origin, spacing, x, y, z, out):
     """φ, ∂φ/∂x, ∂φ/∂y, ∂φ/∂z (trilinear, clamped onto the grid) at one point into ``out``."""
     fx = min(max((x - origin[0]) / spacing[0], 0.0), n0 - 1.0)
@@ -30,7 +31,7 @@ def _sample(flat, n0, n1, n2, origin, spacing, x, y, z, out):
     trilinear_point(flat, n0, n1, n2, fx, fy, fz, out.reshape(4, 1), 0)
 
 
-@_jit
+@jit
 def _project(p, flat, dims, origin, spacing, lo, hi, steps, max_step, flat_g2, counts):
     """``steps`` capped Newton steps x ← x − φ∇φ/|∇φ|² of every node, clamped into the box (in place)."""
     s = np.empty(4)
@@ -53,7 +54,7 @@ def _project(p, flat, dims, origin, spacing, lo, hi, steps, max_step, flat_g2, c
             p[i, 2] = min(max(p[i, 2] - st2, lo[2]), hi[2])
 
 
-@_jit
+@jit
 def _relax(p, pold, bars, fallback, flat, dims, origin, spacing, lo, hi, prm, steps, it, max_iter, state,
            history, counts):
     """Iterations ``it``, ``it + 1``, … (in place on ``p``) until a retriangulation is due or the run stops.
@@ -122,7 +123,7 @@ def relax(p, pold, bars, fallback, sampler, box, prm, steps, it, max_iter, state
                   int(it), int(max_iter), state, history, counts)
 
 
-@_jit
+@jit
 def _quality(p, i, j, k):
     """(q, normal) of triangle (i, j, k): :func:`methods.distmesh.triangle_quality` of one triangle."""
     e0, e1, e2 = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1], p[j, 2] - p[i, 2]
@@ -136,7 +137,7 @@ def _quality(p, i, j, k):
     return q, n0, n1, n2
 
 
-@_jit
+@jit
 def flip_candidates(p, a, b, c, d, qmax, gain):
     """The flip test of :func:`methods.distmesh.flip_edges` for every edge (a, b) with opposite corners c, d:
     (flip wanted, quality gain) — the worse old triangle below ``qmax``, the new pair's minimum quality higher by

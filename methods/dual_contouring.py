@@ -55,7 +55,9 @@ from geometry.levelset import newton_project
 from geometry.mesh import mesh_facts
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction, ReconstructionFailed
+from .params import Param
 from .cost_model import PowerLaw
 from .dc_manifold import (
     TUNNEL_CUBES,
@@ -66,7 +68,7 @@ from .dc_manifold import (
     patch_centroids,
     split_double_edges,
 )
-from .marching_cubes import _nudge_zeros, orient_outward
+from .isosurface import nudge_zeros, orient_outward
 
 __all__ = ["DualContouring", "split_quads", "band_box", "library_grid"]
 
@@ -92,7 +94,7 @@ def band_box(volume: Volume, band: float) -> tuple[np.ndarray, np.ndarray]:
 def library_grid(volume: Volume, lo, hi) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The sub-box ``[lo, hi)`` of the grid as gpytoolbox's dual contouring takes it: (the box's values with
     exact zeros nudged outside, S (M,) first axis fastest, GV (M, 3) the samples' world coordinates)."""
-    values = _nudge_zeros(volume.values[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]])
+    values = nudge_zeros(volume.values[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]])
     S = values.ravel(order="F")            # first axis fastest, as the library wants
     axes = [volume.origin[d] + volume.spacing[d] * np.arange(lo[d], hi[d]) for d in range(3)]
     GV = np.empty((S.size, 3))

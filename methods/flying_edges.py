@@ -5,10 +5,8 @@ A multi-pass, cache-friendly marching-cubes equivalent: the same vertices (linea
 edges) and the same case tables as marching cubes, computed edge row by edge row.  The surface is the
 ``level`` set of the trilinear interpolant, like :mod:`methods.marching_cubes`.
 
-No copy of the volume: VTK orders points with x fastest, a C-ordered ``values[i, j, k]`` (axis 0 = x) has z
-fastest, so the array is handed to VTK as it is (``numpy_to_vtk`` without ``deep``) as an image of
-dimensions (nz, ny, nx) with the spacing and origin reversed; the output points' columns are swapped back
-(z, y, x → x, y, z), which mirrors the mesh, so the faces are reversed once.  Flying Edges already shares each
+No copy of the volume: it is handed to VTK as it is and the output read back in our axis order
+(:func:`methods.isosurface.vtk_image`, :func:`methods.isosurface.from_vtk`).  Flying Edges already shares each
 edge's vertex between its cells, so no vertex merging is needed (only exact zeros are nudged, as for
 marching cubes, so no vertex sits on a grid point shared by several edges).
 
@@ -24,40 +22,22 @@ import trimesh
 
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction, check_volume
-from .marching_cubes import _nudge_zeros, orient_outward
+from .base import Method, check_volume
+from .contract import Reconstruction
+from .params import Param
+from .isosurface import from_vtk, nudge_zeros, orient_outward, require_vtk, vtk_image
 
-__all__ = ["FlyingEdges", "flying_edges_arrays", "VTK_MISSING"]
-
-VTK_MISSING = 'method {name!r} needs VTK, which is not installed: pip install "vtk>=9.3"'
-
-
-def _vtk_modules(name: str):
-    """VTK's data model, numpy bridge and the Flying Edges filter; InputError naming the extra when absent."""
-    try:
-        from vtkmodules.util import numpy_support
-        from vtkmodules.vtkCommonDataModel import vtkImageData
-        from vtkmodules.vtkFiltersCore import vtkFlyingEdges3D
-    except ImportError:
-        raise InputError(VTK_MISSING.format(name=name)) from None
-    return numpy_support, vtkImageData, vtkFlyingEdges3D
+__all__ = ["FlyingEdges", "flying_edges_arrays"]
 
 
 def flying_edges_arrays(volume: Volume, level: float = 0.0, name: str = "flying_edges"
                         ) -> tuple[np.ndarray, np.ndarray]:
     """Flying Edges of ``volume`` at ``level``: (vertices (V, 3) in world coordinates, faces (F, 3)), faces
     in VTK's winding mirrored back (orientation not yet checked)."""
-    numpy_support, vtkImageData, vtkFlyingEdges3D = _vtk_modules(name)
+    vtkFlyingEdges3D = require_vtk(name, "vtkmodules.vtkFiltersCore").vtkFlyingEdges3D
     values = volume.values - level if level != 0.0 else volume.values
-    values = np.ascontiguousarray(_nudge_zeros(values))   # no copy unless shifted or nudged
-    nx, ny, nz = values.shape
-    image = vtkImageData()
-    image.SetDimensions(nz, ny, nx)                       # VTK's x = our z (the fastest axis in memory)
-    image.SetSpacing(*(float(s) for s in volume.spacing[::-1]))
-    image.SetOrigin(*(float(o) for o in volume.origin[::-1]))
-    scalars = numpy_support.numpy_to_vtk(values.reshape(-1), deep=False)   # a view: VTK reads numpy's buffer
-    scalars.SetName("phi")
-    image.GetPointData().SetScalars(scalars)
+    values = nudge_zeros(values)                          # no copy unless shifted or nudged
+    image = vtk_image(values, volume.origin, volume.spacing, scalars="phi")   # alive until VTK's output is read
     fe = vtkFlyingEdges3D()
     fe.SetInputData(image)
     fe.SetValue(0, 0.0)
@@ -69,12 +49,7 @@ def flying_edges_arrays(volume: Volume, level: float = 0.0, name: str = "flying_
     out = fe.GetOutput()
     if out.GetNumberOfPoints() == 0:
         raise InputError(f"method {name!r}: Flying Edges found no surface at level {level}")
-    pts = numpy_support.vtk_to_numpy(out.GetPoints().GetData())
-    vertices = np.ascontiguousarray(pts[:, ::-1], dtype=np.float64)     # (z, y, x) → (x, y, z)
-    conn = numpy_support.vtk_to_numpy(out.GetPolys().GetConnectivityArray())
-    faces = conn.reshape(-1, 3)[:, ::-1].astype(np.int64)              # the axis swap is a mirror: re-wind
-    del values, scalars                                                 # VTK is done with the buffer
-    return vertices, faces
+    return from_vtk(out)
 
 
 class FlyingEdges(Method):

@@ -18,8 +18,10 @@ from scipy import ndimage
 
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction
-from .labelmap import closed_mesh
+from .base import Method
+from .contract import Reconstruction
+from .params import Param
+from .isosurface import closed_mesh
 
 __all__ = ["MCSmoothedMask"]
 

@@ -16,8 +16,10 @@ import trimesh
 from geometry.mesh import mesh_facts
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction, check_volume
-from .marching_cubes import marching_cubes_mesh, orient_outward
+from .base import Method, check_volume
+from .contract import Reconstruction
+from .params import Param
+from .isosurface import marching_cubes_mesh, orient_outward
 
 __all__ = ["MCTaubin"]
 

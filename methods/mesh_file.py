@@ -22,7 +22,9 @@ import trimesh
 from phantoms import InputError, Volume
 from phantoms.frames import fitting_frame
 
-from .base import Method, Param, Reconstruction
+from .base import Method
+from .contract import Reconstruction
+from .params import Param
 
 __all__ = ["MeshFile"]
 

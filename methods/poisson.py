@@ -25,8 +25,10 @@ import numpy as np
 from geometry.mesh import ScoredMesh, mesh_facts
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction, check_volume
-from .marching_cubes import clean_mesh, marching_cubes_mesh
+from .base import Method, check_volume
+from .contract import Reconstruction
+from .params import Param
+from .isosurface import clean_mesh, marching_cubes_mesh
 
 __all__ = ["ScreenedPoisson", "zero_set_points"]
 

@@ -72,10 +72,13 @@ import time
 import numpy as np
 import trimesh
 
+from geometry.mesh import mesh_facts
 from phantoms import Volume
 
-from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
-from .marching_cubes import mesh_facts, orient_outward
+from .base import Method, check_volume
+from .contract import Reconstruction, ReconstructionFailed
+from .params import Param
+from .isosurface import orient_outward
 from .reach_for_the_spheres import distance_reading, zero_set_distance
 
 __all__ = ["ReachForTheArcs", "auto_psr_depth", "clamped_samples", "inside_box"]

@@ -71,9 +71,11 @@ import trimesh
 from geometry.mesh import mesh_facts
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction, ReconstructionFailed
+from .params import Param
 from .cost_model import PowerLaw
-from .marching_cubes import marching_cubes_mesh, orient_outward
+from .isosurface import marching_cubes_mesh, orient_outward
 
 __all__ = ["ReachForTheSpheres", "grid_samples", "distance_reading", "zero_set_distance", "initial_ellipsoid"]
 

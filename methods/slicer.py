@@ -35,8 +35,11 @@ import time
 
 from phantoms import Volume
 
-from .base import Method, Param, Reconstruction
-from .labelmap import closed_mesh, from_vtk, padded_labels, vtk_image, vtk_modules
+from .base import Method
+from .contract import Reconstruction
+from .params import Param
+from .isosurface import closed_mesh, from_vtk, require_vtk, vtk_image
+from .labelmap import padded_labels
 
 __all__ = ["Slicer", "iterations", "passband"]
 
@@ -106,7 +109,7 @@ class Slicer(Method):
     relative_cost = 0.5
 
     def reconstruct(self, volume: Volume) -> Reconstruction:
-        vtk_modules(self.name)
+        require_vtk(self.name)
         from vtkmodules.vtkFiltersGeneral import vtkDiscreteFlyingEdges3D
 
         t0 = time.perf_counter()

@@ -26,8 +26,11 @@ import numpy as np
 
 from phantoms import Volume
 
-from .base import Method, Param, Reconstruction, ReconstructionFailed
-from .labelmap import close_seams, closed_mesh, fill_edge_contacts, from_vtk, padded_labels, vtk_image, vtk_modules
+from .base import Method
+from .contract import Reconstruction, ReconstructionFailed
+from .params import Param
+from .isosurface import closed_mesh, from_vtk, require_vtk, vtk_image
+from .labelmap import close_seams, fill_edge_contacts, padded_labels
 
 __all__ = ["SurfaceNets"]
 
@@ -77,7 +80,7 @@ class SurfaceNets(Method):
         return mesh, loops, bool(mesh.is_watertight and mesh.is_winding_consistent)
 
     def reconstruct(self, volume: Volume) -> Reconstruction:
-        vtk_modules(self.name)
+        require_vtk(self.name)
         t0 = time.perf_counter()
         labels, origin = padded_labels(volume, self.name)
         mesh, loops, ok = self._closed(labels, origin, volume.spacing)

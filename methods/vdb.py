@@ -28,10 +28,12 @@ import trimesh
 
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction, check_volume
+from .base import Method, check_volume
+from .contract import Reconstruction
+from .params import Param
 from .cost_model import PowerLaw
 from .dual_contouring import split_quads
-from .marching_cubes import _nudge_zeros, orient_outward
+from .isosurface import nudge_zeros, orient_outward
 
 __all__ = ["VDB", "vdb_polygons"]
 
@@ -72,7 +74,7 @@ def vdb_polygons(volume: Volume, adaptivity: float = 0.0):
             raise
         return _in_fresh_process(volume, adaptivity)
 
-    values = _nudge_zeros(volume.values)
+    values = nudge_zeros(volume.values)
     index = np.indices(values.shape, dtype=np.int32).reshape(3, -1).T.copy()
     grid = lvol.Grid.from_points(index, np.ascontiguousarray(values.reshape(-1), dtype=np.float64),
                                  dtype=np.float64)

@@ -18,8 +18,11 @@ import numpy as np
 
 from phantoms import InputError, Volume
 
-from .base import Method, Param, Reconstruction
-from .labelmap import closed_mesh, padded_labels
+from .base import Method
+from .contract import Reconstruction
+from .params import Param
+from .isosurface import closed_mesh
+from .labelmap import padded_labels
 
 __all__ = ["ZMesh"]
 

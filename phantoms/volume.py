@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from geometry import kernels
+from geometry import compiled
 from geometry.errors import InputError
 from geometry.grid_derivatives import derivative_stack
 from geometry.trilinear import trilinear_channels
@@ -301,7 +301,7 @@ class Volume:
         if key not in self._channels:
             check_memory(self.values.shape, _N_CHANNELS[order], itemsize=np.dtype(dtype).itemsize,
                          what=f"the interpolation grids (order {order})")
-            if kernels.AVAILABLE and (order >= 1 or np.dtype(dtype) != np.float64):
+            if compiled.AVAILABLE and (order >= 1 or np.dtype(dtype) != np.float64):
                 # compiled, bit for bit the numpy form below: one pass, no temporary grid (at N = 256 about a
                 # tenth of the time, and C grids instead of C + 4)
                 self._channels[key] = derivative_stack(self.values, self.spacing, order, dtype=dtype)

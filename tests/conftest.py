@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 
 def pytest_xdist_auto_num_workers(config):
     """``-n auto`` (the default addopts) means one process when benchmarks are timed: pytest-benchmark measures
@@ -9,3 +11,15 @@ def pytest_xdist_auto_num_workers(config):
     if config.getoption("benchmark_enable", default=False):
         return 0
     return None
+
+
+@pytest.fixture()
+def modules_on_path(tmp_path, monkeypatch):
+    """A function writing ``{module name: source}`` as module files into a folder put first on ``sys.path`` (for
+    this test only); it returns the folder."""
+    def write(sources: dict[str, str]):
+        for name, text in sources.items():
+            (tmp_path / f"{name}.py").write_text(text)
+        monkeypatch.syspath_prepend(str(tmp_path))
+        return tmp_path
+    return write

@@ -285,7 +285,8 @@ def test_the_primitive_check_finds_a_copy(tmp_path):
 # ------------------------------------------------------------------------------------------ the public API's docstrings
 #: the public API: the functions and classes these modules export (``__all__``; without it, the top-level
 #: functions and classes whose names do not start with ``_``), wherever they are defined
-PUBLIC_API = ("phantoms", "methods", "methods.base", "bench.metrics", "bench.run", "bench.check")
+PUBLIC_API = ("phantoms", "methods", "methods.base", "methods.contract", "methods.registry", "bench.metrics",
+              "bench.run", "bench.check")
 #: ``module.name`` of public definitions the check leaves out (none)
 DOCSTRING_EXEMPT: set[str] = set()
 _SECTION_RULE = re.compile(r"^-{3,}$")

@@ -15,8 +15,8 @@ import pytest
 import trimesh
 
 from bench.cli import main
-from methods import BUILTIN_METHODS
-from methods import base as methods_base
+from methods import registry
+from methods.registry import BUILTIN_METHODS
 from phantoms import get_phantom, save_volume
 
 REPO = Path(__file__).resolve().parent.parent
@@ -27,7 +27,7 @@ TESTS = Path(__file__).resolve().parent
 def broken(monkeypatch):
     """tests/ on the path, broken_methods importable afresh, the registry restored afterwards."""
     monkeypatch.syspath_prepend(str(TESTS))
-    monkeypatch.setattr(methods_base, "_REGISTERED", dict(methods_base._REGISTERED))
+    monkeypatch.setattr(registry, "_REGISTERED", dict(registry._REGISTERED))
     monkeypatch.delitem(sys.modules, "broken_methods", raising=False)
 
 

@@ -13,7 +13,7 @@ import textwrap
 import pytest
 
 from bench.cli import main
-from methods import base as methods_base
+from methods import registry
 from phantoms import get_phantom, save_volume
 
 #: what a terminal obeys: ESC, BEL, C1 controls, bidirectional overrides
@@ -46,7 +46,7 @@ def shouting(tmp_path, monkeypatch):
     """The plug-in module above, importable as ``shouting_plugin``; the registry restored afterwards."""
     (tmp_path / "shouting_plugin.py").write_text(textwrap.dedent(PLUGIN))
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(methods_base, "_REGISTERED", dict(methods_base._REGISTERED))
+    monkeypatch.setattr(registry, "_REGISTERED", dict(registry._REGISTERED))
     monkeypatch.delitem(sys.modules, "shouting_plugin", raising=False)
     return "shouting\x1b[2J"
 

@@ -21,11 +21,8 @@ MODULES = {"ends_zero": "import os\nos._exit(0)\n",
 
 
 @pytest.fixture()
-def modules(tmp_path, monkeypatch):
-    for name, text in MODULES.items():
-        (tmp_path / f"{name}.py").write_text(text)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    return tmp_path
+def modules(modules_on_path):
+    return modules_on_path(MODULES)
 
 
 @pytest.mark.parametrize("module, how", [("ends_zero", "exit code 0"), ("ends_segv", "signal SIGSEGV")])

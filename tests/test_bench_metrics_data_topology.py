@@ -52,7 +52,7 @@ def mask_volume(mask: np.ndarray) -> Volume:
 
 def mc(mask_or_volume) -> trimesh.Trimesh:
     """The suite's marching cubes of a mask (through its signed distance) or of a volume."""
-    from methods.marching_cubes import marching_cubes_mesh
+    from methods.isosurface import marching_cubes_mesh
 
     vol = mask_or_volume if isinstance(mask_or_volume, Volume) else mask_volume(mask_or_volume)
     return marching_cubes_mesh(vol)

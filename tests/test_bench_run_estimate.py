@@ -202,7 +202,7 @@ def _measured_vs_estimate(method: str, phantom: str, n: int, repeats: int = 1) -
 
 
 def test_distmesh_estimate_grows_as_measured_and_is_of_the_measured_order():
-    """The model was fitted on one machine (docs/NOTES.md); another CPU runs DistMesh at another speed (a
+    """The model's constants were fitted to one machine's timings; another CPU runs DistMesh at another speed (a
     2026-12 Intel Xeon: 3.8-4.5x faster than the fit), so across machines what must hold is the growth with N
     (48 -> 96, within a factor 1.5 of the model's 5.8x) and the order of magnitude: at most 6x the estimate, at
     least a tenth of it (the fit errs on the slow side, about 2x at N = 96 on its own machine, and an AMD EPYC CI
@@ -219,7 +219,7 @@ def test_distmesh_estimate_grows_as_measured_and_is_of_the_measured_order():
 @pytest.mark.parametrize("method", ["reach_for_the_spheres", "dual_contouring"])
 def test_peer_estimates_are_of_the_measured_order(method):
     # the bunny: Reach for the Spheres' model is that of a surface not tangent to every sphere (the clean sphere
-    # converges by tangency in ≈ 15 steps, 6-10x under its estimate; docs/NOTES.md, "Cost models").  At most 3x
+    # converges by tangency in ≈ 15 steps, 6-10x under its estimate, so it would not test the model).  At most 3x
     # the estimate (a cell refused as too slow must be), at least a fifth of it: the models were fitted on one
     # machine and an AMD EPYC CI machine ran dual contouring's bunny in 2.49 s CPU against 7.70 s estimated
     cpu, estimate = _measured_vs_estimate(method, "bunny", 32)

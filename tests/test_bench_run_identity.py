@@ -111,7 +111,8 @@ def _import_file(path, monkeypatch):
 
 
 def test_method_fingerprint_hashes_the_plugin_files_and_params_not_the_builtins(tmp_path, monkeypatch):
-    from methods import BUILTIN_METHODS, Method, Param, available_methods
+    from methods import Method, Param, available_methods
+    from methods.registry import BUILTIN_METHODS
 
     from bench.run.method_code import method_fingerprint
 

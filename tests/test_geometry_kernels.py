@@ -6,26 +6,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geometry import kernels
+from geometry import compiled, kernels
 from geometry.operators import MeshOperators, jacobi_cg
 from geometry.sphere import fibonacci_sphere
 from geometry.trilinear import trilinear_channels
 from phantoms import get_phantom
 
-pytestmark = pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed")
+pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed")
 
 
 @pytest.fixture(autouse=True)
 def kernels_on_small_arrays(monkeypatch):
     """The test meshes are below the size from which the suite uses the kernels: use them anyway."""
-    monkeypatch.setattr(kernels, "MIN_SIZE", 0)
-
-
-def test_kernels_run_from_min_size_on(monkeypatch):
-    monkeypatch.setattr(kernels, "MIN_SIZE", 10_000)
-    assert kernels.wanted(10_000) and not kernels.wanted(9_999)
-    monkeypatch.setattr(kernels, "AVAILABLE", False)
-    assert not kernels.wanted(10**6)
+    monkeypatch.setattr(compiled, "MIN_SIZE", 0)
 
 
 @pytest.fixture(scope="module")
@@ -116,7 +109,6 @@ def test_ring_mean_kernel_equals_numpy(bumpy):
 
 
 def test_trilinear_reads_only_the_first_channels_when_asked_equal_to_a_copy_of_them():
-    from geometry import kernels
     from geometry.trilinear import trilinear_channels
 
     rng = np.random.default_rng(5)

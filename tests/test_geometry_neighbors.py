@@ -171,9 +171,9 @@ def test_scoring_an_82k_face_icosphere_at_n24_stays_under_1_gb():
 
 @pytest.mark.parametrize("dense", [False, True])
 def test_the_compiled_fit_equals_the_numpy_fit(mc_sphere, dense):
-    from geometry import kernels
+    from geometry import compiled
 
-    if not kernels.AVAILABLE:
+    if not compiled.AVAILABLE:
         pytest.skip("numba missing")
     if dense:
         m = trimesh.creation.icosphere(4)

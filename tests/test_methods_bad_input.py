@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from geometry.mesh import mesh_facts
-from methods import BUILTIN_METHODS, Param, available_methods, get_method
+from methods import Param, available_methods, get_method
+from methods.registry import BUILTIN_METHODS
 from phantoms import InputError, Volume, get_phantom
 
 BASELINES = ["marching_cubes", "mc_taubin", "distmesh", "poisson", "flying_edges", "reach_for_the_spheres",

@@ -1,7 +1,7 @@
-"""Tests of ``methods.base``: :func:`check_volume`, :func:`register_method` and the names it may take, and the
-plug-in contract where a method breaks it: a ``sys.exit()`` inside ``reconstruct`` and
-``info`` values of the wrong type are failures naming the method (and the key) — in ``reconstruct`` and in a
-grid cell — never an exit 0 without output, one warning per character or a text in an integer column."""
+"""Tests of ``methods.base``: :class:`Method` (``reconstruct`` abstract), :func:`check_volume`, and the plug-in
+contract where a method breaks it: a ``sys.exit()`` inside ``reconstruct`` and ``info`` values of the wrong type
+are failures naming the method (and the key) — in ``reconstruct`` and in a grid cell — never an exit 0 without
+output, one warning per character or a text in an integer column.  The registry: test_methods_registry.py."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from methods import Reconstruction, WrongReturnType, as_reconstruction, check_info
+from methods import Method, Reconstruction
+from methods.contract import WrongReturnType, as_reconstruction, check_info
 from phantoms import get_phantom, save_volume
 
 REPO = Path(__file__).resolve().parent.parent
@@ -100,123 +101,33 @@ def test_check_volume_accepts_a_volume_with_a_surface_and_names_the_method_other
         check_volume(Volume(np.ones((8, 8, 8))), "m")
 
 
-# ----------------------------------------------------------------- a plug-in module that exits at import
-EXITS_AT_IMPORT = {"exits_zero": "import sys\nsys.exit(0)\n",
-                   "exits_msg": "raise SystemExit('bye from the plug-in')\n",
-                   "fails_two_lines": "raise RuntimeError('first line\\nsecond line')\n"}
+def test_a_method_without_reconstruct_cannot_be_instantiated_and_with_it_can():
+    class Incomplete(Method):
+        name = "incomplete_test"
+
+    with pytest.raises(TypeError, match="reconstruct"):
+        Incomplete()
+
+    class Complete(Incomplete):
+        def reconstruct(self, volume):
+            return Reconstruction(trimesh.creation.icosphere(1), {})
+
+    assert isinstance(Complete().reconstruct(None), Reconstruction)
 
 
-@pytest.fixture()
-def exiting_modules(tmp_path, monkeypatch):
-    for name, text in EXITS_AT_IMPORT.items():
-        (tmp_path / f"{name}.py").write_text(text)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    return tmp_path
-
-
-@pytest.mark.parametrize("module, says", [("exits_zero", "it called sys.exit(0) at import"),
-                                          ("exits_msg", "it called sys.exit('bye from the plug-in') at import"),
-                                          ("fails_two_lines", "first line second line")])
-def test_a_module_exiting_or_failing_at_import_is_one_input_error_naming_it(exiting_modules, module, says):
-    from methods import import_plugins
-    from phantoms import InputError
-
-    with pytest.raises(InputError) as err:
-        import_plugins(["json", module])
-    assert str(err.value) == f"cannot import module {module!r}: {says}" + (
-        " (a plug-in module must not exit)" if module.startswith("exits") else "")
-
-
-@pytest.mark.parametrize("command", [["methods"], ["run", "--quick", "--dry-run"]])
-@pytest.mark.parametrize("module", ["exits_zero", "exits_msg"])
-def test_methods_and_run_with_such_a_module_exit_2_on_one_line(exiting_modules, tmp_path, command, module):
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(exiting_modules), str(REPO)]), PYTHONWARNINGS="ignore")
-    out = tmp_path / "run"
-    extra = ["--out", str(out)] if command[0] == "run" else []
-    r = subprocess.run([sys.executable, "-m", "bench", *command, "--import", module, *extra], cwd=REPO, env=env,
-                       capture_output=True, text=True, timeout=300)
-    lines = r.stderr.strip().splitlines()
-    assert r.returncode == 2 and len(lines) == 1, (r.returncode, r.stdout, r.stderr)
-    assert lines[0].startswith("error: ") and f"module {module!r}" in lines[0] and "sys.exit(" in lines[0]
-    assert not out.exists()
-
-
-def test_an_entry_point_exiting_at_import_is_a_warning_not_the_end(exiting_modules, monkeypatch):
+def test_every_builtin_method_is_complete():
+    """Each registered built-in implements every abstract hook (none can be instantiated otherwise)."""
     from methods import available_methods
-    from methods import base as methods_base
 
-    info = exiting_modules / "exits-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: exits\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("[levelset_bench.methods]\nexits = exits_zero:Nope\n")
-    monkeypatch.setattr(methods_base, "_ENTRY_POINTS", {})
-    with pytest.warns(UserWarning, match=r"'exits' \(exits_zero:Nope\) failed to load: it called sys.exit\(0\)"):
-        methods = available_methods()
-    assert "marching_cubes" in methods and "exits" not in methods
+    assert all(not cls.__abstractmethods__ for cls in available_methods().values())
 
 
-# ----------------------------------------------------------------- a plug-in taking a name that is already taken
-def _named(name: str, module: str = "my_plugin"):
-    from methods import Method
+def test_the_package_exports_the_authors_names_and_not_the_suites_calls():
+    import methods
+    from methods import contract
 
-    return type("Taken", (Method,), {"name": name, "__module__": module})
-
-
-def test_registering_a_builtins_name_is_refused_naming_both_unless_replace(monkeypatch):
-    from methods import available_methods, register_method
-    from methods import base as methods_base
-    from phantoms import InputError
-
-    monkeypatch.setattr(methods_base, "_REGISTERED", dict(methods_base._REGISTERED))
-    with pytest.raises(InputError) as err:
-        register_method(_named("marching_cubes"))
-    text = str(err.value)
-    assert "my_plugin:Taken" in text and "methods.marching_cubes:MarchingCubes" in text and "replace=True" in text
-    assert "\n" not in text and available_methods()["marching_cubes"].__module__ == "methods.marching_cubes"
-    mine = register_method(replace=True)(_named("marching_cubes"))
-    assert available_methods()["marching_cubes"] is mine
-
-
-def test_registering_a_taken_plugin_name_warns_naming_both_and_a_reload_is_silent(monkeypatch):
-    import warnings
-
-    from methods import available_methods, register_method
-    from methods import base as methods_base
-
-    monkeypatch.setattr(methods_base, "_REGISTERED", dict(methods_base._REGISTERED))
-    register_method(_named("taken_test", "first_plugin"))
-    with pytest.warns(UserWarning, match="second_plugin:Taken replaces the one registered by first_plugin:Taken"):
-        second = register_method(_named("taken_test", "second_plugin"))
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        again = register_method(_named("taken_test", "second_plugin"))     # the module reloaded: no warning
-    assert available_methods()["taken_test"] is again and again is not second
-
-
-@pytest.fixture()
-def shadowing_plugin(tmp_path, monkeypatch):
-    """An installed (entry-point) plug-in whose class is named as a built-in."""
-    (tmp_path / "shadow_mc.py").write_text(
-        "from methods import Method\n\nclass ShadowMC(Method):\n    name = 'marching_cubes'\n")
-    info = tmp_path / "shadow_mc-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: shadow-mc\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("[levelset_bench.methods]\nshadow = shadow_mc:ShadowMC\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    return tmp_path
-
-
-def test_an_entry_point_named_as_a_builtin_is_not_used_and_says_so(shadowing_plugin, monkeypatch):
-    from methods import available_methods
-    from methods import base as methods_base
-
-    monkeypatch.setattr(methods_base, "_ENTRY_POINTS", {})
-    with pytest.warns(UserWarning, match=r"plug-in method 'shadow' \(shadow_mc:ShadowMC\) is not used: its name "
-                                         r"'marching_cubes' is the built-in methods.marching_cubes:MarchingCubes"):
-        methods = available_methods()
-    assert methods["marching_cubes"].__module__ == "methods.marching_cubes"
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(shadowing_plugin), str(REPO)]))
-    r = subprocess.run([sys.executable, "-m", "bench", "methods", "marching_cubes"], cwd=REPO, env=env,
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0 and "class: methods.marching_cubes:MarchingCubes" in r.stdout, r.stderr
-    assert "note: plug-in method 'shadow' (shadow_mc:ShadowMC) is not used" in r.stdout
+    assert {"Method", "Param", "Reconstruction", "ReconstructionFailed", "check_volume", "register_method"
+            } <= set(methods.__all__)
+    internal = {"run_reconstruct", "check_skip", "run_warm_up", "as_reconstruction", "check_info", "WrongReturnType"}
+    assert not internal & set(methods.__all__) and internal <= set(contract.__all__)
+    assert all(hasattr(methods, name) for name in methods.__all__)

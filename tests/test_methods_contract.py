@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import hook_plugins
-from methods import Method, MethodSkipped, WrongReturnType, check_skip, get_method, run_reconstruct, run_warm_up
+from methods import Method, MethodSkipped, get_method
+from methods.contract import WrongReturnType, check_skip, run_reconstruct, run_warm_up
 from phantoms import InputError, get_phantom
 
 

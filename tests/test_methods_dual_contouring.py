@@ -73,9 +73,9 @@ def test_bunny_with_the_default_iterations(n):
     manifold, outward.  The vertex positions are the library's least-squares (QEF) solutions, and an
     ill-conditioned cell may put one far out — at N = 48 one vertex of 1,602 lies 2.9 h from the surface, and
     whether it does turned on far-field values of the volume 3.3 h and more from the surface changing by 0.02 h
-    (both within their bound of the exact distance; docs/NOTES.md) — so accuracy is checked where it is robust:
-    the truth within 1 h of the mesh everywhere, all but 0.5 % of the vertices within 1 h of the truth, none
-    beyond 4 h."""
+    (both within their bound of the exact distance: neither volume is wrong, the QEF is that sensitive) — so
+    accuracy is checked where it is robust: the truth within 1 h of the mesh everywhere, all but 0.5 % of the
+    vertices within 1 h of the truth, none beyond 4 h."""
     from bench.metrics.distance import point_mesh_distance
     from bench.metrics.validity import check_mesh
 

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from methods.labelmap import closed_mesh, from_vtk, padded_labels, vtk_image
+from methods.isosurface import closed_mesh, from_vtk, vtk_image
+from methods.labelmap import padded_labels
 from phantoms import InputError, Volume, mask_to_sdf
 
 

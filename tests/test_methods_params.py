@@ -81,5 +81,8 @@ def test_a_method_with_an_int_param_gives_an_int_set_or_unset():
         name = "counting_test"
         params = {"n": Param(3, "how many")}
 
+        def reconstruct(self, volume):
+            raise NotImplementedError
+
     assert type(Counting().config["n"]) is int and Counting().config["n"] == 3
     assert type(Counting(n="5").config["n"]) is int and Counting(n=5.0).config["n"] == 5

@@ -20,7 +20,7 @@ import trimesh
 
 from bench.cli import main
 from methods import Method, Param, Reconstruction, available_methods, get_method, register_method
-from methods import base as methods_base
+from methods import registry
 from phantoms import InputError, get_phantom, save_volume
 
 REPO = Path(__file__).resolve().parents[1]
@@ -117,7 +117,7 @@ def test_broken_plugin_does_not_break_the_rest(tmp_path, monkeypatch):
 
 
 def test_register_method_and_reconstruct(volume_file, tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(methods_base, "_REGISTERED", dict(methods_base._REGISTERED))
+    monkeypatch.setattr(registry, "_REGISTERED", dict(registry._REGISTERED))
 
     @register_method
     class Shrunk(Method):
@@ -153,14 +153,14 @@ def test_entry_points_are_read_once_per_sys_path(plugin_dir, monkeypatch):
     """The runner asks for a method once per cell: the distributions' metadata is scanned once per sys.path
     (a plug-in directory added to the path is still found)."""
     calls = []
-    real = methods_base.metadata.entry_points
+    real = registry.metadata.entry_points
 
     def counting(**kw):
         calls.append(kw)
         return real(**kw)
 
-    monkeypatch.setattr(methods_base.metadata, "entry_points", counting)
-    monkeypatch.setattr(methods_base, "_ENTRY_POINTS", {})
+    monkeypatch.setattr(registry.metadata, "entry_points", counting)
+    monkeypatch.setattr(registry, "_ENTRY_POINTS", {})
     available_methods()
     available_methods()
     assert len(calls) == 1

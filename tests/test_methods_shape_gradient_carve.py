@@ -137,8 +137,8 @@ def test_a_held_vertex_keeps_a_relaxation_that_does_not_leave_the_balls():
 
 def test_the_compiled_ball_depth_equals_the_numpy_gather():
     """Points near a sphere's surface, points off the grid and a few thousand of them (the kernel runs from
-    kernels.MIN_SIZE on): the same depths bit for bit, −inf where no outside sample is near."""
-    from geometry import kernels
+    geometry.compiled.MIN_SIZE on): the same depths bit for bit, −inf where no outside sample is near."""
+    from geometry import compiled
 
     g = _LO + _H * np.arange(_N)
     p = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)
@@ -146,7 +146,7 @@ def test_the_compiled_ball_depth_equals_the_numpy_gather():
     rng = np.random.default_rng(0)
     pts = rng.uniform(-2.3, 2.3, size=(4000, 3))
     pts[:50] *= 0.1                                                      # deep inside: no outside sample near
-    assert len(pts) >= kernels.MIN_SIZE
+    assert len(pts) >= compiled.MIN_SIZE
     fast, ref = ball_depth(vol, pts, 0.97), ball_depth_numpy(vol, pts, 0.97)
     assert np.array_equal(fast, ref)
     assert np.isneginf(ref[:50]).all() and np.isfinite(ref).sum() > 3000

@@ -9,7 +9,7 @@ import pytest
 from scipy import ndimage
 from skimage.measure import euler_number, label
 
-from geometry.kernels import AVAILABLE
+from geometry.compiled import AVAILABLE
 from methods.shape_gradient.digital import (
     _ADJ6,
     _ADJ26,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from skimage.measure import euler_number, label
 
-from geometry.kernels import AVAILABLE
+from geometry.compiled import AVAILABLE
 from methods.shape_gradient.digital import homotopic_growth, homotopic_thinning
 from methods.shape_gradient.pinholes import close_pinholes
 

@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 from geometry.closest import point_mesh_distance
-from methods.marching_cubes import marching_cubes_mesh
+from methods.isosurface import marching_cubes_mesh
 from phantoms import InputError, Volume, get_phantom
 from phantoms.field import field_normalize
 from phantoms.mesh.resolve import solid_boundary

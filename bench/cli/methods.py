@@ -212,7 +212,7 @@ def _guarded(fn, method, volume):
 def _timed_run(method, volume):
     """``(what reconstruct returned, its seconds)``, after the method said it takes ``volume``
     (:class:`methods.MethodSkipped` if not) and warmed up outside the time."""
-    from methods import check_skip, run_reconstruct, run_warm_up
+    from methods.contract import check_skip, run_reconstruct, run_warm_up
 
     check_skip(method, volume)
     run_warm_up(method)
@@ -228,7 +228,8 @@ def spacing_text(spacing) -> str:
 
 
 def _cmd_reconstruct(args) -> int:
-    from methods import as_reconstruction, get_method
+    from methods import get_method
+    from methods.contract import as_reconstruction
     from geometry.mesh import mesh_facts
 
     out = Path(args.output)

@@ -13,12 +13,12 @@ import math
 
 import numpy as np
 
-from geometry.kernels import _jit
+from geometry.compiled import jit
 
 __all__ = ["rasterize"]
 
 
-@_jit
+@jit
 def _fill(tri, colours, width, height, edge_px, edge_rgb, img):
     for t in range(tri.shape[0]):
         x0, y0, x1, y1, x2, y2 = tri[t, 0, 0], tri[t, 0, 1], tri[t, 1, 0], tri[t, 1, 1], tri[t, 2, 0], tri[t, 2, 1]
@@ -46,7 +46,7 @@ def _fill(tri, colours, width, height, edge_px, edge_rgb, img):
                     img[height - 1 - j, i, c] = edge_rgb[c] if near else colours[t, c]
 
 
-@_jit
+@jit
 def _box_down(img, k, out):
     """``out`` = the mean of each k × k block of ``img`` (rounded)."""
     for j in range(out.shape[0]):

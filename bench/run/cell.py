@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from geometry.files import WriteError
-from methods import (MethodSkipped, as_reconstruction, check_skip, get_method, import_plugins, run_reconstruct,
-                     run_warm_up)
+from methods import get_method, import_plugins
+from methods.contract import MethodSkipped, as_reconstruction, check_skip, run_reconstruct, run_warm_up
 from phantoms import Volume, add_noise, get_phantom
 from phantoms.degrade import degrade
 
@@ -346,8 +346,8 @@ def _read_as_distance(clean, vol, row: dict):
 
 
 def _method(cell: Cell, vol, row: dict):
-    """The cell's method, its parameters in the row, after it said it takes ``vol`` (:func:`methods.check_skip`:
-    :class:`methods.MethodSkipped` when it does not)."""
+    """The cell's method, its parameters in the row, after it said it takes ``vol``
+    (:func:`methods.contract.check_skip`: :class:`methods.MethodSkipped` when it does not)."""
     method = get_method(cell.method, **cell.params)
     row["parameters"] = canonical_json(plain(getattr(method, "config", cell.params)))
     check_skip(method, vol)

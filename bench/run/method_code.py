@@ -15,6 +15,8 @@ import inspect
 import json
 from pathlib import Path
 
+from methods.base import Method
+
 from .provenance import SUITE_ROOT
 
 __all__ = ["SUITE_PACKAGES", "method_fingerprint"]
@@ -22,6 +24,11 @@ __all__ = ["SUITE_PACKAGES", "method_fingerprint"]
 #: the suite's own packages: their code is in :func:`bench.run.identity.code_identity` (git commit and
 #: uncommitted changes)
 SUITE_PACKAGES = ("geometry", "phantoms", "methods", "bench")
+
+
+#: the interface's own classes (:class:`methods.base.Method` and its bases: ``abc.ABC``, ``object``): not a plug-in's
+#: code wherever their files are
+_INTERFACE = frozenset(Method.__mro__)
 
 
 def _in_suite(path: Path) -> bool:
@@ -50,7 +57,7 @@ def method_fingerprint(cls: type) -> dict | None:
     files: list[str] = []
     seen: set[str] = set()
     for klass in getattr(cls, "__mro__", (cls,)):
-        if klass is object:
+        if klass in _INTERFACE:
             continue
         path = _class_file(klass)
         if path is not None and _in_suite(path):

@@ -6,7 +6,7 @@ code of each compiled kernel (loaded from the on-disk cache), the modules import
 and scikit-image's lazily loaded parts — more than the whole method on most cells of the paper's grid.
 
 Importing this module runs :func:`warm`: the steps of a cell on a tiny volume (N = 24) and on a mesh big enough
-(≥ :data:`geometry.kernels.MIN_SIZE` faces) for the compiled kernels, in the fork server, before it forks the
+(≥ :data:`geometry.compiled.MIN_SIZE` faces) for the compiled kernels, in the fork server, before it forks the
 first worker.  Nothing that starts threads runs here (pymeshlab's OpenMP/TBB, the metrics' worker thread): a
 process forked after that could deadlock in its thread pool.  Any error is swallowed: warming is an
 optimisation, never a reason for a run to fail.

@@ -23,9 +23,11 @@ distance reads the same.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from geometry import kernels
+from geometry.compiled import jit, wanted
 
 from .tips import TIP_CURVATURE, distance_scale, near_samples, tip_vertices
 
@@ -36,11 +38,40 @@ _BLOCK = 16384            # vertices per block: (block, 64) arrays of the nearby
 
 def ball_depth(volume, points: np.ndarray, scale: float) -> np.ndarray:
     """b at ``points`` (P, 3): the largest d(q) − |x − q| over the outside samples q among the 4×4×4 around x
-    (−inf where none is outside); d(q) = φ(q)/scale.  Compiled (:func:`geometry.kernels.ball_depth`) from
-    :data:`geometry.kernels.MIN_SIZE` points on; :func:`ball_depth_numpy` is the reference."""
-    if kernels.wanted(len(points)):
-        return kernels.ball_depth(volume.values, volume.origin, volume.spacing, points, scale)
+    (−inf where none is outside); d(q) = φ(q)/scale.  Compiled (:func:`_ball_depth_compiled`, point by point,
+    without the (P, 64, 3) gather) from :data:`geometry.compiled.MIN_SIZE` points on; :func:`ball_depth_numpy`
+    is the reference."""
+    if wanted(len(points)):
+        out = np.empty(len(points))
+        _ball_depth_compiled(np.ascontiguousarray(volume.values), np.asarray(volume.origin, float) * np.ones(3),
+                             np.asarray(volume.spacing, float) * np.ones(3),
+                             np.ascontiguousarray(points, dtype=float), float(scale), out)
+        return out
     return ball_depth_numpy(volume, points, scale)
+
+
+@jit
+def _ball_depth_compiled(values, origin, spacing, points, scale, out):
+    """:func:`ball_depth` into ``out``, ``values`` on the grid ``origin + index·spacing``."""
+    n0, n1, n2 = values.shape
+    for p in range(points.shape[0]):
+        x, y, z = points[p, 0], points[p, 1], points[p, 2]
+        i0 = int(math.floor((x - origin[0]) / spacing[0]))
+        j0 = int(math.floor((y - origin[1]) / spacing[1]))
+        k0 = int(math.floor((z - origin[2]) / spacing[2]))
+        best = -np.inf
+        for i in range(max(i0 - 1, 0), min(i0 + 3, n0)):
+            dx = x - (origin[0] + i * spacing[0])
+            for j in range(max(j0 - 1, 0), min(j0 + 3, n1)):
+                dy = y - (origin[1] + j * spacing[1])
+                for k in range(max(k0 - 1, 0), min(k0 + 3, n2)):
+                    v = values[i, j, k]
+                    if v > 0:
+                        dz = z - (origin[2] + k * spacing[2])
+                        d = v / scale - math.sqrt(dx * dx + dy * dy + dz * dz)
+                        if d > best:
+                            best = d
+        out[p] = best
 
 
 def ball_depth_numpy(volume, points: np.ndarray, scale: float) -> np.ndarray:

@@ -37,7 +37,7 @@ import heapq
 import numpy as np
 from scipy import ndimage
 
-from geometry.kernels import AVAILABLE, _jit
+from geometry.compiled import AVAILABLE, jit
 
 __all__ = ["homotopic_growth", "homotopic_thinning", "is_simple_reference", "ball_field", "ambiguous_cells",
            "surface_is_sphere", "NEIGHBOUR_OFFSETS"]
@@ -67,7 +67,7 @@ _FACE6 = _L1 == 1        # the 6 face neighbours
 _ALL = np.ones(26, np.bool_)
 
 
-@_jit
+@jit
 def _components(mask, use, adj, face_only, face):
     """Components (under ``adj``) of the positions with mask & use; with face_only, only those containing a
     face neighbour of the centre are counted."""
@@ -97,7 +97,7 @@ def _components(mask, use, adj, face_only, face):
     return count
 
 
-@_jit
+@jit
 def _is_simple(solid, i, j, k, off, adj6, adj26, n18, face, all26):
     inside = np.empty(26, np.bool_)
     outside = np.empty(26, np.bool_)
@@ -110,7 +110,7 @@ def _is_simple(solid, i, j, k, off, adj6, adj26, n18, face, all26):
     return _components(outside, n18, adj6, True, face) == 1
 
 
-@_jit
+@jit
 def _grow(phi, level, seed, off, adj6, adj26, n18, face, all26):
     n0, n1, n2 = phi.shape
     solid = np.zeros(phi.shape, np.bool_)
@@ -211,7 +211,7 @@ def homotopic_growth(phi: np.ndarray, level: float = 0.0, *, reference: bool = F
     return _grow(phi, float(level), seed.astype(np.int64), NEIGHBOUR_OFFSETS, _ADJ6, _ADJ26, _N18, _FACE6, _ALL)
 
 
-@_jit
+@jit
 def _thin(solid, phi, removable, off, adj6, adj26, n18, face, all26):
     solid = solid.copy()
     queued = np.zeros(solid.shape, np.bool_)

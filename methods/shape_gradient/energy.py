@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geometry import kernels
+from geometry import compiled
 from geometry.operators import MeshGeometry, MeshOperators
 from phantoms import InputError
 
@@ -82,7 +82,7 @@ def evaluate_state(field, ops: MeshOperators, x: np.ndarray, alpha: float, beta:
     t1 = time.perf_counter()
     ch = field.sample_t(c, 1)
     t2 = time.perf_counter()
-    if kernels.wanted(len(geo.face_areas)) and ch.dtype == np.float64 and ch.flags.c_contiguous:
+    if compiled.wanted(len(geo.face_areas)) and ch.dtype == np.float64 and ch.flags.c_contiguous:
         Ef, X = face_energies_compiled(ch, geo.normals_t, geo.face_areas, alpha, beta)   # same arithmetic
     else:
         Ef, X = face_energies(ch[0], ch[1:4], geo.normals_t, geo.face_areas, alpha, beta)
@@ -163,7 +163,7 @@ def no_fold(old: MeshGeometry, new: MeshGeometry) -> bool:
 
 
 # ------------------------------------------------------------------------------ the compiled face energies
-@kernels._jit
+@compiled.jit
 def _face_energies(ch, nrm, areas, alpha, beta, Ef, X):
     for f in range(areas.shape[0]):
         phi, d0, d1, d2 = ch[0, f], ch[1, f], ch[2, f], ch[3, f]

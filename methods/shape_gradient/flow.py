@@ -14,7 +14,7 @@ from geometry.mesh import signed_volume
 from geometry.operators import MeshOperators, dot
 from phantoms import InputError
 
-from ..base import Reconstruction, ReconstructionFailed
+from ..contract import Reconstruction, ReconstructionFailed
 from .carve import CarvedHull, remesh_keep
 from .convergence import ConvergenceTest, Stages
 from .energy import evaluate_state, gradient_from_state

@@ -11,7 +11,9 @@ from geometry.operators import MeshOperators
 from geometry.sphere import PAPER_SPHERE_RADIUS, PAPER_SPHERE_VERTICES
 from phantoms import InputError, Volume
 
-from ..base import Method, Param, Reconstruction, ReconstructionFailed, check_volume
+from ..base import Method, check_volume
+from ..contract import Reconstruction, ReconstructionFailed
+from ..params import Param
 from .field import CLEAN_NOISE_VOXELS, estimate_noise, noise_after_smoothing, smoothed_field, start_smoothing
 from .carved_start import carved_surface
 from .choose import data_errors, lacks_a_part, pick, rms, start_candidates, start_settings

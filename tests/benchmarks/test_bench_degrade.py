@@ -6,7 +6,9 @@ cache: a degraded volume builds the exact volume it is made from, so the ratio i
 exact volume — about 1.0–1.1 (mask) and 1.3–1.6 (partial volume: the winding number of the sub-samples no
 distance ball decides) on the bunny and the cortex, whose exact volumes are costly; about 1.3–1.5 (mask) and
 1.4–1.8 (partial volume) on the closed-form sphere and torus, whose exact volume is a few operations a point.
-The assertions guard against regressions with room for a busy machine (docs/NOTES.md has the figures).
+The assertions guard against regressions with room for a busy machine: a ratio up to 3 passes (:data:`LIMITS`),
+half as much again as the target, since a round of the closed-form phantoms is short enough for the scheduler to
+move it.
 """
 
 from __future__ import annotations

@@ -101,3 +101,30 @@ def test_auto_edge_length_is_a_voxel_on_a_mask_and_half_a_voxel_on_a_level_set()
     assert resolve(ShapeGradient(edge_length=0.8), kind="mask").stages[0].edge_length == 0.8   # a number wins
     with pytest.raises(InputError, match="edge_length"):
         ShapeGradient(edge_length=0.05)
+
+
+def test_auto_edge_length_follows_the_kind_and_grows_with_the_noise():
+    from methods.shape_gradient.settings import (AUTO_EDGE_VOXELS, NOISY_EDGE_MAX_VOXELS, NOISY_EDGE_PER_STD,
+                                                 edge_length_voxels)
+
+    base = AUTO_EDGE_VOXELS["other"]
+    assert edge_length_voxels("auto", "sdf") == base == edge_length_voxels("auto", "sdf", 0.0)
+    assert edge_length_voxels("auto", "mask", 0.3) == AUTO_EDGE_VOXELS["mask"]          # a mask: its own length
+    assert edge_length_voxels("auto", "sdf", 0.1) == base                               # 3.5 × 0.1 < 0.5
+    mid = 0.18
+    assert edge_length_voxels("auto", "sdf", mid) == pytest.approx(NOISY_EDGE_PER_STD * mid)
+    assert edge_length_voxels("auto", "intensity", 1.0) == NOISY_EDGE_MAX_VOXELS        # capped
+    assert edge_length_voxels(0.35, "sdf", 1.0) == 0.35                                 # a number is kept
+
+
+def test_a_clean_flow_skips_the_remeshes_it_does_not_need_and_a_noisy_one_does_not():
+    from methods.shape_gradient import ShapeGradient
+    from phantoms import get_phantom
+    from phantoms.noise import add_noise
+
+    vol = get_phantom("ellipsoid").volume(n=40)
+    clean = ShapeGradient(start_choice="off", tol=0, move_tol=0, max_iter=12).reconstruct(vol).info
+    assert clean["remesh_skipped"] >= 1 and len(clean["remeshes"]) + clean["remesh_skipped"] == 3   # 0, 5, 10
+    noisy, _ = add_noise(vol, "gaussian", 40.0, seed=0)
+    info = ShapeGradient(start_choice="off", tol=0, move_tol=0, max_iter=12).reconstruct(noisy).info
+    assert info["remesh_skipped"] == 0 and [it for it, _ in info["remeshes"]] == [0, 5, 10]

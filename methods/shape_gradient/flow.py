@@ -266,7 +266,8 @@ class ShapeGradientFlow:
         (the remesher's collapses can cut a voxel-thin tip too).  Where the triangles are still near the
         remesher's (:func:`.remesh.needs_remesh`: a surface that moved a fraction of a voxel keeps them), the
         remesh is skipped and the mesh only checked."""
-        if not needs_remesh(self.state.x, self.ops.faces, self.stages.edge_length):
+        if self.settings.remesh_when_drifted and not needs_remesh(self.state.x, self.ops.faces,
+                                                                  self.stages.edge_length):
             self.stats.remesh_skipped += 1
             self._guard(it)
             back = self.signs.check(it, self.state.x, self.ops) if self.signs is not None else None

@@ -153,9 +153,9 @@ class ShapeGradient(Method):
         "sign_guard": Param(True, "genus-0 start on a clean volume: stop and roll back when the flow puts more grid "
                             "samples on the wrong side than its start did", bool),
         "edge_length": Param("auto", "target edge length of the remeshing (and of init='auto'), in voxels; 'auto' = "
-                             "1 on a binary mask, 0.7 on a noisy volume, else 0.5", object),
-        "remesh_every": Param(5, "every this many iterations the mesh is checked and, where its triangles drifted from "
-                              "isotropic, remeshed; 0 = fixed connectivity", int,
+                             "1 on a binary mask, else 0.5, on noise 3.5 noise stds up to 0.7", object),
+        "remesh_every": Param(5, "isotropic remeshing every this many iterations (on a clean volume only where "
+                              "the triangles drifted); 0 = fixed connectivity", int,
                               min=0, max=100000),
         "guard": Param(True, "keep the surface free of self-intersections (repair or roll back); a collapsed or "
                        "off-surface result is an error", bool),
@@ -225,7 +225,8 @@ class ShapeGradient(Method):
             raise InputError(f"method 'shape_gradient' (strict_topology): {topology['message']}")
         noise = estimate_noise(volume)
         clean = noise < CLEAN_NOISE_VOXELS * volume.h
-        flow_params["edge_length"] = edge_length_voxels(flow_params["edge_length"], volume.kind, clean)
+        flow_params["edge_length"] = edge_length_voxels(flow_params["edge_length"], volume.kind,
+                                                         0.0 if clean else noise / volume.h)
         # a clean volume's raw reading is reliable; under noise one reading can look compatible by chance
         if (not topology["compatible"] or not clean) and flow_params["init_mesh"] is None:
             _refuse_far_topology(denoised_topology(volume, noise), flow_params["max_topology_gap"])

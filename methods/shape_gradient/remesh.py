@@ -24,7 +24,7 @@ LONG_EDGE_SHARE = 0.01
 #: ... or more than this share shorter than 4/5 of it (what the remesher collapses; a fresh remesh leaves 5–10 %) ...
 SHORT_EDGE_SHARE = 0.2
 #: ... or a triangle has an angle below this many degrees
-MIN_ANGLE_DEGREES = 15.0
+MIN_ANGLE_DEGREES = 30.0
 
 
 def _botsch(V: np.ndarray, F: np.ndarray, iterations: int, edge_length: float, gpytoolbox, closed: bool = False,

@@ -17,17 +17,24 @@ _INTERP_NOISE_GAIN = (2.0 / 3.0) ** 3   # mean of Σwᵢ² of trilinear weights 
 
 
 #: edge_length='auto': the remeshing's edge length (voxels) on a binary mask, which resolves nothing finer (as close
-#: and faster); on a noisy volume, whose zero set the noise blurs by more than the difference (and every step
-#: scales with the face count); and on a clean one (keeps parts a voxel thin)
-AUTO_EDGE_VOXELS = {"mask": 1.0, "noisy": 0.7, "other": 0.5}
+#: and faster), and on a level set (keeps parts a voxel thin) ...
+AUTO_EDGE_VOXELS = {"mask": 1.0, "other": 0.5}
+#: ... which on a noisy level set grows with the noise: this many noise stds (voxels), up to NOISY_EDGE_MAX_VOXELS —
+#: the noise blurs the zero set by more than finer triangles resolve, and every step scales with the face count
+NOISY_EDGE_PER_STD = 3.5
+NOISY_EDGE_MAX_VOXELS = 0.7
 
 
-def edge_length_voxels(value: Any, kind: str, clean: bool = True) -> float:
-    """``edge_length`` in voxels: the number given, or for ``'auto'`` :data:`AUTO_EDGE_VOXELS` of the volume's kind
-    (``clean``: the volume's estimated noise is below :data:`.field.CLEAN_NOISE_VOXELS`)."""
-    if value == "auto":
-        return AUTO_EDGE_VOXELS["mask" if kind == "mask" else "other" if clean else "noisy"]
-    return float(value)
+def edge_length_voxels(value: Any, kind: str, noise_voxels: float = 0.0) -> float:
+    """``edge_length`` in voxels: the number given, or for ``'auto'`` :data:`AUTO_EDGE_VOXELS` of the volume's kind,
+    on a level set with ``noise_voxels`` (the estimated noise std, voxels; 0 on a clean volume) at least
+    :data:`NOISY_EDGE_PER_STD` of it up to :data:`NOISY_EDGE_MAX_VOXELS`."""
+    if value != "auto":
+        return float(value)
+    if kind == "mask":
+        return AUTO_EDGE_VOXELS["mask"]
+    base = AUTO_EDGE_VOXELS["other"]
+    return float(min(max(base, NOISY_EDGE_PER_STD * noise_voxels), max(base, NOISY_EDGE_MAX_VOXELS)))
 
 
 @dataclass(frozen=True)
@@ -85,6 +92,10 @@ class FlowSettings:
         The start is a marching-cubes mesh (the genus-0 start): remesh it before the first iteration.
     guard : bool
         The self-intersection guard is on.
+    remesh_when_drifted : bool
+        At a remesh point the mesh is remeshed only where its triangles drifted from isotropic (a clean volume:
+        a flow there moves a fraction of a voxel once it has grown); on a noisy one every remesh point remeshes
+        (the remesher's relaxation and projection also even out what the noise leaves in the mesh).
     sign_guard : bool
         The sign guard runs (the parameter on, a clean volume and the genus-0 start).
     polish : bool
@@ -128,6 +139,7 @@ class FlowSettings:
     remesh_every: int
     remesh_start: bool
     guard: bool
+    remesh_when_drifted: bool
     sign_guard: bool
     polish: bool
     projection: bool
@@ -175,7 +187,7 @@ class FlowSettings:
         beta = config["beta"]
         if beta == "auto":
             beta = _AUTO_BETA[0] if clean else _AUTO_BETA[1]
-        edge = edge_length_voxels(config["edge_length"], kind, clean)
+        edge = edge_length_voxels(config["edge_length"], kind)
         stages = [{"beta": beta, "edge_length": edge}]
         # the noise variance of φ where the flow reads it: trilinear interpolation of i.i.d. noise has variance
         # σ²Σwᵢ², on average (∫₀¹ t² + (1 − t)² dt)³ = (2/3)³ of σ² over positions in a cell
@@ -200,7 +212,7 @@ class FlowSettings:
             relax=cfg["relax"], max_iter=cfg["max_iter"], tol=cfg["tol"],
             move_tol=cfg["move_tol"], remesh_every=int(cfg["remesh_every"]),
             remesh_start=bool(remesh_start), guard=bool(cfg["guard"]),
-            sign_guard=bool(cfg["sign_guard_used"]), polish=bool(cfg["polish_used"]),
+            remesh_when_drifted=bool(clean), sign_guard=bool(cfg["sign_guard_used"]), polish=bool(cfg["polish_used"]),
             projection=bool(cfg["projection_used"]), extend_tips=bool(cfg["extend_tips"]),
             noise_variance=float(cfg["noise_variance"]),
             stages=tuple(Stage(float(st["beta"]), float(st["edge_length"])) for st in stages),

@@ -14,14 +14,14 @@ points (N ≤ 20) and a seeded uniform subset of that many points otherwise: an 
 mean whose standard error, √(var((|S| − d)²) / m), is about 2 % of the value (marching cubes on the bunny at
 N = 64: 1.8 / √m, the energy coming 98 % from points farther than 3h from the surface, so a band-weighted
 subset would not help; tests/test_bench_metrics_sdf_energy.py checks it against the full grid).  d is the exact
-distance of :func:`geometry.closest.point_mesh_distance_far`, the search suited to points far from the surface.
+distance of :func:`geometry.bvh.point_mesh_distance_far`, the search suited to points far from the surface.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from geometry.closest import point_mesh_distance_far
+from geometry.bvh import point_mesh_distance_far
 
 __all__ = ["ENERGY_POINTS", "energy_query", "energy_distances", "sdf_energy"]
 

@@ -19,7 +19,7 @@ import math
 import numba
 import numpy as np
 
-from .closest import box_distance2, prune_tolerance, triangle_point
+from .closest import box_distance2, prune_tolerance, triangle_boxes, triangle_point
 
 __all__ = ["point_mesh_distance_far", "build_bvh", "BVH_LEAF"]
 
@@ -188,8 +188,7 @@ def point_mesh_distance_far(points, vertices, faces) -> np.ndarray:
         return np.zeros(0)
     if len(f) == 0:
         raise ValueError("point_mesh_distance_far: the mesh has no faces")
-    tri = v[f]                                                        # (F, 3, 3)
-    tmin, tmax = np.ascontiguousarray(tri.min(1)), np.ascontiguousarray(tri.max(1))
+    tri, tmin, tmax = triangle_boxes(v, f)
     bmin, bmax, child, span, order = build_bvh(tmin, tmax, BVH_LEAF)
     tri = np.ascontiguousarray(tri[order])                            # a leaf's triangles side by side in memory
     return _bvh_query(p, tri, tmin[order], tmax[order], bmin, bmax, child, span, prune_tolerance(tri, p))

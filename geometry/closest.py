@@ -22,10 +22,8 @@ The distance to a mesh
     the triangles, bit for bit the brute-force minimum.  A point far outside the mesh's box is searched the same
     way from the nearest cell.
 
-The distance from points anywhere in a box around the mesh
-    The SDF energy queries grid points all over the volume's box, most of them far from the surface: the grid's
-    Chebyshev shells open hundreds of triangles per point there; :func:`geometry.bvh.point_mesh_distance_far`
-    searches a bounding-volume hierarchy with the same kernel and the same tolerance, for the same numbers.
+Points far from the mesh (the SDF energy's grid points) go to :func:`geometry.bvh.point_mesh_distance_far`: a
+bounding-volume hierarchy with the same kernel and tolerance, for the same numbers with fewer tests there.
 
 Why not pymeshlab's ``compute_scalar_by_distance_from_another_mesh_per_vertex``: it returns float32 and is
 slower on these queries; this search also releases the GIL, so the metrics run it beside numpy's work.  The
@@ -40,8 +38,8 @@ import numba
 import numpy as np
 
 __all__ = ["point_mesh_distance", "point_triangle", "triangle_point", "closest_on_faces", "closest_point_on_triangles",
-           "bucket_triangles", "box_distance2", "prune_tolerance", "MAX_CELLS", "CELL_SIZE", "PRUNE_TOL", "FACE", "VA",
-           "VB", "VC", "EAB", "EBC", "ECA"]
+           "bucket_triangles", "box_distance2", "prune_tolerance", "triangle_boxes", "MAX_CELLS", "CELL_SIZE",
+           "PRUNE_TOL", "FACE", "VA", "VB", "VC", "EAB", "EBC", "ECA"]
 
 #: the feature of a triangle (a, b, c) its closest point lies on: the interior, a vertex, an edge
 FACE, VA, VB, VC, EAB, EBC, ECA = range(7)
@@ -308,9 +306,67 @@ def _query(points, tri, tmin, tmax, lo, cell, dims, start, items, tol):
     return out
 
 
+@_jit
+def _max_abs(a):
+    m = 0.0
+    for x in a.ravel():
+        m = max(m, abs(x))
+    return m
+
+
 def prune_tolerance(tri, points) -> float:
     """The pruning tolerance: :data:`PRUNE_TOL` of the largest coordinate magnitude of triangles and points."""
-    return PRUNE_TOL * max(float(np.abs(tri).max()), float(np.abs(points).max()), 1e-300)
+    return PRUNE_TOL * max(_max_abs(np.ascontiguousarray(tri)), _max_abs(np.ascontiguousarray(points)), 1e-300)
+
+
+@_jit
+def _gather_boxes(v, f):
+    nt = f.shape[0]
+    tri = np.empty((nt, 3, 3))
+    tmin = np.empty((nt, 3))
+    tmax = np.empty((nt, 3))
+    for t in range(nt):
+        for k in range(3):
+            for a in range(3):
+                tri[t, k, a] = v[f[t, k], a]
+        for a in range(3):
+            tmin[t, a] = min(tri[t, 0, a], min(tri[t, 1, a], tri[t, 2, a]))
+            tmax[t, a] = max(tri[t, 0, a], max(tri[t, 1, a], tri[t, 2, a]))
+    return tri, tmin, tmax
+
+
+def triangle_boxes(vertices, faces):
+    """``(tri (F, 3, 3), tmin (F, 3), tmax (F, 3))``: each face's corners and bounding box, C-contiguous float64
+    (compiled, one pass: ``vertices[faces]`` and its min and max over the corners).  ValueError for a face that
+    indexes a missing vertex."""
+    v = np.ascontiguousarray(vertices, np.float64)
+    f = np.ascontiguousarray(faces, np.int64)
+    if len(f) and (f.min() < 0 or f.max() >= len(v)):
+        raise ValueError("faces index vertices that do not exist")
+    return _gather_boxes(v, f)
+
+
+@_jit
+def _cell_order(points, lo, cell, dims):
+    """The points' indices sorted by the number of the grid cell they fall in (clamped to the grid): a counting
+    sort, so that neighbouring queries read the same cells and triangles (from cache, not memory)."""
+    n = points.shape[0]
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    key = np.empty(n, np.int64)
+    count = np.zeros(nx * ny * nz + 1, np.int64)
+    for q in range(n):
+        i = int(min(max(np.floor((points[q, 0] - lo[0]) / cell), 0.0), nx - 1.0))
+        j = int(min(max(np.floor((points[q, 1] - lo[1]) / cell), 0.0), ny - 1.0))
+        k = int(min(max(np.floor((points[q, 2] - lo[2]) / cell), 0.0), nz - 1.0))
+        key[q] = (i * ny + j) * nz + k
+        count[key[q] + 1] += 1
+    for c in range(nx * ny * nz):
+        count[c + 1] += count[c]
+    order = np.empty(n, np.int64)
+    for q in range(n):
+        order[count[key[q]]] = q
+        count[key[q]] += 1
+    return order
 
 
 def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = None) -> np.ndarray:
@@ -338,8 +394,7 @@ def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = No
         return np.zeros(0)
     if len(f) == 0:
         raise ValueError("point_mesh_distance: the mesh has no faces")
-    tri = np.ascontiguousarray(v[f])                                  # (F, 3, 3)
-    tmin, tmax = np.ascontiguousarray(tri.min(1)), np.ascontiguousarray(tri.max(1))
+    tri, tmin, tmax = triangle_boxes(v, f)
     lo, hi = tmin.min(0), tmax.max(0)
     extent = np.maximum(hi - lo, 1e-12)
     size = float(np.median((tmax - tmin).max(1)))                     # a typical triangle's box
@@ -350,12 +405,9 @@ def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = No
         cell *= 1.25
     dims = (np.floor(extent / cell) + 1).astype(np.int64)
     start, items = bucket_triangles(lo, cell, dims, tmin, tmax)
-    # queries in cell order: neighbouring queries read the same cells and triangles (from cache, not memory)
-    ijk = np.clip(np.floor((p - lo) / cell).astype(np.int64), 0, dims - 1)
-    order = np.argsort((ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2], kind="stable")
+    order = _cell_order(p, lo, cell, dims)
     out = np.empty(len(p))
-    out[order] = _query(np.ascontiguousarray(p[order]), tri, tmin, tmax, lo, cell, dims, start, items,
-                        prune_tolerance(tri, p))
+    out[order] = _query(p[order], tri, tmin, tmax, lo, cell, dims, start, items, prune_tolerance(tri, p))
     return out
 
 

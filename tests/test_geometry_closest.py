@@ -21,6 +21,7 @@ from geometry.closest import (
     closest_on_faces,
     closest_point_on_triangles,
     point_mesh_distance,
+    triangle_boxes,
 )
 from phantoms import get_phantom
 
@@ -175,3 +176,14 @@ def test_bucket_triangles_bins_every_triangle_into_the_cells_its_box_overlaps():
         want = np.flatnonzero((i0[:, 0] <= i) & (i <= i1[:, 0]) & (i0[:, 1] <= j) & (j <= i1[:, 1])
                               & (i0[:, 2] <= k) & (k <= i1[:, 2]))
         np.testing.assert_array_equal(np.sort(faces[start[q]:start[q + 1]]), want)
+
+
+def test_triangle_boxes_are_the_corners_and_their_min_and_max():
+    m = trimesh.creation.torus(1.0, 0.3)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    tri, tmin, tmax = triangle_boxes(v, f)
+    np.testing.assert_array_equal(tri, v[f])
+    np.testing.assert_array_equal(tmin, v[f].min(1))
+    np.testing.assert_array_equal(tmax, v[f].max(1))
+    with pytest.raises(ValueError, match="do not exist"):
+        triangle_boxes(v, np.vstack([f, [[0, 1, len(v)]]]))

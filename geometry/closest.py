@@ -11,13 +11,19 @@ The point–triangle kernel
 
 The distance to a mesh
     The metrics' truth → mesh and band → mesh distances query ~10⁵ points that all lie within a few grid steps
-    of the mesh.  The triangles are bucketed into a uniform grid whose cell is about twice the mean triangle size
-    (each triangle in every cell its bounding box overlaps); a point's search visits the cells at Chebyshev
-    distance 0, 1, 2, … from its own cell and stops as soon as the closest triangle found is no farther than the
-    boundary of the visited block — every triangle outside the block is at least that far, so the answer is
-    exact.  Inside the block a cell farther from the point than the best distance so far is not opened: a closer
-    triangle would have its closest point in a cell it is bucketed in, and that cell would be closer.  A point
-    far outside the mesh's box is searched the same way from the nearest cell.
+    of the mesh.  The triangles are bucketed into a uniform grid whose cell is :data:`CELL_SIZE` times the median
+    triangle's box (each triangle in every cell its bounding box overlaps); a point's search visits the cells at
+    Chebyshev distance 0, 1, 2, … from its own cell and stops as soon as the closest triangle found is no farther
+    than the boundary of the visited block — every triangle outside the block is at least that far, so the answer
+    is exact.  Inside the block a cell, and in an opened cell a triangle's box, farther from the point than the
+    best distance so far is skipped: a closer triangle would have its closest point in a cell it is bucketed in,
+    and inside its box.  "Farther" means by more than a tolerance far above rounding (:data:`PRUNE_TOL` of the
+    coordinates' magnitude), so the search returns the smallest distance the point–triangle kernel gives over all
+    the triangles, bit for bit the brute-force minimum.  A point far outside the mesh's box is searched the same
+    way from the nearest cell.
+
+Points far from the mesh (the SDF energy's grid points) go to :func:`geometry.bvh.point_mesh_distance_far`: a
+bounding-volume hierarchy with the same kernel and tolerance, for the same numbers with fewer tests there.
 
 Why not pymeshlab's ``compute_scalar_by_distance_from_another_mesh_per_vertex``: it returns float32 and is
 slower on these queries; this search also releases the GIL, so the metrics run it beside numpy's work.  The
@@ -32,7 +38,8 @@ import numba
 import numpy as np
 
 __all__ = ["point_mesh_distance", "point_triangle", "triangle_point", "closest_on_faces", "closest_point_on_triangles",
-           "bucket_triangles", "MAX_CELLS", "FACE", "VA", "VB", "VC", "EAB", "EBC", "ECA"]
+           "bucket_triangles", "box_distance2", "prune_tolerance", "triangle_boxes", "MAX_CELLS", "CELL_SIZE",
+           "PRUNE_TOL", "FACE", "VA", "VB", "VC", "EAB", "EBC", "ECA"]
 
 #: the feature of a triangle (a, b, c) its closest point lies on: the interior, a vertex, an edge
 FACE, VA, VB, VC, EAB, EBC, ECA = range(7)
@@ -43,6 +50,15 @@ _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 #: at most this many grid cells (memory: one int64 per cell plus one int32 per triangle-cell pair)
 MAX_CELLS = 1 << 21
+
+#: the grid cell of :func:`point_mesh_distance`, in median triangle boxes (fewest tests per near query: a smaller
+#: cell holds fewer triangles, a larger one needs fewer neighbour cells)
+CELL_SIZE = 1.5
+
+#: the searches (this grid, :mod:`geometry.bvh`) skip a cell or box only when it is farther than the best distance
+#: so far by this fraction of the largest coordinate magnitude: many orders of magnitude above the rounding of the
+#: box and point–triangle distances, so no triangle the kernel puts at the minimum is ever skipped
+PRUNE_TOL = 1e-9
 
 
 @_jit
@@ -216,7 +232,16 @@ def closest_on_faces(points, tri, face):
 
 
 @_jit
-def _query(points, tri, lo, cell, dims, start, items):
+def box_distance2(px, py, pz, bmin, bmax, n):
+    """Squared distance from p to box n of the (N, 3) corner arrays (0 inside; compiled)."""
+    dx = max(bmin[n, 0] - px, px - bmax[n, 0], 0.0)
+    dy = max(bmin[n, 1] - py, py - bmax[n, 1], 0.0)
+    dz = max(bmin[n, 2] - pz, pz - bmax[n, 2], 0.0)
+    return dx * dx + dy * dy + dz * dz
+
+
+@_jit
+def _query(points, tri, tmin, tmax, lo, cell, dims, start, items, tol):
     n = points.shape[0]
     nx, ny, nz = dims[0], dims[1], dims[2]
     out = np.empty(n)
@@ -228,6 +253,7 @@ def _query(points, tri, lo, cell, dims, start, items):
         cj = min(max(int(np.floor((py - lo[1]) / cell)), 0), ny - 1)
         ck = min(max(int(np.floor((pz - lo[2]) / cell)), 0), nz - 1)
         best = np.inf
+        reach = np.inf                                    # (√best + tol)²: anything farther holds nothing closer
         for r in range(rmax + 1):
             i0, i1 = max(ci - r, 0), min(ci + r, nx - 1)
             j0, j1 = max(cj - r, 0), min(cj + r, ny - 1)
@@ -238,13 +264,13 @@ def _query(points, tri, lo, cell, dims, start, items):
                     shell_ij = abs(i - ci) == r or abs(j - cj) == r
                     dy = max(lo[1] + j * cell - py, py - (lo[1] + (j + 1) * cell), 0.0)
                     dxy = dx * dx + dy * dy
-                    if dxy >= best:
+                    if dxy > reach:
                         continue                          # the whole column of cells is no closer
                     for k in range(k0, k1 + 1):
                         if not shell_ij and abs(k - ck) != r:
                             continue                      # inside the block already searched
                         dz = max(lo[2] + k * cell - pz, pz - (lo[2] + (k + 1) * cell), 0.0)
-                        if dxy + dz * dz >= best:
+                        if dxy + dz * dz > reach:
                             continue                      # every point of this cell is farther than the best
                         c = (i * ny + j) * nz + k
                         for s in range(start[c], start[c + 1]):
@@ -252,9 +278,13 @@ def _query(points, tri, lo, cell, dims, start, items):
                             if stamp[t] == q:
                                 continue
                             stamp[t] = q
+                            if box_distance2(px, py, pz, tmin, tmax, t) > reach:
+                                continue                  # the triangle's box is farther than the best
                             d = triangle_point(px, py, pz, tri, t)[0]
                             if d < best:
                                 best = d
+                                rr = math.sqrt(d) + tol
+                                reach = rr * rr
             # every triangle not yet seen lies outside the block [i0, i1 + 1) × … of cells: at least as far
             # as the block's nearest face that is not the grid's own boundary (no triangle lies beyond those)
             bound = np.inf
@@ -270,10 +300,73 @@ def _query(points, tri, lo, cell, dims, start, items):
                 bound = min(bound, pz - (lo[2] + k0 * cell))
             if k1 < nz - 1:
                 bound = min(bound, lo[2] + (k1 + 1) * cell - pz)
-            if bound == np.inf or (bound > 0.0 and best <= bound * bound):
+            if bound == np.inf or (bound > 0.0 and reach <= bound * bound):
                 break
         out[q] = np.sqrt(best)
     return out
+
+
+@_jit
+def _max_abs(a):
+    m = 0.0
+    for x in a.ravel():
+        m = max(m, abs(x))
+    return m
+
+
+def prune_tolerance(tri, points) -> float:
+    """The pruning tolerance: :data:`PRUNE_TOL` of the largest coordinate magnitude of triangles and points."""
+    return PRUNE_TOL * max(_max_abs(np.ascontiguousarray(tri)), _max_abs(np.ascontiguousarray(points)), 1e-300)
+
+
+@_jit
+def _gather_boxes(v, f):
+    nt = f.shape[0]
+    tri = np.empty((nt, 3, 3))
+    tmin = np.empty((nt, 3))
+    tmax = np.empty((nt, 3))
+    for t in range(nt):
+        for k in range(3):
+            for a in range(3):
+                tri[t, k, a] = v[f[t, k], a]
+        for a in range(3):
+            tmin[t, a] = min(tri[t, 0, a], min(tri[t, 1, a], tri[t, 2, a]))
+            tmax[t, a] = max(tri[t, 0, a], max(tri[t, 1, a], tri[t, 2, a]))
+    return tri, tmin, tmax
+
+
+def triangle_boxes(vertices, faces):
+    """``(tri (F, 3, 3), tmin (F, 3), tmax (F, 3))``: each face's corners and bounding box, C-contiguous float64
+    (compiled, one pass: ``vertices[faces]`` and its min and max over the corners).  ValueError for a face that
+    indexes a missing vertex."""
+    v = np.ascontiguousarray(vertices, np.float64)
+    f = np.ascontiguousarray(faces, np.int64)
+    if len(f) and (f.min() < 0 or f.max() >= len(v)):
+        raise ValueError("faces index vertices that do not exist")
+    return _gather_boxes(v, f)
+
+
+@_jit
+def _cell_order(points, lo, cell, dims):
+    """The points' indices sorted by the number of the grid cell they fall in (clamped to the grid): a counting
+    sort, so that neighbouring queries read the same cells and triangles (from cache, not memory)."""
+    n = points.shape[0]
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    key = np.empty(n, np.int64)
+    count = np.zeros(nx * ny * nz + 1, np.int64)
+    for q in range(n):
+        i = int(min(max(np.floor((points[q, 0] - lo[0]) / cell), 0.0), nx - 1.0))
+        j = int(min(max(np.floor((points[q, 1] - lo[1]) / cell), 0.0), ny - 1.0))
+        k = int(min(max(np.floor((points[q, 2] - lo[2]) / cell), 0.0), nz - 1.0))
+        key[q] = (i * ny + j) * nz + k
+        count[key[q] + 1] += 1
+    for c in range(nx * ny * nz):
+        count[c + 1] += count[c]
+    order = np.empty(n, np.int64)
+    for q in range(n):
+        order[count[key[q]]] = q
+        count[key[q]] += 1
+    return order
 
 
 def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = None) -> np.ndarray:
@@ -285,10 +378,10 @@ def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = No
     vertices : (V, 3) float array.
     faces : (F, 3) int array (at least one face).
     cells_per_axis : int, optional
-        At most this many grid cells along the mesh box's longest side.  Default: cells of about twice a
-        triangle, right for points near the surface.  Points far from it (a grid's points all over its box)
-        search shells of cells out to their distance, so a coarse grid (e.g. 16) is much cheaper for them:
-        the answer is exact either way.
+        At most this many grid cells along the mesh box's longest side.  Default: cells of :data:`CELL_SIZE`
+        triangles, right for points near the surface.  Points far from it (a grid's points all over its box)
+        search shells of cells out to their distance, so a coarse grid (e.g. 16) is cheaper for them
+        (:func:`geometry.bvh.point_mesh_distance_far` cheaper still): the answer is exact either way.
 
     Returns
     -------
@@ -301,23 +394,20 @@ def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = No
         return np.zeros(0)
     if len(f) == 0:
         raise ValueError("point_mesh_distance: the mesh has no faces")
-    tri = np.ascontiguousarray(v[f])                                  # (F, 3, 3)
-    tmin, tmax = tri.min(1), tri.max(1)
+    tri, tmin, tmax = triangle_boxes(v, f)
     lo, hi = tmin.min(0), tmax.max(0)
     extent = np.maximum(hi - lo, 1e-12)
     size = float(np.median((tmax - tmin).max(1)))                     # a typical triangle's box
-    cell = max(2.0 * size, float(extent.max()) / 512.0, 1e-12)
+    cell = max(CELL_SIZE * size, float(extent.max()) / 512.0, 1e-12)
     if cells_per_axis is not None:
         cell = max(cell, float(extent.max()) / max(int(cells_per_axis), 1))
     while np.prod(np.floor(extent / cell) + 1) > MAX_CELLS:
         cell *= 1.25
     dims = (np.floor(extent / cell) + 1).astype(np.int64)
-    start, items = bucket_triangles(lo, cell, dims, np.ascontiguousarray(tmin), np.ascontiguousarray(tmax))
-    # queries in cell order: neighbouring queries read the same cells and triangles (from cache, not memory)
-    ijk = np.clip(np.floor((p - lo) / cell).astype(np.int64), 0, dims - 1)
-    order = np.argsort((ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2], kind="stable")
+    start, items = bucket_triangles(lo, cell, dims, tmin, tmax)
+    order = _cell_order(p, lo, cell, dims)
     out = np.empty(len(p))
-    out[order] = _query(np.ascontiguousarray(p[order]), tri, lo, cell, dims, start, items)
+    out[order] = _query(p[order], tri, tmin, tmax, lo, cell, dims, start, items, prune_tolerance(tri, p))
     return out
 
 

@@ -309,6 +309,20 @@ class FusedSpheres(Phantom):
     def sdf(self, points):
         return self.truth(points).signed
 
+    def inside(self, points):
+        """Exactly ``sdf(points) < 0`` without the closest points: inside a ball and off the surface.  Only a point
+        at distance exactly r from a centre, or exactly on the crease circle, may be on the surface (φ = 0, not
+        inside): those take the full :meth:`truth`."""
+        p = as_points(points)
+        d0 = np.linalg.norm(p - self.centres[0], axis=1)         # as truth() computes them
+        d1 = np.linalg.norm(p - self.centres[1], axis=1)
+        out = np.minimum(d0, d1) < self.radius
+        on_crease = np.sqrt((np.hypot(p[:, 0], p[:, 1]) - self.crease_radius) ** 2 + p[:, 2] ** 2) == 0.0
+        unsure = out & ((d0 == self.radius) | (d1 == self.radius) | on_crease)
+        if unsure.any():
+            out[unsure] = self.sdf(p[unsure]) < 0
+        return out
+
     def sample_surface(self, n, seed=0):
         c = self.centres
 

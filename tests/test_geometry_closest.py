@@ -21,6 +21,7 @@ from geometry.closest import (
     closest_on_faces,
     closest_point_on_triangles,
     point_mesh_distance,
+    triangle_boxes,
 )
 from phantoms import get_phantom
 
@@ -114,7 +115,7 @@ def test_equals_brute_force_near_on_inside_and_far(mesh):
     rng = np.random.default_rng(3)
     pts = np.concatenate([rng.normal(size=(200, 3)) * 0.4, rng.normal(size=(200, 3)) * 6.0,
                           mesh.sample(200, seed=1) + rng.normal(size=(200, 3)) * 1e-3, v[:30]])
-    np.testing.assert_allclose(point_mesh_distance(pts, v, f), _brute(pts, v, f), rtol=1e-12, atol=1e-14)
+    np.testing.assert_array_equal(point_mesh_distance(pts, v, f), _brute(pts, v, f))
 
 
 @pytest.mark.parametrize("cells", [1, 4, 16])
@@ -125,8 +126,7 @@ def test_a_coarse_grid_gives_the_same_exact_distances(cells):
     v, f = np.asarray(m.vertices), np.asarray(m.faces)
     ax = np.linspace(-2.5, 2.5, 9)
     pts = np.stack(np.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(-1, 3)
-    np.testing.assert_allclose(point_mesh_distance(pts, v, f, cells_per_axis=cells), _brute(pts, v, f),
-                               rtol=1e-12, atol=1e-14)
+    np.testing.assert_array_equal(point_mesh_distance(pts, v, f, cells_per_axis=cells), _brute(pts, v, f))
 
 
 def test_a_mesh_of_very_uneven_triangles_and_degenerate_faces():
@@ -135,7 +135,7 @@ def test_a_mesh_of_very_uneven_triangles_and_degenerate_faces():
     v = np.asarray(m.vertices) * [6.0, 1.0, 0.2]
     f = np.vstack([m.faces, [[0, 0, 1], [5, 5, 5]]])
     pts = np.random.default_rng(4).normal(size=(500, 3)) * [5, 1, 1]
-    np.testing.assert_allclose(point_mesh_distance(pts, v, f), _brute(pts, v, f), rtol=1e-12, atol=1e-14)
+    np.testing.assert_array_equal(point_mesh_distance(pts, v, f), _brute(pts, v, f))
 
 
 def test_equals_pymeshlab_on_the_metrics_workload():
@@ -176,3 +176,14 @@ def test_bucket_triangles_bins_every_triangle_into_the_cells_its_box_overlaps():
         want = np.flatnonzero((i0[:, 0] <= i) & (i <= i1[:, 0]) & (i0[:, 1] <= j) & (j <= i1[:, 1])
                               & (i0[:, 2] <= k) & (k <= i1[:, 2]))
         np.testing.assert_array_equal(np.sort(faces[start[q]:start[q + 1]]), want)
+
+
+def test_triangle_boxes_are_the_corners_and_their_min_and_max():
+    m = trimesh.creation.torus(1.0, 0.3)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    tri, tmin, tmax = triangle_boxes(v, f)
+    np.testing.assert_array_equal(tri, v[f])
+    np.testing.assert_array_equal(tmin, v[f].min(1))
+    np.testing.assert_array_equal(tmax, v[f].max(1))
+    with pytest.raises(ValueError, match="do not exist"):
+        triangle_boxes(v, np.vstack([f, [[0, 1, len(v)]]]))

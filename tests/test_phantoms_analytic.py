@@ -110,6 +110,24 @@ def test_fused_spheres_interior_uses_the_crease():
     assert t.signed[0] < 0 and t.crease_distance[0] == 0 and np.isnan(t.H[0])
 
 
+def test_fused_spheres_inside_is_the_sign_of_the_exact_sdf():
+    """The fast inside test equals φ < 0 point for point: random points, points on both spheres (in and out of
+    the other ball), on the crease, at the centres and on the axis."""
+    ph = get_phantom("fused_spheres")
+    rng = np.random.default_rng(7)
+    u = rng.normal(size=(4000, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    t = np.linspace(0.0, 2 * np.pi, 50)
+    crease = np.column_stack([ph.crease_radius * np.cos(t), ph.crease_radius * np.sin(t), np.zeros_like(t)])
+    exact = np.array([[0.8, 0.0, 0.7], [0.0, 0.8, -0.7], [0.0, 0.0, 1.5], [0.0, 0.0, -1.5], [0.0, 0.0, 0.0],
+                      [0.0, 0.0, 0.7], [0.0, 0.0, 0.1], [np.sqrt(0.15), 0.0, 0.0], [0.3, 0.0, 0.0]])
+    pts = np.concatenate([rng.uniform(-1.6, 1.6, (20_000, 3)), ph.centres[0] + 0.8 * u[:2000],
+                          ph.centres[1] + 0.8 * u[2000:], crease, exact])
+    inside = ph.inside(pts)
+    np.testing.assert_array_equal(inside, ph.sdf(pts) < 0)
+    assert 0 < inside.sum() < len(pts)
+
+
 def _implicit_curvature(f, x, h=1e-4):
     """H, K of the level set of f through x from central finite differences (outward = grad f)."""
     e = np.eye(3) * h

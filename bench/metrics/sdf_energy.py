@@ -14,22 +14,19 @@ points (N ≤ 20) and a seeded uniform subset of that many points otherwise: an 
 mean whose standard error, √(var((|S| − d)²) / m), is about 2 % of the value (marching cubes on the bunny at
 N = 64: 1.8 / √m, the energy coming 98 % from points farther than 3h from the surface, so a band-weighted
 subset would not help; tests/test_bench_metrics_sdf_energy.py checks it against the full grid).  d is the exact
-distance of :func:`geometry.closest.point_mesh_distance`, on a coarse cell grid (:data:`FAR_CELLS`) suited to far
-points.
+distance of :func:`geometry.bvh.point_mesh_distance_far`, the search suited to points far from the surface.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from geometry.closest import point_mesh_distance
+from geometry.bvh import point_mesh_distance_far
 
-__all__ = ["ENERGY_POINTS", "FAR_CELLS", "energy_query", "energy_distances", "sdf_energy"]
+__all__ = ["ENERGY_POINTS", "energy_query", "energy_distances", "sdf_energy"]
 
 #: at most this many grid points enter the SDF energy (all of them up to N = 20)
 ENERGY_POINTS = 8_192
-#: cells along the mesh box's longest side of the distance query's grid (far points search few of them)
-FAR_CELLS = 16
 #: the papers' scale factor of the mean
 SCALE = 1000.0
 
@@ -48,7 +45,7 @@ def energy_query(volume, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 
 def energy_distances(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Exact unsigned distance from the (far and near) grid points to the mesh."""
-    return point_mesh_distance(points, vertices, faces, cells_per_axis=FAR_CELLS)
+    return point_mesh_distance_far(points, vertices, faces)
 
 
 def sdf_energy(S: np.ndarray, d: np.ndarray) -> float:

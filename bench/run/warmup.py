@@ -8,8 +8,11 @@ and scikit-image's lazily loaded parts — more than the whole method on most ce
 Importing this module runs :func:`warm`: the steps of a cell on a tiny volume (N = 24) and on a mesh big enough
 (≥ :data:`geometry.compiled.MIN_SIZE` faces) for the compiled kernels, in the fork server, before it forks the
 first worker.  Nothing that starts threads runs here (pymeshlab's OpenMP/TBB, the metrics' worker thread): a
-process forked after that could deadlock in its thread pool.  Any error is swallowed: warming is an
-optimisation, never a reason for a run to fail.
+process forked after that could deadlock in its thread pool.  Importing pymeshlab, gpytoolbox or pyamg starts
+none (their pools start at their first parallel call), so the libraries the preloaded methods import lazily
+(:data:`PRELOADED_METHODS`' :attr:`methods.Method.imports`) are imported here, and no cell imports them again
+(tests/test_bench_run_warmup.py checks, in a fresh process, that these imports start no thread).  Any error is
+swallowed: warming is an optimisation, never a reason for a run to fail.
 
 A method's own one-off costs are its :meth:`methods.Method.warm_up`, which :func:`bench.run.cell.run_cell`
 calls in the cell's process before timing ``reconstruct`` — not here: a plug-in's warm-up may start threads
@@ -20,10 +23,25 @@ from __future__ import annotations
 
 import time
 
-__all__ = ["warm", "WARM_SECONDS"]
+__all__ = ["warm", "WARM_SECONDS", "PRELOADED_METHODS", "method_imports"]
 
 #: seconds the last :func:`warm` took (None: it failed)
 WARM_SECONDS: float | None = None
+
+#: the methods whose lazily imported libraries (:attr:`methods.Method.imports`, :attr:`methods.Method.requires`)
+#: the fork server imports: those of the paper's grid, whose imports start no thread
+PRELOADED_METHODS = ("marching_cubes", "mc_taubin", "distmesh", "poisson", "shape_gradient")
+
+
+def method_imports() -> list[str]:
+    """The modules of :data:`PRELOADED_METHODS`' ``imports`` and ``requires``, each once, in order."""
+    from methods import get_method
+
+    names: list[str] = []
+    for name in PRELOADED_METHODS:
+        method = get_method(name)
+        names += [m for m in (*getattr(method, "requires", {}), *getattr(method, "imports", ())) if m not in names]
+    return names
 
 
 def _metrics_without_threads(mesh, ph, h: float) -> None:
@@ -34,6 +52,7 @@ def _metrics_without_threads(mesh, ph, h: float) -> None:
     from bench.metrics.curvature import curvature_metrics, roughness_deg, vertex_curvature
     from bench.metrics.distance import distance_metrics, point_mesh_distance, sample_mesh_surface
     from bench.metrics.features import edge_metrics
+    from bench.metrics.sdf_energy import energy_distances
     from bench.metrics.topology import quality_metrics, self_intersection_pairs, sif_pct, topology_metrics
     from geometry import face_normals
 
@@ -48,6 +67,7 @@ def _metrics_without_threads(mesh, ph, h: float) -> None:
     roughness_deg(V, F, fn, vertex_ok=tv.crease_distance >= 0.1)
     pts, fi = sample_mesh_surface(V, F, 2000, 0)
     point_mesh_distance(pts, V, F)
+    energy_distances(pts * 3.0, V, F)
     ts = ph.truth(pts)
     distance_metrics(ts.distance, float(ts.distance.max()), ts.distance, h, fn[fi], ts.normal)
     edge_metrics(pts, fn[fi], 1.0, ph, h)
@@ -59,6 +79,13 @@ def warm() -> float | None:
     global WARM_SECONDS
     t0 = time.perf_counter()
     try:
+        import importlib
+
+        for module in method_imports():         # what run_warm_up would import in every cell
+            try:
+                importlib.import_module(module)
+            except ImportError:                 # an optional library: the method says so itself
+                pass
         import trimesh
 
         from bench.metrics.validity import check_mesh

@@ -56,10 +56,10 @@ def test_quick_grid_end_to_end(benchmark, tmp_path):
     assert (out / "index.html").stat().st_size > 10_000
 
 
-@pytest.mark.perf_slow
 @pytest.mark.benchmark(group="grid")
 def test_paper_grid_end_to_end(benchmark, tmp_path):
-    """The default run, one worker (the grid's total work), no report (the quick grid times that); one round.
+    """The default run, one worker (the grid's total work), no report (the quick grid times that); one round, in
+    CI's short mode too, so that a regression of the default run fails the performance gate.
     ``extra_info``: ``cells``, ``cpu_s_total`` (the cells' own CPU seconds), ``slowest_cells`` (label, phantom,
     noise, CPU s) and ``cpu_s_by_label``."""
     from bench.config import builtin_config

@@ -19,7 +19,7 @@ import math
 import numba
 import numpy as np
 
-from .closest import box_distance2, prune_tolerance, triangle_boxes, triangle_point
+from .closest import box_distance2, prune_tolerance, query_inputs, triangle_point
 
 __all__ = ["point_mesh_distance_far", "build_bvh", "BVH_LEAF"]
 
@@ -181,14 +181,10 @@ def point_mesh_distance_far(points, vertices, faces) -> np.ndarray:
     -------
     (P,) float array.
     """
-    p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
-    v = np.asarray(vertices, np.float64)
-    f = np.asarray(faces, np.int64)
-    if len(p) == 0:
+    p, boxes = query_inputs(points, vertices, faces, "point_mesh_distance_far")
+    if boxes is None:
         return np.zeros(0)
-    if len(f) == 0:
-        raise ValueError("point_mesh_distance_far: the mesh has no faces")
-    tri, tmin, tmax = triangle_boxes(v, f)
+    tri, tmin, tmax = boxes
     bmin, bmax, child, span, order = build_bvh(tmin, tmax, BVH_LEAF)
     tri = np.ascontiguousarray(tri[order])                            # a leaf's triangles side by side in memory
     return _bvh_query(p, tri, tmin[order], tmax[order], bmin, bmax, child, span, prune_tolerance(tri, p))

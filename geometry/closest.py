@@ -335,6 +335,14 @@ def _gather_boxes(v, f):
     return tri, tmin, tmax
 
 
+def query_inputs(points, vertices, faces, name: str):
+    """``(points (P, 3), triangle_boxes(...) or None without points)`` of a distance query (ValueError: no faces)."""
+    p, f = np.ascontiguousarray(points, np.float64).reshape(-1, 3), np.asarray(faces, np.int64)
+    if len(p) and not len(f):
+        raise ValueError(f"{name}: the mesh has no faces")
+    return p, (triangle_boxes(np.asarray(vertices, np.float64), f) if len(p) else None)
+
+
 def triangle_boxes(vertices, faces):
     """``(tri (F, 3, 3), tmin (F, 3), tmax (F, 3))``: each face's corners and bounding box, C-contiguous float64
     (compiled, one pass: ``vertices[faces]`` and its min and max over the corners).  ValueError for a face that
@@ -374,9 +382,7 @@ def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = No
 
     Parameters
     ----------
-    points : (P, 3) float array.
-    vertices : (V, 3) float array.
-    faces : (F, 3) int array (at least one face).
+    points, vertices, faces : (P, 3) float, (V, 3) float and (F, 3) int arrays (at least one face).
     cells_per_axis : int, optional
         At most this many grid cells along the mesh box's longest side.  Default: cells of :data:`CELL_SIZE`
         triangles, right for points near the surface.  Points far from it (a grid's points all over its box)
@@ -387,14 +393,10 @@ def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = No
     -------
     (P,) float array.
     """
-    p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
-    v = np.asarray(vertices, np.float64)
-    f = np.asarray(faces, np.int64)
-    if len(p) == 0:
+    p, boxes = query_inputs(points, vertices, faces, "point_mesh_distance")
+    if boxes is None:
         return np.zeros(0)
-    if len(f) == 0:
-        raise ValueError("point_mesh_distance: the mesh has no faces")
-    tri, tmin, tmax = triangle_boxes(v, f)
+    tri, tmin, tmax = boxes
     lo, hi = tmin.min(0), tmax.max(0)
     extent = np.maximum(hi - lo, 1e-12)
     size = float(np.median((tmax - tmin).max(1)))                     # a typical triangle's box
@@ -411,9 +413,8 @@ def point_mesh_distance(points, vertices, faces, cells_per_axis: int | None = No
     return out
 
 
-# ------------------------------------------------------------------------------------------ the numpy reference
 def _segments_np(p, a, b):
-    """:func:`_segment` row by row: (squared distance, s)."""
+    """:func:`_segment` row by row (the numpy reference): (squared distance, s)."""
     ex, ey, ez = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1], b[:, 2] - a[:, 2]
     ee = ex * ex + ey * ey + ez * ez
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -23,3 +23,16 @@ def modules_on_path(tmp_path, monkeypatch):
         monkeypatch.syspath_prepend(str(tmp_path))
         return tmp_path
     return write
+
+
+@pytest.fixture(scope="session")
+def uneven_mesh():
+    """``(vertices, faces, points)``: a stretched icosphere's long slivers beside tiny triangles, two zero-area
+    faces, and 500 points near and far — the hard case of the distance queries (geometry/closest.py, bvh.py)."""
+    import numpy as np
+    import trimesh
+
+    m = trimesh.creation.icosphere(3)
+    v = np.asarray(m.vertices) * [6.0, 1.0, 0.2]
+    f = np.vstack([m.faces, [[0, 0, 1], [5, 5, 5]]])
+    return v, f, np.random.default_rng(4).normal(size=(500, 3)) * [5, 1, 1]

@@ -35,11 +35,8 @@ def test_the_hierarchy_gives_the_brute_force_minimum_bit_for_bit(mesh):
     np.testing.assert_array_equal(d, point_mesh_distance(pts, v, f))
 
 
-def test_the_hierarchy_on_uneven_and_degenerate_triangles_and_a_single_one():
-    m = trimesh.creation.icosphere(3)
-    v = np.asarray(m.vertices) * [6.0, 1.0, 0.2]
-    f = np.vstack([m.faces, [[0, 0, 1], [5, 5, 5]]])
-    pts = np.random.default_rng(4).normal(size=(500, 3)) * [5, 1, 1]
+def test_the_hierarchy_on_uneven_and_degenerate_triangles_and_a_single_one(uneven_mesh):
+    v, f, pts = uneven_mesh
     np.testing.assert_array_equal(point_mesh_distance_far(pts, v, f), _brute(pts, v, f))
     np.testing.assert_array_equal(point_mesh_distance_far(pts, v, f[:1]), _brute(pts, v, f[:1]))
     assert point_mesh_distance_far(np.zeros((0, 3)), v, f).shape == (0,)

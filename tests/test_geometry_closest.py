@@ -129,12 +129,9 @@ def test_a_coarse_grid_gives_the_same_exact_distances(cells):
     np.testing.assert_array_equal(point_mesh_distance(pts, v, f, cells_per_axis=cells), _brute(pts, v, f))
 
 
-def test_a_mesh_of_very_uneven_triangles_and_degenerate_faces():
+def test_a_mesh_of_very_uneven_triangles_and_degenerate_faces(uneven_mesh):
     """Long slivers beside tiny triangles (the grid's cell follows the median) and zero-area faces."""
-    m = trimesh.creation.icosphere(3)
-    v = np.asarray(m.vertices) * [6.0, 1.0, 0.2]
-    f = np.vstack([m.faces, [[0, 0, 1], [5, 5, 5]]])
-    pts = np.random.default_rng(4).normal(size=(500, 3)) * [5, 1, 1]
+    v, f, pts = uneven_mesh
     np.testing.assert_array_equal(point_mesh_distance(pts, v, f), _brute(pts, v, f))
 
 

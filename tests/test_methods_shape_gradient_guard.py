@@ -47,6 +47,23 @@ def test_a_clean_mesh_has_no_intersections_by_either_check():
     assert count_intersections(x, f, moved=np.array([top]))[0] == 0
 
 
+def test_the_repair_rechecks_its_patch_only_and_ends_as_a_full_recheck_would(monkeypatch):
+    # a shallow piercing (the pole's fan just through the south side) the smoothing can clear
+    import methods.shape_gradient.guard as guard
+    from geometry.operators import MeshOperators
+
+    x, f, _ = _sphere_with_a_dent(2.05)
+    ops = MeshOperators(f, len(x))
+    n, bad = count_intersections(x, f)
+    assert n > 0
+    local = guard.repair_intersections(ops, x, bad)
+    full_check = guard.count_intersections
+    monkeypatch.setattr(guard, "count_intersections", lambda x, faces, moved=None: full_check(x, faces))
+    full = guard.repair_intersections(ops, x, bad)
+    assert local is not None and full is not None
+    assert np.array_equal(local, full) and count_intersections(local, f)[0] == 0
+
+
 def test_an_unrepairable_remeshed_start_falls_back_to_the_start_as_grown(monkeypatch):
     # the remesher returns a mesh with a vertex pushed through the surface and the repair gives up: with no
     # earlier safe mesh to roll back to, the flow keeps the start as grown (intersection-free), and the stop tests

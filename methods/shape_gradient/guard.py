@@ -94,7 +94,8 @@ def _faces_near(x: np.ndarray, faces: np.ndarray, moved: np.ndarray) -> np.ndarr
 
 
 def repair_intersections(ops: MeshOperators, x: np.ndarray, bad_faces: np.ndarray) -> np.ndarray | None:
-    """Smooth the neighbourhood of the intersecting faces until no pair intersects; None if it does not clear."""
+    """Smooth the neighbourhood of the intersecting faces until no pair intersects; None if it does not clear.
+    Each re-check looks at the smoothed patch only: every pair that met had a face in it, and no other face moved."""
     x = np.array(x, dtype=float)
     faces = ops.faces
     for _ in range(_REPAIR_ROUNDS):
@@ -102,7 +103,7 @@ def repair_intersections(ops: MeshOperators, x: np.ndarray, bad_faces: np.ndarra
         ring = ops.ring[zone][ops.ring_valid[zone]]
         zone = unique_ints(np.concatenate([zone, ring]))
         x[zone] = ops.ring_mean(x)[zone]
-        n, bad_faces = count_intersections(x, faces)
+        n, bad_faces = count_intersections(x, faces, moved=zone)
         if n == 0:
             return x
     return None

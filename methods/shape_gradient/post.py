@@ -36,24 +36,22 @@ def keep_back(ops: MeshOperators, xq: np.ndarray, x: np.ndarray, *, local: bool 
     """(xq, vertices kept back, intersection-free): where moving x (intersection-free) to xq made faces meet,
     their vertices and 1-rings stay at x, a few rounds (putting back can expose more); the first ``halve``
     rounds only halve those vertices' moves.  ``local``: only the moved patch is checked (a step that moved few
-    vertices)."""
-    def check():
-        moved = np.flatnonzero(np.any(xq != x, axis=1)) if local else None
-        return count_intersections(xq, ops.faces, moved=moved)
-
+    vertices).  After the first check only the patch put back is checked again: every pair that met had a face
+    in it, and no other face moved."""
+    changed = np.flatnonzero(np.any(xq != x, axis=1)) if local else None
     xq, kept = xq.copy(), 0
     for round_ in range(_REVERT_ROUNDS + halve):
-        n, bad = check()
+        n, bad = count_intersections(xq, ops.faces, moved=changed)
         if n == 0:
             return xq, kept, True
         back = unique_ints(ops.faces[bad])
-        back = unique_ints(np.concatenate([back, ops.ring[back][ops.ring_valid[back]]]))
+        changed = back = unique_ints(np.concatenate([back, ops.ring[back][ops.ring_valid[back]]]))
         if round_ < halve:
             xq[back] = 0.5 * (xq[back] + x[back])
             continue
         kept += int(np.any(xq[back] != x[back], axis=1).sum())
         xq[back] = x[back]
-    return xq, kept, check()[0] == 0                      # the last round's repair is checked too
+    return xq, kept, count_intersections(xq, ops.faces, moved=changed)[0] == 0   # the last repair is checked too
 
 
 def post_steps(field, ops: MeshOperators, x: np.ndarray, h: float, st: FlowSettings, *, guard: bool,

@@ -191,17 +191,54 @@ def test_a_result_off_the_zero_set_is_an_error_never_converged():
                       projection="off").reconstruct(vol)
 
 
-def test_needs_remesh_reads_the_remeshers_thresholds():
-    """An icosphere at its own mean edge length needs no remesh; stretched past 4/3 (splits due), shrunk below
-    4/5 (collapses due) or with a sliver it does."""
-    from methods.shape_gradient.remesh import needs_remesh
+def test_drift_reads_the_remeshers_thresholds():
+    """An icosphere at its own mean edge length has not drifted; stretched past 4/3 (splits due) or shrunk below
+    4/5 (collapses due) its edges have; with one sliver only its angles have."""
+    from methods.shape_gradient.remesh import drift, needs_remesh
 
     ico = trimesh.creation.icosphere(subdivisions=3)
     x, f = np.asarray(ico.vertices, float), np.asarray(ico.faces)
     ell = float(ico.edges_unique_length.mean())
-    assert not needs_remesh(x, f, ell)
-    assert needs_remesh(x * 1.5, f, ell) and needs_remesh(x * 0.6, f, ell)
-    sliver = x.copy()
-    a, b, c = f[0]
-    sliver[c] = 0.5 * (sliver[a] + sliver[b]) + 1e-3 * (sliver[c] - 0.5 * (sliver[a] + sliver[b]))
-    assert needs_remesh(sliver, f, ell)
+    assert drift(x, f, ell) is None and not needs_remesh(x, f, ell)
+    assert drift(x * 1.5, f, ell) == "edges" and drift(x * 0.6, f, ell) == "edges"
+    assert drift(_with_slivers(x, f, 1), f, ell) == "angles" and needs_remesh(_with_slivers(x, f, 1), f, ell)
+
+
+def _with_slivers(x, f, count):
+    """x with ``count`` vertices (far apart) each slid most of the way toward a neighbour: slivers around them."""
+    x = x.copy()
+    moved = []
+    for face in f:
+        a, b = int(face[0]), int(face[1])
+        if all(np.linalg.norm(x[a] - x[m]) > 0.8 for m in moved):
+            x[a] = x[a] + 0.8 * (x[b] - x[a])
+            moved.append(a)
+        if len(moved) == count:
+            break
+    return x
+
+
+def test_a_touch_up_remeshes_patches_around_small_angles_only():
+    from methods.shape_gradient.remesh import MIN_ANGLE_DEGREES, smallest_angle, touch_up
+
+    ico = trimesh.creation.icosphere(subdivisions=4)            # 2,562 vertices on the unit sphere
+    x, f = np.asarray(ico.vertices, float), np.asarray(ico.faces)
+    ell = float(ico.edges_unique_length.mean())
+    bent = _with_slivers(x, f, 3)
+    assert smallest_angle(bent, f) < 15
+    keep = np.array([int(np.argmax(x[:, 2]))])                  # a held vertex away from the slivers
+    out = touch_up(bent, f, ell, keep)
+    assert out is not None
+    X, F, kept = out
+    assert is_sphere_like(F, len(X)) and smallest_angle(X, F) >= MIN_ANGLE_DEGREES
+    assert np.array_equal(X[kept], bent[keep])                   # held, renumbered
+    # only the patches changed: most vertices are the old ones, and the new ones lie on the old surface
+    old = {tuple(v) for v in bent}
+    assert sum(tuple(v) in old for v in X) > 0.9 * len(x)
+    assert np.abs(np.linalg.norm(X, axis=1) - 1.0).max() < 0.02
+    assert abs(len(F) - len(f)) < 0.05 * len(f)
+    # a mesh with small angles everywhere is not touched up: the whole of it is remeshed
+    rng = np.random.default_rng(0)
+    assert touch_up(x + rng.normal(scale=0.4 * ell, size=x.shape), f, ell) is None
+
+

@@ -21,7 +21,7 @@ from .energy import evaluate_state, gradient_from_state
 from .guard import count_intersections, repair_intersections
 from .linesearch import LineSearch, l2_fallback_direction
 from .post import post_steps, reach_step
-from .remesh import needs_remesh, remesh
+from .remesh import drift, remesh, touch_up
 from .settings import FlowSettings
 from .signs import SignGuard
 from .sobolev import FLOW_SOLVER, SobolevSolver
@@ -54,6 +54,7 @@ class FlowStats:
     remeshes: list = dataclass_field(default_factory=list)         # (iteration, vertices after the remesh)
     remesh_refused: int = 0            # remeshes given up (the remesher's result or its intersections refused)
     remesh_skipped: int = 0            # remesh points where the triangles were still the remesher's (none done)
+    touch_ups: int = 0                 # remesh points where only patches around a few small angles were remeshed
     intersections: list = dataclass_field(default_factory=list)    # (iteration, intersecting faces found there)
     repairs: int = 0                   # intersections repaired
     rollbacks: int = 0                 # intersections undone by going back to the last safe mesh
@@ -264,11 +265,13 @@ class ShapeGradientFlow:
         """Remesh and check; False when the sign guard rolled the mesh back (the flow must stop).  The sign
         guard looks before the remesh (a flow that already cut a part is not worth remeshing) and after it
         (the remesher's collapses can cut a voxel-thin tip too).  Where the triangles are still near the
-        remesher's (:func:`.remesh.needs_remesh`: a surface that moved a fraction of a voxel keeps them), the
-        remesh is skipped and the mesh only checked."""
-        if self.settings.remesh_when_drifted and not needs_remesh(self.state.x, self.ops.faces,
-                                                                  self.stages.edge_length):
-            self.stats.remesh_skipped += 1
+        remesher's (:func:`.remesh.drift`: a surface that moved a fraction of a voxel keeps them), the remesh is
+        skipped and the mesh only checked; where only a few angles got small, patches around them are remeshed
+        (:func:`.remesh.touch_up`)."""
+        how = drift(self.state.x, self.ops.faces, self.stages.edge_length) if self.settings.remesh_when_drifted \
+            else "always"
+        if how is None or (how == "angles" and self._touch_up()):
+            self.stats.remesh_skipped += how is None
             self._guard(it)
             back = self.signs.check(it, self.state.x, self.ops) if self.signs is not None else None
         else:
@@ -280,6 +283,17 @@ class ShapeGradientFlow:
             self._set_mesh(*back)
             return False
         return True
+
+    def _touch_up(self) -> bool:
+        """Remesh patches around the few small angles (held tips kept); False when the whole mesh needs it."""
+        t0 = time.perf_counter()
+        keep = remesh_keep(self.ops, self.state.geo, self.h, self.carve)
+        out = touch_up(self.state.x, self.ops.faces, self.stages.edge_length, keep)
+        if out is not None:
+            self._set_mesh(out[0], MeshOperators(out[1], len(out[0])))
+            self.stats.touch_ups += 1
+        self.timings["remesh"] += time.perf_counter() - t0
+        return out is not None
 
     def _remesh_and_guard(self, it: int) -> None:
         """Remesh toward the target edge length, then make sure no faces intersect (repair or roll back)."""
@@ -424,6 +438,7 @@ class ShapeGradientFlow:
             "stages": [dict(r) for r in self.stages.starts],
             "remesh_refused": int(stats.remesh_refused),
             "remesh_skipped": int(stats.remesh_skipped),
+            "remesh_touched_up": int(stats.touch_ups),
             "intersections": [list(r) for r in stats.intersections],
             "intersection_repairs": int(stats.repairs),
             "intersection_rollbacks": int(stats.rollbacks),

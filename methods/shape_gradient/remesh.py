@@ -4,7 +4,8 @@ Split edges longer than 4/3 ℓ, collapse those shorter than 4/5 ℓ, flip towar
 project back onto the mesh as it was: the surface keeps its shape while its triangles stay near ℓ, so a sphere
 shrinking onto a bunny gains vertices where it must reach into the ears and never stretches or crumples.
 The result is checked — one closed, consistently oriented genus-0 surface — and refused otherwise (the flow
-then keeps its mesh).  Vertices passed as ``keep`` are the remesher's feature vertices: never collapsed or moved
+then keeps its mesh).  A mesh whose edges are still the remesher's but which has a few small angles is *touched up*
+instead (:func:`touch_up`): only patches around those triangles are remeshed, their rims held.  Vertices passed as ``keep`` are the remesher's feature vertices: never collapsed or moved
 (the flow passes the held tips of sharply convex parts, which the collapses otherwise shorten on a thin limb).
 """
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from geometry.topology import is_sphere_like
 
-__all__ = ["remesh", "is_sphere_like", "needs_remesh"]
+__all__ = ["remesh", "is_sphere_like", "needs_remesh", "drift", "touch_up", "smallest_angle"]
 
 #: a periodic remesh is due when more than this share of the edges is longer than 4/3 of the target (what the
 #: remesher splits) ...
@@ -25,6 +26,17 @@ LONG_EDGE_SHARE = 0.01
 SHORT_EDGE_SHARE = 0.2
 #: ... or a triangle has an angle below this many degrees
 MIN_ANGLE_DEGREES = 30.0
+#: a touch-up remeshes the triangles with an angle below this (a margin over :data:`MIN_ANGLE_DEGREES`: a patch
+#: remeshed only up to it leaves its neighbours just above it) ...
+TOUCH_UP_ANGLE_DEGREES = 33.0
+#: ... with this many rings of faces around them (a narrower patch's held rim makes slivers of its own) ...
+TOUCH_UP_RINGS = 3
+#: ... and again, up to this many passes, while an angle below MIN_ANGLE_DEGREES is left
+TOUCH_UP_PASSES = 3
+#: a mesh with more than this share of its faces to touch up is remeshed whole
+TOUCH_UP_MAX_SHARE = 0.01
+#: the remesher's rounds on a touched-up patch (a patch is small: the rounds cost nothing)
+TOUCH_UP_ROUNDS = 3
 
 
 def _botsch(V: np.ndarray, F: np.ndarray, iterations: int, edge_length: float, gpytoolbox, closed: bool = False,
@@ -77,20 +89,121 @@ def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iteratio
     return U, G
 
 
-def needs_remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float) -> bool:
-    """Whether the mesh has drifted from the isotropic mesh the remesher makes: more than :data:`LONG_EDGE_SHARE`
-    of its edges longer than 4/3 ``edge_length`` (the remesher's split threshold), more than
-    :data:`SHORT_EDGE_SHARE` shorter than 4/5 of it (its collapse threshold: a shrinking surface), or an angle below
-    :data:`MIN_ANGLE_DEGREES`.  A flow whose surface moves a fraction of a voxel keeps its triangles; a remesh
-    of such a mesh moves every vertex a little and costs as much as several iterations, for nothing."""
-    P = vertices[faces]
-    E = np.stack([P[:, 2] - P[:, 1], P[:, 0] - P[:, 2], P[:, 1] - P[:, 0]], axis=1)     # edge opposite corner k
-    L2 = np.einsum("fkd,fkd->fk", E, E)
-    if np.mean(L2 > (4.0 / 3.0 * edge_length) ** 2) > LONG_EDGE_SHARE:   # each edge counted from both faces
-        return True
-    if np.mean(L2 < (0.8 * edge_length) ** 2) > SHORT_EDGE_SHARE:
-        return True
+def _face_smallest_angles(vertices: np.ndarray, faces: np.ndarray, E=None, L2=None) -> np.ndarray:
+    """Each face's smallest corner angle, in degrees."""
+    if E is None:
+        E, L2 = _edges(vertices, faces)
     # the angle at corner k: cos = −(e_{k+1} · e_{k+2}) / (|e_{k+1}| |e_{k+2}|)
     dots = -np.einsum("fkd,fkd->fk", np.roll(E, -1, axis=1), np.roll(E, -2, axis=1))
-    cos = dots / np.sqrt(np.roll(L2, -1, axis=1) * np.roll(L2, -2, axis=1))
-    return bool(np.nanmax(cos) > np.cos(np.radians(MIN_ANGLE_DEGREES)))
+    cos = np.nanmax(dots / np.sqrt(np.roll(L2, -1, axis=1) * np.roll(L2, -2, axis=1)), axis=1)
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def _edges(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the edge opposite each corner, F×3×3; their squared lengths, F×3)."""
+    P = vertices[faces]
+    E = np.stack([P[:, 2] - P[:, 1], P[:, 0] - P[:, 2], P[:, 1] - P[:, 0]], axis=1)
+    return E, np.einsum("fkd,fkd->fk", E, E)
+
+
+def smallest_angle(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """The mesh's smallest corner angle, in degrees."""
+    return float(_face_smallest_angles(vertices, faces).min()) if len(faces) else 180.0
+
+
+def drift(vertices: np.ndarray, faces: np.ndarray, edge_length: float) -> str | None:
+    """How the mesh has drifted from the isotropic mesh the remesher makes: ``"edges"`` when more than
+    :data:`LONG_EDGE_SHARE` of its edges are longer than 4/3 ``edge_length`` (the remesher's split threshold) or
+    more than :data:`SHORT_EDGE_SHARE` shorter than 4/5 of it (its collapse threshold: a shrinking surface);
+    ``"angles"`` when only some triangle has an angle below :data:`MIN_ANGLE_DEGREES`; None when it has not.  A
+    flow whose surface moves a fraction of a voxel keeps its triangles; a remesh of such a mesh moves every vertex
+    a little and costs as much as several iterations, for nothing."""
+    E, L2 = _edges(vertices, faces)
+    if np.mean(L2 > (4.0 / 3.0 * edge_length) ** 2) > LONG_EDGE_SHARE:   # each edge counted from both faces
+        return "edges"
+    if np.mean(L2 < (0.8 * edge_length) ** 2) > SHORT_EDGE_SHARE:
+        return "edges"
+    return "angles" if _face_smallest_angles(vertices, faces, E, L2).min() < MIN_ANGLE_DEGREES else None
+
+
+def needs_remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float) -> bool:
+    """Whether the mesh has drifted from the remesher's isotropic mesh at all (:func:`drift`)."""
+    return drift(vertices, faces, edge_length) is not None
+
+
+def touch_up(vertices: np.ndarray, faces: np.ndarray, edge_length: float, keep: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(vertices, faces, the kept vertices' new indices) with the triangles that have an angle below
+    :data:`TOUCH_UP_ANGLE_DEGREES` remeshed in patches (:data:`TOUCH_UP_RINGS` rings of faces around them, the
+    patches' rims and ``keep`` held), pass after pass while an angle below :data:`MIN_ANGLE_DEGREES` is left; None
+    when that does not clear them, when more than :data:`TOUCH_UP_MAX_SHARE` of the faces would be touched (the
+    caller remeshes the whole mesh), or when the result is not sphere-like.  On a mesh of half a million faces a
+    few triangles under 30° are always there; remeshing it whole for them costs seconds."""
+    x = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    keep = np.zeros(0, dtype=np.int64) if keep is None else np.asarray(keep, dtype=np.int64)
+    for _ in range(TOUCH_UP_PASSES):
+        small = _face_smallest_angles(x, f)
+        if small.min() >= MIN_ANGLE_DEGREES:
+            break
+        bad = small < TOUCH_UP_ANGLE_DEGREES
+        if bad.mean() > TOUCH_UP_MAX_SHARE:
+            return None
+        out = _remesh_patches(x, f, bad, edge_length, keep)
+        if out is None:
+            return None
+        x, f, keep = out
+    else:
+        if smallest_angle(x, f) < MIN_ANGLE_DEGREES:
+            return None
+    if not np.isfinite(x).all() or not is_sphere_like(f, len(x)):
+        return None
+    return x, f, keep
+
+
+def _remesh_patches(x: np.ndarray, f: np.ndarray, bad: np.ndarray, edge_length: float, keep: np.ndarray):
+    """One touch-up pass: the faces within :data:`TOUCH_UP_RINGS` rings of the ``bad`` ones remeshed as one open
+    mesh, its rim vertices and ``keep`` held (the remesher's feature vertices: they come first in its output), and
+    stitched back in place of the patch.  (vertices, faces, keep's new indices), or None."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import gpytoolbox
+
+    grown = np.zeros(len(x), dtype=bool)
+    grown[f[bad].ravel()] = True
+    for _ in range(TOUCH_UP_RINGS):
+        grown[f[grown[f].any(axis=1)].ravel()] = True
+    in_patch = grown[f].all(axis=1)
+    patch = f[in_patch]
+    used = np.unique(patch)
+    local = np.full(len(x), -1, dtype=np.int64)
+    local[used] = np.arange(len(used))
+    pf = local[patch]
+    # the rim: the patch's boundary edges (those on one patch face) and their vertices
+    e = np.sort(np.concatenate([pf[:, [0, 1]], pf[:, [1, 2]], pf[:, [2, 0]]]), axis=1)
+    key = e[:, 0] * len(used) + e[:, 1]
+    k_sorted = np.sort(key)
+    once = np.ones(len(k_sorted), dtype=bool)
+    once[1:] &= k_sorted[1:] != k_sorted[:-1]
+    once[:-1] &= k_sorted[:-1] != k_sorted[1:]
+    rim = np.unique(np.concatenate([k_sorted[once] // len(used), k_sorted[once] % len(used)]))
+    held_local = np.unique(np.concatenate([rim, local[keep][local[keep] >= 0]]))
+    try:
+        U, G = _botsch(x[used], pf.astype(np.int32), TOUCH_UP_ROUNDS, float(edge_length), gpytoolbox, True,
+                       held_local)
+    except ValueError:
+        return None
+    U, G = np.asarray(U, dtype=np.float64), np.asarray(G, dtype=np.int64)
+    n_held = len(held_local)
+    if len(U) < n_held or not np.array_equal(U[:n_held], x[used[held_local]]):   # the rim must stay put
+        return None
+    # stitched: every vertex outside the patch's interior keeps its place (renumbered), the new interior appended
+    stays = np.ones(len(x), dtype=bool)
+    stays[used] = False
+    stays[used[held_local]] = True
+    new_index = np.full(len(x), -1, dtype=np.int64)
+    new_index[stays] = np.arange(int(stays.sum()))
+    to_new = np.concatenate([new_index[used[held_local]], int(stays.sum()) + np.arange(len(U) - n_held)])
+    X = np.concatenate([x[stays], U[n_held:]])
+    F = np.concatenate([new_index[f[~in_patch]], to_new[G]])
+    return X, F, new_index[keep]

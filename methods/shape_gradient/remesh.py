@@ -15,7 +15,7 @@ import warnings
 
 import numpy as np
 
-from geometry.topology import is_sphere_like
+from geometry.topology import edge_face_counts, is_sphere_like
 
 __all__ = ["remesh", "is_sphere_like", "needs_remesh", "drift", "touch_up", "smallest_angle"]
 
@@ -179,14 +179,8 @@ def _remesh_patches(x: np.ndarray, f: np.ndarray, bad: np.ndarray, edge_length: 
     local = np.full(len(x), -1, dtype=np.int64)
     local[used] = np.arange(len(used))
     pf = local[patch]
-    # the rim: the patch's boundary edges (those on one patch face) and their vertices
-    e = np.sort(np.concatenate([pf[:, [0, 1]], pf[:, [1, 2]], pf[:, [2, 0]]]), axis=1)
-    key = e[:, 0] * len(used) + e[:, 1]
-    k_sorted = np.sort(key)
-    once = np.ones(len(k_sorted), dtype=bool)
-    once[1:] &= k_sorted[1:] != k_sorted[:-1]
-    once[:-1] &= k_sorted[:-1] != k_sorted[1:]
-    rim = np.unique(np.concatenate([k_sorted[once] // len(used), k_sorted[once] % len(used)]))
+    edges, on_faces = edge_face_counts(pf, len(used))       # the rim: the patch's edges on one patch face only
+    rim = np.unique(edges[on_faces == 1])
     held_local = np.unique(np.concatenate([rim, local[keep][local[keep] >= 0]]))
     try:
         U, G = _botsch(x[used], pf.astype(np.int32), TOUCH_UP_ROUNDS, float(edge_length), gpytoolbox, True,

@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from . import compiled, kernels
 from .arrays import unique_ints
 from .curvature import fit_ring, tangent_frames_t
-from .mesh import lumped_vertex_areas, one_ring
+from .mesh import lumped_vertex_areas, padded_from_pairs
 from .topology import edges_unique
 
 __all__ = [
@@ -324,27 +324,36 @@ class MeshOperators:
         self.faces_t = np.ascontiguousarray(faces.T)
         self.n_vertices = V = int(n_vertices)
         F = len(faces)
-        rows = np.repeat(faces, 3, axis=1).ravel()          # entry 9f + 3i + j is (faces[f,i], faces[f,j])
-        cols = np.tile(faces, (1, 3)).ravel()
-        key = rows * V + cols
-        uniq = unique_ints(key)
+        # the pattern of K: the diagonal and both directions of every edge, keys row·V + col in CSR order
+        e = edges_unique(faces).astype(np.int64, copy=False)
+        self._edges = e
+        upper = e[:, 0] * V + e[:, 1]                        # sorted (edges_unique is lexicographic)
+        uniq = unique_ints(np.concatenate([np.arange(V, dtype=np.int64) * (V + 1), upper, e[:, 1] * V + e[:, 0]]))
         self._nnz = len(uniq)
         r, c = uniq // V, uniq % V
         self._indices = c.astype(np.int32)
         self._indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=V))]).astype(np.int32)
         self._diag_slot = np.flatnonzero(r == c)
+        upper_slot = np.searchsorted(uniq, upper)
         # K is symmetric: assemble the 6 distinct corner products of each face (rows of _PAIRS, faces
         # along the row) onto the slot of the upper-triangle entry (min, max), then copy it to (max, min)
-        self._slot6 = np.searchsorted(uniq, np.concatenate(
-            [np.minimum(faces[:, i], faces[:, j]) * V + np.maximum(faces[:, i], faces[:, j]) for i, j in _PAIRS]))
-        self._mirror = np.searchsorted(uniq, np.minimum(r, c) * V + np.maximum(r, c))
+        self._slot6 = np.concatenate(
+            [self._diag_slot[faces[:, i]] if i == j else
+             upper_slot[np.searchsorted(upper, np.minimum(faces[:, i], faces[:, j]) * V
+                                        + np.maximum(faces[:, i], faces[:, j]))] for i, j in _PAIRS])
+        mirror = np.empty(self._nnz, dtype=np.int64)         # each entry's upper-triangle twin
+        mirror[self._diag_slot] = self._diag_slot
+        mirror[upper_slot] = upper_slot
+        mirror[np.searchsorted(uniq, e[:, 1] * V + e[:, 0])] = upper_slot
+        self._mirror = mirror
         #: (V, F) vertex-face incidence (ones): sums face quantities onto vertices
         self.incidence = sp.csr_matrix((np.ones(3 * F), (faces.ravel(), np.repeat(np.arange(F), 3))),
                                        shape=(V, F))
         #: (V, 3F) scatter of per-corner values stored corner-major (k·F + f) onto the vertices
         self.corner_scatter = sp.csr_matrix((np.ones(3 * F), (self.faces_t.ravel(), np.arange(3 * F))),
                                             shape=(V, 3 * F))
-        self.ring = one_ring(faces, V)                   # (V, W) padded with −1
+        self.ring = padded_from_pairs(np.concatenate([e[:, 0], e[:, 1]]), np.concatenate([e[:, 1], e[:, 0]]), V)
+        #                                                  the 1-ring (V, W) padded with −1 (geometry.mesh.one_ring)
         self.ring_valid = self.ring >= 0
         self.ring_weight = self.ring_valid.astype(float)
         self.ring_count = self.ring_valid.sum(1)
@@ -357,9 +366,7 @@ class MeshOperators:
 
     @property
     def edges(self) -> np.ndarray:
-        """Unique undirected edges (E, 2), ``e[:, 0] < e[:, 1]`` (computed on first use)."""
-        if getattr(self, "_edges", None) is None:
-            self._edges = edges_unique(self.faces)
+        """Unique undirected edges (E, 2), ``e[:, 0] < e[:, 1]``, in lexicographic order."""
         return self._edges
 
     # ---------------------------------------------------------------- per-configuration geometry

@@ -17,7 +17,7 @@ import numpy as np
 
 from geometry.topology import edge_face_counts, is_sphere_like
 
-__all__ = ["remesh", "is_sphere_like", "needs_remesh", "drift", "touch_up", "smallest_angle"]
+__all__ = ["remesh", "is_sphere_like", "drift", "touch_up", "smallest_angle"]
 
 #: a periodic remesh is due when more than this share of the edges is longer than 4/3 of the target (what the
 #: remesher splits) ...
@@ -124,11 +124,6 @@ def drift(vertices: np.ndarray, faces: np.ndarray, edge_length: float) -> str | 
     if np.mean(L2 < (0.8 * edge_length) ** 2) > SHORT_EDGE_SHARE:
         return "edges"
     return "angles" if _face_smallest_angles(vertices, faces, E, L2).min() < MIN_ANGLE_DEGREES else None
-
-
-def needs_remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float) -> bool:
-    """Whether the mesh has drifted from the remesher's isotropic mesh at all (:func:`drift`)."""
-    return drift(vertices, faces, edge_length) is not None
 
 
 def touch_up(vertices: np.ndarray, faces: np.ndarray, edge_length: float, keep: np.ndarray | None = None

@@ -5,8 +5,9 @@ project back onto the mesh as it was: the surface keeps its shape while its tria
 shrinking onto a bunny gains vertices where it must reach into the ears and never stretches or crumples.
 The result is checked — one closed, consistently oriented genus-0 surface — and refused otherwise (the flow
 then keeps its mesh).  A mesh whose edges are still the remesher's but which has a few small angles is *touched up*
-instead (:func:`touch_up`): only patches around those triangles are remeshed, their rims held.  Vertices passed as ``keep`` are the remesher's feature vertices: never collapsed or moved
-(the flow passes the held tips of sharply convex parts, which the collapses otherwise shorten on a thin limb).
+instead (:func:`touch_up`): only patches around those triangles are remeshed, their rims held.  Vertices passed as
+``keep`` are the remesher's feature vertices: never collapsed or moved (the flow passes the held tips of sharply
+convex parts, which the collapses otherwise shorten on a thin limb).
 """
 
 from __future__ import annotations

@@ -267,6 +267,21 @@ def mesh_facts(mesh) -> dict:
             "components": 0 if empty else int(m.n_face_components)}
 
 
+def corner_angles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The interior angle at each corner of each triangle (F, 3), in degrees; a face with a zero-length edge gets
+    0° at the affected corners.  atan2(|a×b|, a·b) is accurate for tiny and near-180° angles, unlike arccos."""
+    t = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
+    out = np.empty((len(t), 3))
+    for k in range(3):
+        a = t[:, (k + 1) % 3] - t[:, k]
+        b = t[:, (k + 2) % 3] - t[:, k]
+        na = np.linalg.norm(a, axis=1)
+        nb = np.linalg.norm(b, axis=1)
+        ang = np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.einsum("ij,ij->i", a, b)))
+        out[:, k] = np.where((na > 0) & (nb > 0), ang, 0.0)
+    return out
+
+
 def padded_from_pairs(i: np.ndarray, j: np.ndarray, n: int, max_width: int | None = None) -> np.ndarray:
     """Padded neighbour array (n, W) from directed pairs i → j; empty slots are −1.
 

@@ -195,3 +195,14 @@ def test_one_ring_of_a_tetrahedron_and_an_icosahedron():
     assert ring.shape == (12, 5) and (ring >= 0).all()                     # every vertex: valence 5
     for i in range(12):
         assert set(ring[i]) == set(ico.vertex_neighbors[i])
+
+
+def test_corner_angles_against_known_triangles():
+    from geometry.mesh import corner_angles
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0.5, np.sqrt(3) / 2, 0], [0, 1, 0], [2, 0, 0]], float)
+    f = np.array([[0, 1, 2], [0, 1, 3], [0, 0, 1]])             # equilateral, right isosceles, degenerate
+    a = corner_angles(v, f)
+    np.testing.assert_allclose(a[0], [60, 60, 60], atol=1e-12)
+    np.testing.assert_allclose(a[1], [90, 45, 45], atol=1e-12)
+    assert a[2, 0] == a[2, 1] == 0.0                            # a zero-length edge: 0° at its corners

@@ -12,7 +12,7 @@ import numpy as np
 
 from geometry.arrays import unique_ints
 from geometry.intersections import self_intersection_pairs
-from geometry.mesh import scored_mesh
+from geometry.mesh import corner_angles, scored_mesh
 from geometry.topology import edge_adjacent_face_pairs, edge_face_counts
 
 __all__ = [
@@ -89,17 +89,7 @@ def triangle_angles(vertices, faces: np.ndarray | None = None) -> np.ndarray:
         The angle at each face's corners; a face with a zero-length edge gets 0° at the affected corners.
     """
     m = scored_mesh(vertices, faces)
-    t = m.vertices[m.faces]
-    out = np.empty((len(t), 3))
-    for k in range(3):
-        a = t[:, (k + 1) % 3] - t[:, k]
-        b = t[:, (k + 2) % 3] - t[:, k]
-        na = np.linalg.norm(a, axis=1)
-        nb = np.linalg.norm(b, axis=1)
-        # atan2(|a×b|, a·b) is accurate for tiny and near-180° angles, unlike arccos
-        ang = np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.einsum("ij,ij->i", a, b)))
-        out[:, k] = np.where((na > 0) & (nb > 0), ang, 0.0)
-    return out
+    return corner_angles(m.vertices, m.faces)
 
 
 def quality_metrics(vertices, faces: np.ndarray | None = None) -> dict:

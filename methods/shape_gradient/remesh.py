@@ -16,6 +16,7 @@ import warnings
 
 import numpy as np
 
+from geometry.mesh import corner_angles
 from geometry.topology import edge_face_counts, is_sphere_like
 
 __all__ = ["remesh", "is_sphere_like", "drift", "touch_up", "smallest_angle"]
@@ -90,26 +91,16 @@ def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iteratio
     return U, G
 
 
-def _face_smallest_angles(vertices: np.ndarray, faces: np.ndarray, E=None, L2=None) -> np.ndarray:
-    """Each face's smallest corner angle, in degrees."""
-    if E is None:
-        E, L2 = _edges(vertices, faces)
-    # the angle at corner k: cos = −(e_{k+1} · e_{k+2}) / (|e_{k+1}| |e_{k+2}|)
-    dots = -np.einsum("fkd,fkd->fk", np.roll(E, -1, axis=1), np.roll(E, -2, axis=1))
-    cos = np.nanmax(dots / np.sqrt(np.roll(L2, -1, axis=1) * np.roll(L2, -2, axis=1)), axis=1)
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
-
-
-def _edges(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(the edge opposite each corner, F×3×3; their squared lengths, F×3)."""
+def _edge_lengths2(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The squared lengths of each face's three edges (F, 3)."""
     P = vertices[faces]
-    E = np.stack([P[:, 2] - P[:, 1], P[:, 0] - P[:, 2], P[:, 1] - P[:, 0]], axis=1)
-    return E, np.einsum("fkd,fkd->fk", E, E)
+    E = P[:, [1, 2, 0]] - P
+    return np.einsum("fkd,fkd->fk", E, E)
 
 
 def smallest_angle(vertices: np.ndarray, faces: np.ndarray) -> float:
     """The mesh's smallest corner angle, in degrees."""
-    return float(_face_smallest_angles(vertices, faces).min()) if len(faces) else 180.0
+    return float(corner_angles(vertices, faces).min()) if len(faces) else 180.0
 
 
 def drift(vertices: np.ndarray, faces: np.ndarray, edge_length: float) -> str | None:
@@ -119,12 +110,12 @@ def drift(vertices: np.ndarray, faces: np.ndarray, edge_length: float) -> str | 
     ``"angles"`` when only some triangle has an angle below :data:`MIN_ANGLE_DEGREES`; None when it has not.  A
     flow whose surface moves a fraction of a voxel keeps its triangles; a remesh of such a mesh moves every vertex
     a little and costs as much as several iterations, for nothing."""
-    E, L2 = _edges(vertices, faces)
+    L2 = _edge_lengths2(vertices, faces)
     if np.mean(L2 > (4.0 / 3.0 * edge_length) ** 2) > LONG_EDGE_SHARE:   # each edge counted from both faces
         return "edges"
     if np.mean(L2 < (0.8 * edge_length) ** 2) > SHORT_EDGE_SHARE:
         return "edges"
-    return "angles" if _face_smallest_angles(vertices, faces, E, L2).min() < MIN_ANGLE_DEGREES else None
+    return "angles" if smallest_angle(vertices, faces) < MIN_ANGLE_DEGREES else None
 
 
 def touch_up(vertices: np.ndarray, faces: np.ndarray, edge_length: float, keep: np.ndarray | None = None
@@ -138,8 +129,8 @@ def touch_up(vertices: np.ndarray, faces: np.ndarray, edge_length: float, keep: 
     x = np.ascontiguousarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     keep = np.zeros(0, dtype=np.int64) if keep is None else np.asarray(keep, dtype=np.int64)
+    small = corner_angles(x, f).min(axis=1)                 # each face's smallest angle
     for _ in range(TOUCH_UP_PASSES):
-        small = _face_smallest_angles(x, f)
         if small.min() >= MIN_ANGLE_DEGREES:
             break
         bad = small < TOUCH_UP_ANGLE_DEGREES
@@ -148,10 +139,11 @@ def touch_up(vertices: np.ndarray, faces: np.ndarray, edge_length: float, keep: 
         out = _remesh_patches(x, f, bad, edge_length, keep)
         if out is None:
             return None
-        x, f, keep = out
-    else:
-        if smallest_angle(x, f) < MIN_ANGLE_DEGREES:
-            return None
+        x, f, keep, outside = out
+        # the faces outside the patches come first, unchanged: only the patches' angles are new
+        small = np.concatenate([small[outside], corner_angles(x, f[int(outside.sum()):]).min(axis=1)])
+    if small.min() < MIN_ANGLE_DEGREES:
+        return None
     if not np.isfinite(x).all() or not is_sphere_like(f, len(x)):
         return None
     return x, f, keep
@@ -160,7 +152,8 @@ def touch_up(vertices: np.ndarray, faces: np.ndarray, edge_length: float, keep: 
 def _remesh_patches(x: np.ndarray, f: np.ndarray, bad: np.ndarray, edge_length: float, keep: np.ndarray):
     """One touch-up pass: the faces within :data:`TOUCH_UP_RINGS` rings of the ``bad`` ones remeshed as one open
     mesh, its rim vertices and ``keep`` held (the remesher's feature vertices: they come first in its output), and
-    stitched back in place of the patch.  (vertices, faces, keep's new indices), or None."""
+    stitched back in place of the patch.  (vertices, faces — those outside the patch first, in their order —,
+    keep's new indices, the mask of the faces outside the patch), or None."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         import gpytoolbox
@@ -196,4 +189,4 @@ def _remesh_patches(x: np.ndarray, f: np.ndarray, bad: np.ndarray, edge_length: 
     to_new = np.concatenate([new_index[used[held_local]], int(stays.sum()) + np.arange(len(U) - n_held)])
     X = np.concatenate([x[stays], U[n_held:]])
     F = np.concatenate([new_index[f[~in_patch]], to_new[G]])
-    return X, F, new_index[keep]
+    return X, F, new_index[keep], ~in_patch
